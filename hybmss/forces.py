@@ -1,0 +1,203 @@
+"""Energies, forces and exact Hessians in plain NumPy: the readable reference.
+
+Springs ([G20] eq. 5.1): energy ``½ k (l − l0)²`` with ``l = |x_b − x_a|``; force on a
+``f_a = k (x_b − x_a)(1 − l0/l)``; Hessian block ``K = k [(1 − l0/l) I + (l0/l) d dᵀ]`` with
+``d = (x_b − x_a)/l``, entering as ``[[K, −K], [−K, K]]``.
+
+Volume term (SPEC §3): per cell ``V' = a · (b × c)`` with a, b, c the averaged edge vectors
+``a = Σ_c s_{c,1} x_c`` (s = ±1/4), and
+``W = Vc κ/2 J²``, ``J = (V' − Vc)/Vc`` (``quadratic``, [G20] eq. 5.8) or
+``W = Vc κ/2 q²``, ``q = (V'² − Vc²)/(2 Vc²)`` (``squared``).
+The force is the exact negative gradient ``f_c = −W'(V') ∂V'/∂x_c`` with
+``∂V'/∂x_c = s_{c,1} (b×c) + s_{c,2} (c×a) + s_{c,3} (a×b)``.  [G20] eq. 5.16 prints this
+gradient without the factor 1/4 of s; the exact gradient of the energy has it (tested by finite
+differences), which is what makes the static and implicit solvers consistent with the energy.
+The Hessian is ``W'' ∇V'∇V'ᵀ + W' ∇²V'`` where ∇²V' couples corners through the cross-product
+matrices ``∂²V'/∂a∂b = −[c]×``, ``∂²V'/∂a∂c = [b]×``, ``∂²V'/∂b∂c = −[a]×``.
+
+Gravity: energy ``−Σ m_a g · x_a``, force ``m_a g``, no Hessian.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from .lattice import VOLUME_SIGNS
+from .system import System
+
+
+# ------------------------------------------------------------------------------------ springs
+def spring_energy_forces(x, a, b, k, l0):
+    """Energy and forces (n, 3) of springs (a, b, k, l0) at positions ``x``."""
+    d = x[b] - x[a]
+    l = np.sqrt(np.einsum("ij,ij->i", d, d))
+    stretch = l - l0
+    energy = 0.5 * np.dot(k, stretch * stretch)
+    fa = (k * (1.0 - l0 / l))[:, None] * d
+    f = np.zeros_like(x)
+    np.add.at(f, a, fa)
+    np.add.at(f, b, -fa)
+    return energy, f
+
+
+def spring_hessian_blocks(x, a, b, k, l0):
+    """3×3 blocks K (s, 3, 3) with the spring Hessian ``[[K, −K], [−K, K]]``."""
+    d = x[b] - x[a]
+    l = np.sqrt(np.einsum("ij,ij->i", d, d))
+    u = d / l[:, None]
+    r = l0 / l
+    K = (k * r)[:, None, None] * np.einsum("si,sj->sij", u, u)
+    K += (k * (1.0 - r))[:, None, None] * np.eye(3)[None]
+    return K
+
+
+# ------------------------------------------------------------------------------------ volume
+def cell_abc(x, cells):
+    """Averaged edge vectors (m, 3, 3): ``abc[:, 0] = a``, ``[:, 1] = b``, ``[:, 2] = c``."""
+    return np.einsum("cd,mci->mdi", VOLUME_SIGNS, x[cells])
+
+
+def cell_volumes(x, cells):
+    abc = cell_abc(x, cells)
+    return np.einsum("mi,mi->m", abc[:, 0], np.cross(abc[:, 1], abc[:, 2]))
+
+
+def _volume_law(V, V0, kappa, form):
+    """W, W'(V), W''(V) per cell for the volume-energy ``form``."""
+    if form == "quadratic":
+        J = (V - V0) / V0
+        return 0.5 * kappa * V0 * J * J, kappa * J, np.full_like(V, kappa) / V0
+    if form == "squared":
+        q = (V * V - V0 * V0) / (2.0 * V0 * V0)
+        W = 0.5 * kappa * V0 * q * q
+        dW = kappa * q * V / V0
+        d2W = kappa * (V * V / V0**3 + q / V0)
+        return W, dW, d2W
+    raise ValueError(f"unknown volume energy {form!r}")
+
+
+def volume_gradients(abc):
+    """∂V'/∂x_c for every cell corner: (m, 8, 3)."""
+    a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
+    dV = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)  # (m, 3 axes, 3)
+    return np.einsum("cd,mdi->mci", VOLUME_SIGNS, dV)
+
+
+def volume_energy_forces(x, cells, V0, kappa, form="quadratic"):
+    abc = cell_abc(x, cells)
+    V = np.einsum("mi,mi->m", abc[:, 0], np.cross(abc[:, 1], abc[:, 2]))
+    W, dW, _ = _volume_law(V, V0, kappa, form)
+    g = volume_gradients(abc)  # (m, 8, 3)
+    f = np.zeros_like(x)
+    np.add.at(f, cells.ravel(), (-dW[:, None, None] * g).reshape(-1, 3))
+    return float(W.sum()), f
+
+
+def _skew(v):
+    """Cross-product matrices [v]× of (m, 3) vectors: (m, 3, 3)."""
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def volume_hessian_blocks(x, cells, V0, kappa, form="quadratic"):
+    """Per-cell Hessian blocks (m, 8, 8, 3, 3) of the volume energy."""
+    abc = cell_abc(x, cells)
+    V = np.einsum("mi,mi->m", abc[:, 0], np.cross(abc[:, 1], abc[:, 2]))
+    _, dW, d2W = _volume_law(V, V0, kappa, form)
+    g = volume_gradients(abc)
+    H = d2W[:, None, None, None, None] * np.einsum("mpi,mqj->mpqij", g, g)
+    a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
+    M = np.zeros((len(cells), 3, 3, 3, 3))  # M[m, d, e] = ∂²V/∂(axis d)∂(axis e)
+    M[:, 0, 1], M[:, 0, 2], M[:, 1, 2] = -_skew(c), _skew(b), -_skew(a)
+    M[:, 1, 0] = np.swapaxes(M[:, 0, 1], -1, -2)
+    M[:, 2, 0] = np.swapaxes(M[:, 0, 2], -1, -2)
+    M[:, 2, 1] = np.swapaxes(M[:, 1, 2], -1, -2)
+    H += dW[:, None, None, None, None] * np.einsum("pd,qe,mdeij->mpqij", VOLUME_SIGNS, VOLUME_SIGNS, M)
+    return H
+
+
+# ------------------------------------------------------------------------------------ totals
+def energy_forces(system: System, x: np.ndarray):
+    """Total internal + gravity energy and forces.
+
+    Returns ``(energy, forces, parts)`` where ``parts`` holds each term's energy.
+    """
+    e_s, f = spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
+    parts = {"springs": e_s}
+    if system.has_volume:
+        e_v, f_v = volume_energy_forces(x, system.vol_cells, system.vol_V0, system.kappa, system.volume_energy)
+        f += f_v
+        parts["volume"] = e_v
+    if system.gravity is not None:
+        parts["gravity"] = -float(np.dot(system.mass, x @ system.gravity))
+        f += system.mass[:, None] * system.gravity[None, :]
+    extra = system.extras.get("forces")
+    if extra is not None:  # non-conservative correction forces of a variant (no energy)
+        f += extra(x)
+    return sum(parts.values()), f, parts
+
+
+def internal_forces(system: System, x: np.ndarray) -> np.ndarray:
+    """Springs + volume (+ variant corrections) forces, without gravity."""
+    _, f, _ = energy_forces(system, x)
+    if system.gravity is not None:
+        f -= system.mass[:, None] * system.gravity[None, :]
+    return f
+
+
+@lru_cache(maxsize=8)
+def _pattern(n, a_bytes, b_bytes, cells_bytes):
+    """CSR pattern of the Hessian and the map from COO entries to CSR slots."""
+    a = np.frombuffer(a_bytes, dtype=np.int64)
+    b = np.frombuffer(b_bytes, dtype=np.int64)
+    cells = np.frombuffer(cells_bytes, dtype=np.int64).reshape(-1, 8)
+    rows, cols = _coo_indices(n, a, b, cells)
+    N = 3 * n
+    key = rows * N + cols
+    uniq, inv = np.unique(key, return_inverse=True)
+    r, c = np.divmod(uniq, N)
+    indptr = np.zeros(N + 1, dtype=np.int64)
+    np.add.at(indptr, r + 1, 1)
+    indptr = np.cumsum(indptr)
+    return indptr, c.astype(np.int64), inv
+
+
+def _coo_indices(n, a, b, cells):
+    ij = np.arange(3)
+    # springs: blocks (a,a), (b,b), (a,b), (b,a), each 3×3
+    pa = 3 * a[:, None] + ij[None]
+    pb = 3 * b[:, None] + ij[None]
+    def block(p, q):
+        return (np.repeat(p[:, :, None], 3, 2).reshape(-1), np.repeat(q[:, None, :], 3, 1).reshape(-1))
+    blocks = [block(pa, pa), block(pb, pb), block(pa, pb), block(pb, pa)]
+    rows = [r for r, _ in blocks]
+    cols = [c for _, c in blocks]
+    if len(cells):
+        pc = 3 * cells[:, :, None] + ij[None, None]  # (m, 8, 3)
+        R = np.broadcast_to(pc[:, :, None, :, None], (len(cells), 8, 8, 3, 3)).reshape(-1)
+        C = np.broadcast_to(pc[:, None, :, None, :], (len(cells), 8, 8, 3, 3)).reshape(-1)
+        rows.append(R)
+        cols.append(C)
+    return np.concatenate(rows), np.concatenate(cols)
+
+
+def hessian(system: System, x: np.ndarray) -> sp.csr_matrix:
+    """Exact Hessian (3n × 3n, CSR) of the total energy at ``x``."""
+    n = system.n
+    cells = system.vol_cells if system.has_volume else np.zeros((0, 8), dtype=np.int64)
+    indptr, indices, inv = _pattern(
+        n, system.spring_a.tobytes(), system.spring_b.tobytes(), np.ascontiguousarray(cells).tobytes()
+    )
+    K = spring_hessian_blocks(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
+    parts = [K.reshape(-1), K.reshape(-1), -K.reshape(-1), -K.reshape(-1)]
+    if len(cells):
+        H = volume_hessian_blocks(x, cells, system.vol_V0, system.kappa, system.volume_energy)
+        parts.append(H.reshape(-1))
+    data = np.bincount(inv, weights=np.concatenate(parts), minlength=len(indices))
+    return sp.csr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))

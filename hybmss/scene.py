@@ -1,0 +1,437 @@
+"""Scenes as plain, frozen data.
+
+A :class:`Scene` says everything both solvers (the mass-spring system and the FEM reference)
+need: the body (a set of cubic cells of edge ``le`` on a regular grid), the material
+(E, ν, ρ), the mass-spring model variant, the plates (particle sets with a prescribed motion),
+gravity and damping.  It holds no arrays that could be mutated: a voxel mask is stored as packed
+bytes, so a scene is hashable and has a stable :meth:`Scene.digest`.
+
+Variants of a scene come from :func:`dataclasses.replace`; every constructor validates its
+values and raises :class:`ValueError` naming the parameter and its allowed range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009")
+"""Known mass-spring model variants (SPEC §4)."""
+
+VOLUME_ENERGIES = ("quadratic", "squared")
+"""Volume-energy forms: ``quadratic`` is κ/2 Vc ((V'−Vc)/Vc)² ([G20] eq. 5.8);
+``squared`` is κ/2 Vc ((V'²−Vc²)/(2Vc²))², the alternative [G20] mentions."""
+
+MOTIONS = ("clamped", "translate", "rotate", "slide")
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return value
+
+
+def _vec3(name: str, value) -> tuple[float, float, float]:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    return (float(arr[0]), float(arr[1]), float(arr[2]))
+
+
+# --------------------------------------------------------------------------------------------
+# Body
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Body:
+    """A set of cubic cells of edge ``le`` on an ``nx × ny × nz`` grid.
+
+    ``mask_bits`` is ``None`` for a full box, else the C-ordered boolean mask of active cells
+    packed with :func:`numpy.packbits`.  Use :meth:`box` and :meth:`from_mask` to build one.
+    """
+
+    shape: tuple[int, int, int]
+    le: float
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mask_bits: bytes | None = None
+
+    def __post_init__(self):
+        shape = tuple(int(n) for n in self.shape)
+        if len(shape) != 3 or min(shape) < 1:
+            raise ValueError(f"body shape must be 3 positive cell counts (nx, ny, nz), got {self.shape!r}")
+        object.__setattr__(self, "shape", shape)
+        le = _finite("le", self.le)
+        if le <= 0:
+            raise ValueError(f"le (cell edge) must be > 0, got {le}")
+        object.__setattr__(self, "le", le)
+        object.__setattr__(self, "origin", _vec3("origin", self.origin))
+        if self.mask_bits is not None:
+            mask = self.mask
+            if not mask.any():
+                raise ValueError("body is empty: the voxel mask has no active cell (need at least 1)")
+
+    @classmethod
+    def box(cls, nx: int, ny: int, nz: int, le: float, origin=(0.0, 0.0, 0.0)) -> "Body":
+        """A full box of ``nx × ny × nz`` cells."""
+        for name, n in (("nx", nx), ("ny", ny), ("nz", nz)):
+            if int(n) < 1:
+                raise ValueError(f"{name} must be >= 1 (body cannot be empty), got {n}")
+        return cls((nx, ny, nz), le, origin)
+
+    @classmethod
+    def from_mask(cls, mask, le: float, origin=(0.0, 0.0, 0.0)) -> "Body":
+        """A body from a boolean voxel array ``mask[i, j, k]`` (True = cell present)."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.ndim != 3 or mask.size == 0:
+            raise ValueError(f"mask must be a non-empty 3D boolean array, got shape {mask.shape}")
+        if not mask.any():
+            raise ValueError("body is empty: the voxel mask has no active cell (need at least 1)")
+        if mask.all():
+            return cls(mask.shape, le, origin)
+        return cls(mask.shape, le, origin, np.packbits(mask.ravel()).tobytes())
+
+    @property
+    def mask(self) -> np.ndarray:
+        """Boolean array of active cells, shape ``(nx, ny, nz)``."""
+        n = int(np.prod(self.shape))
+        if self.mask_bits is None:
+            return np.ones(self.shape, dtype=bool)
+        bits = np.unpackbits(np.frombuffer(self.mask_bits, dtype=np.uint8), count=n)
+        return bits.astype(bool).reshape(self.shape)
+
+    @property
+    def is_box(self) -> bool:
+        return self.mask_bits is None
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.mask.sum())
+
+    @property
+    def cell_volume(self) -> float:
+        return self.le**3
+
+    @property
+    def volume(self) -> float:
+        return self.n_cells * self.cell_volume
+
+    @property
+    def size(self) -> tuple[float, float, float]:
+        """Bounding-box edge lengths (m)."""
+        return tuple(n * self.le for n in self.shape)  # type: ignore[return-value]
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.asarray(self.origin)
+        return lo, lo + np.asarray(self.shape) * self.le
+
+    def to_dict(self) -> dict:
+        d = {"shape": list(self.shape), "le": self.le, "origin": list(self.origin)}
+        if self.mask_bits is not None:
+            d["mask_hex"] = self.mask_bits.hex()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Body":
+        bits = bytes.fromhex(d["mask_hex"]) if d.get("mask_hex") else None
+        return cls(tuple(d["shape"]), d["le"], tuple(d.get("origin", (0, 0, 0))), bits)
+
+
+# --------------------------------------------------------------------------------------------
+# Material and model
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear-elastic constants: Young's modulus E (Pa), Poisson ratio ν, density ρ."""
+
+    E: float
+    nu: float
+    rho: float = 1000.0
+
+    def __post_init__(self):
+        E = _finite("E", self.E)
+        nu = _finite("nu", self.nu)
+        rho = _finite("rho", self.rho)
+        if E <= 0:
+            raise ValueError(f"E (Young's modulus) must be > 0 Pa, got {E}")
+        if not (-1.0 < nu < 0.5):
+            raise ValueError(f"nu (Poisson ratio) must lie in the open interval (-1, 0.5), got {nu}")
+        if rho < 0:
+            raise ValueError(f"rho (density) must be >= 0 kg/m^3, got {rho}")
+        object.__setattr__(self, "E", E)
+        object.__setattr__(self, "nu", nu)
+        object.__setattr__(self, "rho", rho)
+
+    @property
+    def G(self) -> float:
+        """Shear modulus G = E / (2(1+ν))."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def lam(self) -> float:
+        """Lamé λ = E ν / ((1+ν)(1−2ν))."""
+        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+
+    @property
+    def K(self) -> float:
+        """Bulk modulus K = E / (3(1−2ν))."""
+        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
+
+
+@dataclass(frozen=True)
+class Model:
+    """A mass-spring model variant (SPEC §4).
+
+    - ``name``: one of :data:`MODELS`.
+    - ``A``: face-diagonal to inner-diagonal stiffness ratio kf/kc (SPEC §2).  ``None`` takes the
+      variant's default: 1 for ``hybmss`` and ``hybmss-cf``, 0 for ``hybmss-fd`` (which requires
+      0), unused by ``baudet2009``.
+    - ``e_form``: build spring constants from [G20] eq. 5.12 in terms of E (assumes E = 5G/2,
+      exact only at ν = 1/4).  Kept to test how the publication's tables were produced;
+      the default builds them from G = E/(2(1+ν)), which is right at every ν.
+    - ``volume_energy``: ``quadratic`` ([G20]) or ``squared`` (the alternative it mentions).
+    """
+
+    name: str = "hybmss"
+    A: float | None = None
+    e_form: bool = False
+    volume_energy: str = "quadratic"
+
+    def __post_init__(self):
+        if self.name not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)}; got {self.name!r}")
+        A = self.A
+        if A is None:
+            A = 0.0 if self.name == "hybmss-fd" else 1.0
+        A = _finite("A", A)
+        if A < 0:
+            raise ValueError(f"A (face/inner diagonal stiffness ratio) must be >= 0, got {A}")
+        if self.name == "hybmss-fd" and A != 0.0:
+            raise ValueError(f"A must be 0 for model hybmss-fd (no face diagonals), got {A}")
+        object.__setattr__(self, "A", A)
+        if self.volume_energy not in VOLUME_ENERGIES:
+            raise ValueError(
+                f"volume_energy must be one of {', '.join(VOLUME_ENERGIES)}; got {self.volume_energy!r}"
+            )
+
+
+# --------------------------------------------------------------------------------------------
+# Plates (prescribed-displacement boundary conditions)
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Motion:
+    """Prescribed motion of a plate's particles, as a function of the load factor s ∈ [0, 1].
+
+    - ``clamped``: u = 0 in all components.
+    - ``translate``: u = s · ``displacement`` in all components.
+    - ``rotate``: rigid rotation by s · ``angle`` (rad) about ``axis`` through ``center``
+      (``None``: the plate's reference centroid), plus s · ``displacement``; all components.
+      The rotation is exact (finite), not linearized.
+    - ``slide``: only the ``components`` listed are prescribed, to s · ``displacement``; the
+      others are free (a frictionless plate).
+    """
+
+    kind: str = "clamped"
+    displacement: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    angle: float = 0.0
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    center: tuple[float, float, float] | None = None
+    components: tuple[int, ...] = (0, 1, 2)
+
+    def __post_init__(self):
+        if self.kind not in MOTIONS:
+            raise ValueError(f"motion kind must be one of {', '.join(MOTIONS)}; got {self.kind!r}")
+        object.__setattr__(self, "displacement", _vec3("displacement", self.displacement))
+        object.__setattr__(self, "angle", _finite("angle", self.angle))
+        axis = np.asarray(_vec3("axis", self.axis))
+        if np.linalg.norm(axis) == 0:
+            raise ValueError("axis must be a non-zero vector")
+        object.__setattr__(self, "axis", tuple(float(a) for a in axis / np.linalg.norm(axis)))
+        if self.center is not None:
+            object.__setattr__(self, "center", _vec3("center", self.center))
+        comps = tuple(sorted(set(int(c) for c in self.components)))
+        if not comps or any(c not in (0, 1, 2) for c in comps):
+            raise ValueError(f"components must be a non-empty subset of (0, 1, 2), got {self.components!r}")
+        if self.kind != "slide":
+            comps = (0, 1, 2)
+        object.__setattr__(self, "components", comps)
+
+    @property
+    def constrained(self) -> np.ndarray:
+        """Boolean (3,) mask of prescribed components."""
+        m = np.zeros(3, dtype=bool)
+        m[list(self.components)] = True
+        return m
+
+    def displacement_at(self, X: np.ndarray, s: float = 1.0) -> np.ndarray:
+        """Prescribed displacement (n, 3) of reference points ``X`` at load factor ``s``.
+
+        Components that are not prescribed (``slide``) are returned as 0.
+        """
+        X = np.asarray(X, dtype=float).reshape(-1, 3)
+        u = np.zeros_like(X)
+        d = s * np.asarray(self.displacement)
+        if self.kind == "clamped":
+            return u
+        if self.kind in ("translate", "slide"):
+            u[:] = d
+            if self.kind == "slide":
+                u[:, ~self.constrained] = 0.0
+            return u
+        # rotate
+        c = np.asarray(self.center) if self.center is not None else X.mean(axis=0)
+        R = rotation_matrix(self.axis, s * self.angle)
+        return (X - c) @ R.T + c - X + d
+
+
+def rotation_matrix(axis, angle: float) -> np.ndarray:
+    """Rodrigues' rotation matrix for a unit ``axis`` and ``angle`` (rad)."""
+    k = np.asarray(axis, dtype=float)
+    k = k / np.linalg.norm(k)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * (K @ K)
+
+
+@dataclass(frozen=True)
+class Region:
+    """Particles selected by reference position.
+
+    ``face`` selects a face of the body's bounding box, e.g. ``"z+"`` (top), ``"z-"``
+    (bottom), ``"x-"``.  ``lo``/``hi`` additionally restrict to a box (inclusive, with a tolerance
+    of 1e-9 le).  With ``face=None`` only the box is used.
+    """
+
+    face: str | None = None
+    lo: tuple[float, float, float] | None = None
+    hi: tuple[float, float, float] | None = None
+
+    def __post_init__(self):
+        if self.face is not None and self.face not in {a + s for a in "xyz" for s in "+-"}:
+            raise ValueError(f"face must be one of x-, x+, y-, y+, z-, z+; got {self.face!r}")
+        if self.face is None and self.lo is None and self.hi is None:
+            raise ValueError("a region needs a face or a box (lo, hi)")
+        if self.lo is not None:
+            object.__setattr__(self, "lo", _vec3("lo", self.lo))
+        if self.hi is not None:
+            object.__setattr__(self, "hi", _vec3("hi", self.hi))
+
+    def select(self, X: np.ndarray, body: Body) -> np.ndarray:
+        """Boolean mask over reference points ``X`` (n, 3) of ``body`` in this region."""
+        X = np.asarray(X, dtype=float).reshape(-1, 3)
+        tol = 1e-9 * body.le
+        sel = np.ones(len(X), dtype=bool)
+        if self.face is not None:
+            ax = "xyz".index(self.face[0])
+            lo, hi = body.bounds
+            target = hi[ax] if self.face[1] == "+" else lo[ax]
+            sel &= np.abs(X[:, ax] - target) <= tol
+        if self.lo is not None:
+            sel &= np.all(X >= np.asarray(self.lo) - tol, axis=1)
+        if self.hi is not None:
+            sel &= np.all(X <= np.asarray(self.hi) + tol, axis=1)
+        return sel
+
+
+@dataclass(frozen=True)
+class Plate:
+    """A named rigid plate: the particles of ``region`` follow ``motion``."""
+
+    name: str
+    region: Region
+    motion: Motion = field(default_factory=Motion)
+
+    def __post_init__(self):
+        if not self.name:
+            raise ValueError("plate name must be a non-empty string")
+
+
+# --------------------------------------------------------------------------------------------
+# Scene
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Scene:
+    """Everything a solver needs, as plain data.
+
+    ``gravity`` is the acceleration vector (m/s²).  ``damping`` is the mass-proportional damping
+    coefficient c (1/s) of the dynamic solvers: the damping force on particle a is
+    ``−c m_a v_a`` (static solves ignore it).
+    """
+
+    body: Body
+    material: Material
+    model: Model = field(default_factory=Model)
+    plates: tuple[Plate, ...] = ()
+    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    damping: float = 0.0
+    name: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "plates", tuple(self.plates))
+        object.__setattr__(self, "gravity", _vec3("gravity", self.gravity))
+        damping = _finite("damping", self.damping)
+        if damping < 0:
+            raise ValueError(f"damping must be >= 0 (1/s), got {damping}")
+        object.__setattr__(self, "damping", damping)
+        names = [p.name for p in self.plates]
+        if len(set(names)) != len(names):
+            raise ValueError(f"plate names must be unique, got {names}")
+
+    @property
+    def has_gravity(self) -> bool:
+        return any(g != 0.0 for g in self.gravity) and self.material.rho > 0
+
+    def to_dict(self) -> dict:
+        """JSON-ready nested dict (stable key order)."""
+        d = dataclasses.asdict(self)
+        d["body"] = self.body.to_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Scene":
+        plates = tuple(
+            Plate(
+                p["name"],
+                Region(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in p["region"].items()}),
+                Motion(
+                    **{k: (tuple(v) if isinstance(v, list) else v) for k, v in p["motion"].items()}
+                ),
+            )
+            for p in d.get("plates", ())
+        )
+        return cls(
+            body=Body.from_dict(d["body"]),
+            material=Material(**d["material"]),
+            model=Model(**d["model"]),
+            plates=plates,
+            gravity=tuple(d.get("gravity", (0, 0, 0))),
+            damping=d.get("damping", 0.0),
+            name=d.get("name", ""),
+        )
+
+    def digest(self) -> str:
+        """SHA-256 of the canonical JSON form: equal scenes have equal digests."""
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def with_material(self, **kw) -> "Scene":
+        return dataclasses.replace(self, material=dataclasses.replace(self.material, **kw))
+
+    def with_model(self, **kw) -> "Scene":
+        return dataclasses.replace(self, model=dataclasses.replace(self.model, **kw))
+
+
+def parse_mesh(text: str) -> tuple[int, int, int]:
+    """Parse ``"10x10x10"`` into ``(10, 10, 10)``."""
+    parts = str(text).lower().split("x")
+    try:
+        dims = tuple(int(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"mesh must look like NXxNYxNZ (e.g. 10x10x10), got {text!r}") from None
+    if len(dims) != 3 or min(dims) < 1:
+        raise ValueError(f"mesh must be three positive integers NXxNYxNZ, got {text!r}")
+    return dims  # type: ignore[return-value]
