@@ -27,7 +27,7 @@ VOLUME_ENERGIES = ("quadratic", "squared")
 """Volume-energy forms: ``quadratic`` is κ/2 Vc ((V'−Vc)/Vc)² ([G20] eq. 5.8);
 ``squared`` is κ/2 Vc ((V'²−Vc²)/(2Vc²))², the alternative [G20] mentions."""
 
-MOTIONS = ("clamped", "translate", "rotate", "slide")
+MOTIONS = ("clamped", "translate", "rotate", "slide", "affine")
 
 
 def _finite(name: str, value: float) -> float:
@@ -234,6 +234,9 @@ class Motion:
       The rotation is exact (finite), not linearized.
     - ``slide``: only the ``components`` listed are prescribed, to s · ``displacement``; the
       others are free (a frictionless plate).
+    - ``affine``: u = s · (``gradient`` · (X − ``center``) + ``displacement``), all components;
+      ``gradient`` is the 3×3 displacement gradient, row-major (``center`` None: the origin).
+      Homogeneous deformations (patch tests, simple shear) are imposed this way.
     """
 
     kind: str = "clamped"
@@ -242,8 +245,16 @@ class Motion:
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     center: tuple[float, float, float] | None = None
     components: tuple[int, ...] = (0, 1, 2)
+    gradient: tuple[float, ...] | None = None
 
     def __post_init__(self):
+        if self.gradient is not None:
+            g = np.asarray(self.gradient, dtype=float).reshape(-1)
+            if g.shape != (9,) or not np.all(np.isfinite(g)):
+                raise ValueError(f"gradient must be 9 finite numbers (3x3 row-major), got {self.gradient!r}")
+            object.__setattr__(self, "gradient", tuple(float(v) for v in g))
+        elif self.kind == "affine":
+            raise ValueError("an affine motion needs a gradient (3x3 displacement gradient)")
         if self.kind not in MOTIONS:
             raise ValueError(f"motion kind must be one of {', '.join(MOTIONS)}; got {self.kind!r}")
         object.__setattr__(self, "displacement", _vec3("displacement", self.displacement))
@@ -283,6 +294,10 @@ class Motion:
             if self.kind == "slide":
                 u[:, ~self.constrained] = 0.0
             return u
+        if self.kind == "affine":
+            c = np.asarray(self.center) if self.center is not None else np.zeros(3)
+            Hg = np.asarray(self.gradient).reshape(3, 3)
+            return s * ((X - c) @ Hg.T) + d
         # rotate
         c = np.asarray(self.center) if self.center is not None else X.mean(axis=0)
         R = rotation_matrix(self.axis, s * self.angle)

@@ -1,0 +1,67 @@
+"""Effective elastic moduli of a model variant, measured with the static solver (SPEC §8).
+
+- Uniaxial stress: a cube of ``n³`` cells between two frictionless plates (``slide``, only u_z
+  prescribed), lateral faces free, one corner pinned in x and y and a second corner in y (no
+  rigid motion).  The top plate pulls by ε H and 2ε H; with the plate forces F(ε), F(2ε),
+  ``E_eff = (4 F(ε) − F(2ε)) / (2 ε A)`` (Richardson: cancels the O(ε²) geometric term), and
+  ``ν_eff`` likewise from the mean lateral displacement of the x faces.  Only tension is used:
+  under compression the zero-energy modes of ``hybmss-fd`` buckle (its homogeneous compressed
+  state is a saddle of the energy).
+- Simple shear: every boundary particle follows ``u = γ (z − z0) e_x``; interior particles are
+  free.  For a homogeneous state the stored energy is ``W = ½ G γ² V`` (det F = 1 exactly), so
+  ``G_eff = 2 W / (γ² V)``.
+
+For ``hybmss`` and ``hybmss-fd`` these equal E, ν and E/(2(1+ν)) for every ν in (−1, ½)
+(SPEC §8); ``hybmss-cf`` gives ν_eff = 1/4; the E-form of [G20] eq. 5.12 does not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scene import Body, Material, Model, Motion, Plate, Region, Scene
+from .solvers import solve_static
+
+
+def uniaxial_scene(model: Model, material: Material, strain: float = 1e-4, n: int = 2, le: float = 1.0) -> Scene:
+    H = n * le
+    plates = (
+        Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
+        Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, strain * H), components=(2,))),
+        Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0)), Motion("slide", components=(0, 1))),
+        Plate("pin_x", Region(lo=(H, 0, 0), hi=(H, 0, 0)), Motion("slide", components=(1,))),
+    )
+    return Scene(Body.box(n, n, n, le), material, model, plates, name="uniaxial")
+
+
+def shear_scene(model: Model, material: Material, gamma: float = 1e-4, n: int = 3, le: float = 1.0) -> Scene:
+    grad = (0.0, 0.0, gamma, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    motion = Motion("affine", gradient=grad)
+    plates = tuple(Plate(f, Region(f), motion) for f in ("x-", "x+", "y-", "y+", "z-", "z+"))
+    return Scene(Body.box(n, n, n, le), material, model, plates, name="simple-shear")
+
+
+def _uniaxial(scene: Scene):
+    r = solve_static(scene)
+    n, le = scene.body.shape[0], scene.body.le
+    X, u = r.X, r.u
+    xm = np.isclose(X[:, 0], 0.0)
+    xp = np.isclose(X[:, 0], n * le)
+    lateral = (u[xp, 0].mean() - u[xm, 0].mean()) / (n * le)
+    return r.reactions["top"].force[2], lateral
+
+
+def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: int = 2) -> dict:
+    """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``."""
+    le = 1.0
+    H = n * le
+    A = H * H
+    base = uniaxial_scene(model, material, strain, n, le)
+    F1, lat1 = _uniaxial(base)
+    F2, lat2 = _uniaxial(uniaxial_scene(model, material, 2.0 * strain, n, le))
+    E_eff = (4.0 * F1 - F2) / (2.0 * strain * A)
+    nu_eff = -(4.0 * lat1 - lat2) / (2.0 * strain)
+    sh = solve_static(shear_scene(model, material, strain, 3, le))
+    W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)
+    G_eff = 2.0 * W / (strain**2 * sh.volume0)
+    return {"E_eff": float(E_eff), "nu_eff": float(nu_eff), "G_eff": float(G_eff)}

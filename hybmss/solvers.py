@@ -1,0 +1,379 @@
+"""Static equilibrium and implicit (backward) Euler for the mass-spring system.
+
+Both minimize a potential with Newton's method on the exact Hessian (:func:`hybmss.forces.hessian`)
+over the free degrees of freedom, with a sparse direct solve and a backtracking line search:
+
+- static: ``Π(x) = E_springs + E_volume − Σ m g·x``; the plates' prescribed motion is applied in
+  load steps ``s ∈ (0, 1]`` whose size adapts (halved when Newton fails, grown when it converges
+  quickly).  Converged when ``‖f_free‖₂ ≤ rtol · max(|R|, |m g|)`` with R the largest plate
+  reaction (``rtol = 1e-8``).
+- implicit Euler with mass-proportional damping c (1/s): ``M (1 + c dt)(x − x_n)/dt² − M v_n/dt =
+  f(x)``, i.e. the minimizer of the incremental potential
+  ``Φ(x) = (1 + c dt)/(2 dt²) (x − x̃)ᵀ M (x − x̃) + Π(x)``, ``x̃ = x_n + dt v_n/(1 + c dt)``.
+
+**Zero-energy modes.**  Without face diagonals (``hybmss-fd``) the cubic lattice has hourglass
+modes, so the constrained Hessian can be singular even with clamped plates.  When the
+factorization fails or the Newton direction is not a descent direction, the solver adds a
+Levenberg–Marquardt shift ``μ·mean(diag H)·I`` (μ from 1e-10, ×100 until it works).  The shift
+only damps the step; convergence is still judged on the unshifted force residual, so the result is
+an exact equilibrium in which the zero-energy modes keep their initial (zero) amplitude.  Each
+result records in ``info['regularized_steps']`` how often this happened.
+
+**Loss of stability.**  For ν < 1/4, κ < 0 and the volume energy is unbounded below under
+dilation; at large tension the equilibrium disappears.  When the load step cannot be reduced
+further, :class:`StaticSolveError` reports the load factor reached and the smallest eigenvalue of
+the constrained Hessian there, naming this cause when κ < 0.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .forces import cell_volumes, energy_forces, hessian
+from .result import Reaction, Result, reaction_from_nodal
+from .scene import Scene
+from .system import System, build
+
+
+class StaticSolveError(RuntimeError):
+    """The static solver could not reach equilibrium; the message says where and why."""
+
+
+@dataclass(frozen=True)
+class StaticOptions:
+    rtol: float = 1e-8
+    max_iter: int = 20
+    initial_steps: int = 1
+    min_step: float = 1.0 / 4096
+    max_step: float = 1.0
+    line_search: bool = True
+
+
+@dataclass(frozen=True)
+class ImplicitOptions:
+    dt: float = 1e-2
+    steps: int = 1000
+    ramp_time: float = 1.0
+    until_rest: bool = True
+    rest_tol: float = 1e-6
+    """Stop when the largest particle speed · dt falls below rest_tol · le (after the ramp)."""
+    rtol: float = 1e-8
+    max_iter: int = 30
+
+    def __post_init__(self):
+        if not (self.dt > 0):
+            raise ValueError(f"dt (time step) must be > 0 s, got {self.dt}")
+        if self.steps < 1:
+            raise ValueError(f"steps must be >= 1, got {self.steps}")
+        if self.ramp_time < 0:
+            raise ValueError(f"ramp_time must be >= 0 s, got {self.ramp_time}")
+
+
+def smooth_ramp(t: float, T: float) -> float:
+    """Load factor of a plate moved over ``T`` seconds: ``s = (1 − cos(π t/T))/2``, then 1.
+
+    Zero velocity at both ends, so the plate starts and stops without a jolt."""
+    if T <= 0 or t >= T:
+        return 1.0
+    if t <= 0:
+        return 0.0
+    return 0.5 * (1.0 - np.cos(np.pi * t / T))
+
+
+# --------------------------------------------------------------------------------- helpers
+def _all_cell_volumes(system: System, x: np.ndarray) -> np.ndarray:
+    return cell_volumes(x, system.lattice.cells)
+
+
+def plate_reactions(system: System, x: np.ndarray, f_total: np.ndarray) -> dict[str, Reaction]:
+    """Force each plate exerts on the body: ``−(f_int + m g)`` summed over its particles,
+    i.e. minus the total force (springs, volume, gravity) on them; torque about its centroid."""
+    out = {}
+    for p in system.plates:
+        out[p.name] = reaction_from_nodal(x[p.particles], -f_total[p.particles])
+    return out
+
+
+def _force_scale(system: System, f_total: np.ndarray) -> float:
+    scale = 0.0
+    for p in system.plates:
+        scale = max(scale, float(np.linalg.norm(f_total[p.particles].sum(axis=0))))
+    if system.gravity is not None:
+        scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
+    return scale
+
+
+def _force_floor(system: System) -> float:
+    """Round-off level of the free residual: 1e-12 · E · le² · √(3n).  A spring force's rounding
+    error is ≈ 1e-16 k le with k ≈ E le, so this floor sits ~4 orders above round-off and far
+    below ``rtol`` times any plate reaction of a loaded body."""
+    return 1e-12 * system.scene.material.E * system.scene.body.le**2 * np.sqrt(3 * system.n)
+
+
+@dataclass
+class _NewtonStats:
+    iterations: int = 0
+    regularized: int = 0
+    line_search_cuts: int = 0
+    history: list = field(default_factory=list)
+
+
+def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
+            inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True):
+    """Minimize Π (+ inertia term) over the free dofs starting from ``x`` (modified in place).
+
+    ``inertia = (w, x_tilde)`` adds ``½ Σ w_a |x_a − x̃_a|²`` (w per particle).
+    Returns (converged, x, f_total, residual_norm, scale).
+    """
+    n = system.n
+    cells = system.lattice.cells
+
+    def potential(xx):
+        e, f, _ = energy_forces(system, xx)
+        if inertia is not None:
+            w, xt = inertia
+            d = xx - xt
+            e += 0.5 * float(np.sum(w[:, None] * d * d))
+            f = f - w[:, None] * d
+        return e, f
+
+    e, f = potential(x)
+    floor = _force_floor(system)
+    best, stalled = np.inf, 0
+    for it in range(max_iter + 1):
+        r = f.ravel()[free]
+        rnorm = float(np.linalg.norm(r))
+        scale = _force_scale(system, f if inertia is None else energy_forces(system, x)[1])
+        stats.history.append(rnorm / scale)
+        if not np.isfinite(rnorm):
+            return False, x, f, rnorm, scale
+        if rnorm <= max(rtol * scale, floor):
+            return True, x, f, rnorm, scale
+        if it == max_iter:
+            break
+        # give up early when the residual has not improved for 6 iterations (unstable state)
+        best, stalled = (rnorm, 0) if rnorm < 0.5 * best else (best, stalled + 1)
+        if stalled >= 6:
+            break
+        H = hessian(system, x)
+        if inertia is not None:
+            H = H + sp.diags(np.repeat(inertia[0], 3))
+        Hff = H[free][:, free].tocsc()
+        dx = None
+        mu = 0.0
+        diag_mean = float(np.abs(Hff.diagonal()).mean())
+        for attempt in range(8):
+            A = Hff if mu == 0.0 else (Hff + sp.identity(Hff.shape[0], format="csc") * (mu * diag_mean))
+            try:
+                with np.errstate(all="ignore"):
+                    cand = _factor(A).solve(r)
+                ok = np.all(np.isfinite(cand)) and float(r @ cand) > 0.0
+            except RuntimeError:  # exactly singular
+                ok = False
+            if ok:
+                dx = cand
+                break
+            mu = 1e-10 if mu == 0.0 else mu * 100.0
+        if dx is None:
+            return False, x, f, rnorm, scale
+        if mu > 0.0:
+            stats.regularized += 1
+        stats.iterations += 1
+        # backtracking line search on the potential, rejecting inverted cells
+        step = np.zeros(3 * n)
+        step[free] = dx
+        step = step.reshape(n, 3)
+        alpha, accepted = 1.0, False
+        slope = float(r @ dx)
+        for _ in range(12):
+            xt = x + alpha * step
+            if np.all(cell_volumes(xt, cells) > 0.0):
+                et, ft = potential(xt)
+                rt = float(np.linalg.norm(ft.ravel()[free]))
+                if (not line_search) or et <= e - 1e-4 * alpha * slope or (
+                    rt < rnorm and abs(et - e) <= 1e-10 * max(abs(e), floor * system.scene.body.le)
+                ):
+                    accepted = True
+                    break
+            alpha *= 0.5
+            stats.line_search_cuts += 1
+        if not accepted:
+            return False, x, f, rnorm, scale
+        x, e, f = xt, et, ft
+    return False, x, f, rnorm, scale
+
+
+def _factor(A):
+    """Sparse LU of a symmetric matrix: symmetric mode with a minimum-degree ordering of A+Aᵀ
+    (3× faster than the default COLAMD on the lattice Hessians)."""
+    return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+
+
+def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray):
+    """First-order guess for a new load step: move the prescribed dofs to ``target`` and the free
+    dofs by the linear response ``δ_f = H_ff⁻¹ (f_f − H_fc δ_c)``.  Returns None if it fails."""
+    H = hessian(system, x).tocsr()
+    delta = (target - x).ravel().copy()
+    delta[free] = 0.0
+    _, f, _ = energy_forces(system, x)
+    rhs = f.ravel()[free] - (H @ delta)[free]
+    try:
+        with np.errstate(all="ignore"):
+            d_f = _factor(H[free][:, free].tocsc()).solve(rhs)
+    except RuntimeError:
+        return None
+    if not np.all(np.isfinite(d_f)):
+        return None
+    delta[free] = d_f
+    return x + delta.reshape(x.shape)
+
+
+def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
+    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m)."""
+    free = ~system.fixed.ravel()
+    Hff = hessian(system, x)[free][:, free]
+    if Hff.shape[0] <= 200:
+        return float(np.linalg.eigvalsh(Hff.toarray())[0])
+    try:
+        vals = spla.eigsh(Hff.tocsc(), k=1, sigma=-1e-3 * abs(Hff.diagonal()).max(), which="LM",
+                          return_eigenvectors=False)
+        return float(vals[0])
+    except Exception:  # pragma: no cover - fall back to a dense solve
+        return float(np.linalg.eigvalsh(Hff.toarray())[0])
+
+
+def _result(system: System, solver: str, x: np.ndarray, f_total: np.ndarray, parts: dict,
+            iterations: int, t0: float, converged: bool, info: dict) -> Result:
+    vols = _all_cell_volumes(system, x)
+    V0 = system.scene.body.volume
+    info = dict(info)
+    info["inverted_cells"] = int(np.count_nonzero(vols <= 0.0))
+    return Result(
+        solver=solver,
+        scene_digest=system.scene.digest(),
+        X=system.X.copy(),
+        u=x - system.X,
+        volume=float(vols.sum()),
+        volume0=float(V0),
+        reactions=plate_reactions(system, x, f_total),
+        energy={k: float(v) for k, v in parts.items()},
+        iterations=int(iterations),
+        wall_time_s=time.perf_counter() - t0,
+        converged=converged,
+        cell_volumes=vols,
+        info=info,
+    )
+
+
+# --------------------------------------------------------------------------------- static
+def solve_static(scene: Scene, options: StaticOptions | None = None, system: System | None = None) -> Result:
+    """Static equilibrium of ``scene`` (solver name ``mss-static``)."""
+    opts = options or StaticOptions()
+    t0 = time.perf_counter()
+    S = system if system is not None else build(scene)
+    if S.extras.get("non_conservative"):
+        raise StaticSolveError(
+            f"model {scene.model.name!r} has non-conservative forces: use its own equilibrium solver"
+        )
+    free = ~S.fixed.ravel()
+    stats = _NewtonStats()
+    x = S.X.copy()
+    s, ds = 0.0, min(opts.max_step, 1.0 / max(1, opts.initial_steps))
+    x_prev, s_prev = None, None
+    load_steps = 0
+    while s < 1.0 - 1e-14:
+        s_new = min(1.0, s + ds)
+        target = S.prescribed(s_new)
+        guess = _tangent_predictor(S, x, target, free)
+        if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
+            guess = x.copy()
+            if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
+                guess += (x - x_prev) * ((s_new - s) / (s - s_prev))
+        guess[S.fixed] = target[S.fixed]
+        ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, None, stats,
+                                             opts.line_search)
+        if ok:
+            load_steps += 1
+            x_prev, s_prev, x, s = x, s, x_new, s_new
+            ds = min(opts.max_step, ds * 1.5)
+            continue
+        ds *= 0.5
+        if ds < opts.min_step:
+            lam = smallest_eigenvalue(S, x)
+            cause = ""
+            if s == 0.0 and lam < 0:
+                cause = ("; the model is not positive definite even at rest (its effective bulk or shear "
+                         "modulus is negative for these constants): no stable equilibrium exists")
+            elif S.kappa < 0 and lam <= 0:
+                cause = (f"; the volume term has kappa={S.kappa:.4g} Pa < 0 (nu < 1/4), unbounded below "
+                         "under dilation: the equilibrium is lost (instability), not a numerical failure")
+            elif lam <= 0:
+                cause = "; the constrained Hessian is not positive definite there (instability or zero-energy modes)"
+            raise StaticSolveError(
+                f"static solve of scene {scene.name or '(unnamed)'} failed at load factor s={s_new:.6g} "
+                f"(last converged s={s:.6g}); smallest eigenvalue of the constrained Hessian at "
+                f"s={s:.6g}: {lam:.4g} N/m{cause}"
+            )
+    e, f, parts = energy_forces(S, x)
+    r = float(np.linalg.norm(f.ravel()[free]))
+    info = {
+        "load_steps": load_steps,
+        "regularized_steps": stats.regularized,
+        "line_search_cuts": stats.line_search_cuts,
+        "residual": r,
+        "relative_residual": r / _force_scale(S, f) if _force_scale(S, f) > 0 else 0.0,
+        "residual_floor": _force_floor(S),
+        "kappa": S.kappa,
+        "springs": int(len(S.spring_k)),
+        "volume_cells": int(len(S.vol_cells)),
+    }
+    return _result(S, "mss-static", x, f, parts, stats.iterations, t0, True, info)
+
+
+# --------------------------------------------------------------------------------- implicit
+def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
+                      system: System | None = None) -> Result:
+    """Backward Euler with Newton per step (solver name ``mss-implicit``).
+
+    The plates follow :func:`smooth_ramp` over ``ramp_time``.  With ``until_rest`` the run stops
+    once the ramp is over and every particle moves less than ``rest_tol · le`` in one step."""
+    opts = options or ImplicitOptions()
+    t0 = time.perf_counter()
+    S = system if system is not None else build(scene)
+    free = ~S.fixed.ravel()
+    dt, c = opts.dt, scene.damping
+    w = S.mass * (1.0 + c * dt) / dt**2
+    if np.any(w[~S.fixed.all(axis=1)] <= 0):
+        raise ValueError("implicit Euler needs a positive mass on every free particle (rho > 0)")
+    x, v = S.X.copy(), np.zeros_like(S.X)
+    stats = _NewtonStats()
+    le = scene.body.le
+    steps_done = 0
+    for n in range(1, opts.steps + 1):
+        t = n * dt
+        target = S.prescribed(smooth_ramp(t, opts.ramp_time))
+        x_tilde = x + dt * v / (1.0 + c * dt)
+        guess = x_tilde.copy()
+        guess[S.fixed] = target[S.fixed]
+        ok, x_new, _, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, (w, x_tilde), stats)
+        if not ok:
+            raise StaticSolveError(
+                f"implicit Euler step {n} (t={t:.4g} s) did not converge: residual {rnorm:.3g} N "
+                f"vs scale {scale:.3g} N; reduce dt={dt} or check for instability (kappa={S.kappa:.4g})"
+            )
+        v = (x_new - x) / dt
+        x = x_new
+        steps_done = n
+        if opts.until_rest and t >= opts.ramp_time and float(np.abs(v).max()) * dt < opts.rest_tol * le:
+            break
+    e, f, parts = energy_forces(S, x)
+    parts = dict(parts)
+    parts["kinetic"] = 0.5 * float(np.sum(S.mass[:, None] * v * v))
+    info = {"steps": steps_done, "dt": dt, "time": steps_done * dt, "newton_iterations": stats.iterations,
+            "regularized_steps": stats.regularized}
+    return _result(S, "mss-implicit", x, f, parts, steps_done, t0, True, info)

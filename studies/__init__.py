@@ -1,0 +1,1 @@
+"""The publication's experiments as declarative scenes, sweeps and the study runner."""

@@ -1,0 +1,86 @@
+"""Static equilibrium and implicit Euler against theory."""
+
+import numpy as np
+import pytest
+
+from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
+from hybmss.solvers import ImplicitOptions, StaticSolveError, simulate_implicit, solve_static
+from hybmss.system import build
+
+
+def compression(n=6, nu=0.3, d=0.2, model="hybmss", side=3.0):
+    le = side / n
+    return Scene(
+        Body.box(n, n, n, le), Material(1e4, nu), Model(model),
+        plates=(Plate("bottom", Region("z-")),
+                Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -d * side)))),
+        name="compression",
+    )
+
+
+@pytest.mark.parametrize("model", ["hybmss", "hybmss-fd", "hybmss-cf"])
+def test_large_compression_converges(model):
+    sc = compression(model=model)
+    r = solve_static(sc)
+    assert r.converged
+    assert r.info["relative_residual"] <= 1e-8
+    assert r.info["inverted_cells"] == 0
+    # global equilibrium: the two plate reactions balance (no body load)
+    F = np.add(r.reactions["top"].force, r.reactions["bottom"].force)
+    assert np.abs(F).max() <= 1e-7 * abs(r.reactions["top"].force[2])
+    # the top plate pushes down on the body, and the plate moved by exactly d·H
+    assert r.reactions["top"].force[2] < 0
+    S = build(sc)
+    top = S.plate("top").particles
+    np.testing.assert_allclose(r.u[top, 2], -0.2 * 3.0, rtol=1e-14)
+
+
+def test_affine_patch_test():
+    """Every boundary particle follows an affine map: the interior follows it exactly, with
+    zero net force on every free particle (linear completeness of the lattice)."""
+    grad = (0.01, 0.002, -0.003, 0.0, -0.004, 0.001, 0.002, 0.0, 0.006)
+    motion = Motion("affine", gradient=grad)
+    faces = ("x-", "x+", "y-", "y+", "z-", "z+")
+    sc = Scene(Body.box(4, 3, 3, 0.5), Material(1e4, 0.35), Model("hybmss"),
+               plates=tuple(Plate(f, Region(f), motion) for f in faces))
+    r = solve_static(sc)
+    expected = r.X @ np.asarray(grad).reshape(3, 3).T
+    np.testing.assert_allclose(r.u, expected, atol=1e-10 * 0.5)
+
+
+def test_whole_body_rotation_costs_nothing():
+    """All faces rotated rigidly by 90°: the equilibrium is the rigid rotation, energy zero."""
+    motion = Motion("rotate", angle=np.pi / 2, axis=(1.0, 1.0, 0.0), center=(0.5, 0.5, 0.5))
+    faces = ("x-", "x+", "y-", "y+", "z-", "z+")
+    sc = Scene(Body.box(3, 3, 3, 1 / 3), Material(1e4, 0.45), Model("hybmss"),
+               plates=tuple(Plate(f, Region(f), motion) for f in faces))
+    r = solve_static(sc)
+    np.testing.assert_allclose(r.u, motion.displacement_at(r.X, 1.0), atol=1e-9)
+    assert abs(r.energy["springs"]) + abs(r.energy.get("volume", 0.0)) <= 1e-12
+    assert r.volume_change == pytest.approx(0.0, abs=1e-12)
+
+
+def test_gravity_cantilever_reaction_balances_weight():
+    sc = Scene(Body.box(2, 2, 8, 0.05), Material(1e6, 0.25), Model("hybmss"),
+               plates=(Plate("clamp", Region("z-")),), gravity=(0.0, -10.0, 0.0))
+    r = solve_static(sc)
+    W = 1000.0 * sc.body.volume * 10.0
+    assert r.reactions["clamp"].force[1] == pytest.approx(W, rel=1e-8)
+
+
+def test_static_instability_is_reported_not_hidden():
+    """E-form springs at ν = −0.5 give a negative effective bulk modulus: no equilibrium."""
+    sc = Scene(Body.box(2, 2, 2, 0.5), Material(1e4, -0.5), Model("hybmss", e_form=True),
+               plates=(Plate("bottom", Region("z-")),
+                       Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, 0.01)))))
+    with pytest.raises(StaticSolveError, match="not positive definite"):
+        solve_static(sc)
+
+
+def test_implicit_euler_settles_to_static_equilibrium():
+    sc = compression(n=3, nu=0.3, d=0.05, side=1.5)
+    sc = Scene(sc.body, sc.material, sc.model, sc.plates, damping=20.0)
+    ref = solve_static(sc)
+    r = simulate_implicit(sc, ImplicitOptions(dt=0.02, steps=2000, ramp_time=0.2, rest_tol=1e-9))
+    assert r.info["steps"] < 2000
+    assert np.abs(r.u - ref.u).max() <= 1e-6 * 1.5
