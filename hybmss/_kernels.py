@@ -1,0 +1,394 @@
+"""Numba stencil kernel of the explicit step (the only module that imports numba).
+
+The lattice is regular, so every spring joins a grid node ``p`` to ``p + o`` for one of the 13
+forward neighbour offsets ``o`` (SPEC §9 "Fast explicit kernel"), and a cell's 8 corners are
+``p + coff[c]``.  All arrays live on the full ``(nx+1)(ny+1)(nz+1)`` grid, flattened in C order,
+with one stiffness row per offset (zero where a spring is absent: free faces, voxel masks and the
+wrap-around pairs of the flattening), so every inner loop is a unit-stride loop that LLVM
+vectorizes (sqrt and division included, ``error_model='numpy'``).  Layouts (built by
+:mod:`hybmss.explicit`):
+
+- ``x, v, X``: (3, N) positions, velocities (at half steps), reference positions;
+- ``K``: (n_off, N) spring constants of the active offsets ``offs`` (n_off,), rest lengths
+  ``l0`` (n_off,) (one per offset: the grid is regular);
+- ``kvol, V0``: (N,) κ and rest volume of the cell whose lowest corner is p (κ = 0 where no cell);
+- ``invm``: (N,) 1/m (0 at absent nodes, which therefore never move); ``gacc`` (3, N) gravity
+  at present nodes.
+
+One step (semi-implicit Euler, damping implicit, see :mod:`hybmss.explicit`):
+
+1. stage A: per spring ``t = k (1 − l0/l) (x_b − x_a)`` stored per offset; per cell
+   ``V' = a·(b×c)``, ``W'(V')`` and the four corner gradients (the other four are their
+   negatives);
+2. stage B: per node ``f = Σ_o t_o[p] − t_o[p − o] + Σ_c ±G_c[p − coff_c]``, then
+   ``v ← (v + dt (f/m + g)) / (1 + c dt)``, ``x ← x + dt v``;
+3. plates: prescribed components ``x = X + u(s(t))`` with the ramp s(t), ``v = Δu/dt``.
+
+The stages are separate functions; a term a scene does not need (volume, gravity, face
+diagonals) is skipped by a test outside the inner loops, so ν = 1/4 costs what hybmss-cf costs.
+``run_parallel`` splits stages A and B into node ranges with ``prange``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+_OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
+
+
+@njit(**_OPTS)
+def ramp(t, T):
+    """Load factor s(t) = ½ (1 − cos(π t / T)) for t < T, then 1 (s = 1 when T ≤ 0)."""
+    if T <= 0.0 or t >= T:
+        return 1.0
+    if t <= 0.0:
+        return 0.0
+    return 0.5 * (1.0 - math.cos(math.pi * t / T))
+
+
+# Every inner loop below runs over 0-based views (``for i in range(n)`` on slices), so that the
+# index is provably non-negative, Numba emits no wrap-around test and LLVM vectorizes the loop.
+
+
+@njit(**_OPTS)
+def springs_stage(x, K, l0, offs, T, F, lo, hi):
+    """Stage A, springs with first node a in [lo, hi): t = k (1 − l0/l)(x_b − x_a) into T,
+    and F[a] = Σ_o t_o[a] (the forces on the first nodes; F[lo:hi] is overwritten)."""
+    N = x.shape[1]
+    for d in range(3):
+        f = F[d, lo:hi]
+        for i in range(hi - lo):
+            f[i] = 0.0
+    for j in range(offs.shape[0]):
+        o = offs[j]
+        L = l0[j]
+        end = min(hi, N - o)
+        if end <= lo:
+            continue
+        n = end - lo
+        xa0 = x[0, lo:end]
+        xa1 = x[1, lo:end]
+        xa2 = x[2, lo:end]
+        xb0 = x[0, lo + o:end + o]
+        xb1 = x[1, lo + o:end + o]
+        xb2 = x[2, lo + o:end + o]
+        k = K[j, lo:end]
+        t0 = T[j, 0, lo:end]
+        t1 = T[j, 1, lo:end]
+        t2 = T[j, 2, lo:end]
+        f0 = F[0, lo:end]
+        f1 = F[1, lo:end]
+        f2 = F[2, lo:end]
+        for i in range(n):
+            dx = xb0[i] - xa0[i]
+            dy = xb1[i] - xa1[i]
+            dz = xb2[i] - xa2[i]
+            l = math.sqrt(dx * dx + dy * dy + dz * dz)
+            c = k[i] * (1.0 - L / l)
+            t0[i] = c * dx
+            t1[i] = c * dy
+            t2[i] = c * dz
+            f0[i] += c * dx
+            f1[i] += c * dy
+            f2[i] += c * dz
+
+
+@njit(**_OPTS)
+def cells_stage(x, kvol, V0, coff, squared, G, F, lo, hi):
+    """Stage A, cells with lowest corner p in [lo, hi): G[g] = (W'/4)(σ1 b×c + σ2 c×a + σ3 a×b)
+    for σ = (+,+,+), (+,+,−), (+,−,+), (+,−,−); adds corner 0's force (+G0) to F[p]."""
+    N = x.shape[1]
+    end = min(hi, N - coff[7])
+    if end <= lo:
+        return
+    n = end - lo
+    o1, o2, o3, o4, o5, o6, o7 = coff[1], coff[2], coff[3], coff[4], coff[5], coff[6], coff[7]
+    X0 = x[0]
+    X1 = x[1]
+    X2 = x[2]
+    p00, p01, p02 = X0[lo:end], X1[lo:end], X2[lo:end]
+    p10, p11, p12 = X0[lo + o1:end + o1], X1[lo + o1:end + o1], X2[lo + o1:end + o1]
+    p20, p21, p22 = X0[lo + o2:end + o2], X1[lo + o2:end + o2], X2[lo + o2:end + o2]
+    p30, p31, p32 = X0[lo + o3:end + o3], X1[lo + o3:end + o3], X2[lo + o3:end + o3]
+    p40, p41, p42 = X0[lo + o4:end + o4], X1[lo + o4:end + o4], X2[lo + o4:end + o4]
+    p50, p51, p52 = X0[lo + o5:end + o5], X1[lo + o5:end + o5], X2[lo + o5:end + o5]
+    p60, p61, p62 = X0[lo + o6:end + o6], X1[lo + o6:end + o6], X2[lo + o6:end + o6]
+    p70, p71, p72 = X0[lo + o7:end + o7], X1[lo + o7:end + o7], X2[lo + o7:end + o7]
+    kv = kvol[lo:end]
+    v0s = V0[lo:end]
+    g00, g01, g02 = G[0, 0, lo:end], G[0, 1, lo:end], G[0, 2, lo:end]
+    g10, g11, g12 = G[1, 0, lo:end], G[1, 1, lo:end], G[1, 2, lo:end]
+    g20, g21, g22 = G[2, 0, lo:end], G[2, 1, lo:end], G[2, 2, lo:end]
+    g30, g31, g32 = G[3, 0, lo:end], G[3, 1, lo:end], G[3, 2, lo:end]
+    f0, f1, f2 = F[0, lo:end], F[1, lo:end], F[2, lo:end]
+    for i in range(n):
+        # averaged edge vectors a (corners with bit 0 set minus without), b (bit 1), c (bit 2)
+        ax = 0.25 * ((p10[i] - p00[i]) + (p30[i] - p20[i]) + (p50[i] - p40[i]) + (p70[i] - p60[i]))
+        ay = 0.25 * ((p11[i] - p01[i]) + (p31[i] - p21[i]) + (p51[i] - p41[i]) + (p71[i] - p61[i]))
+        az = 0.25 * ((p12[i] - p02[i]) + (p32[i] - p22[i]) + (p52[i] - p42[i]) + (p72[i] - p62[i]))
+        bx = 0.25 * ((p20[i] - p00[i]) + (p30[i] - p10[i]) + (p60[i] - p40[i]) + (p70[i] - p50[i]))
+        by = 0.25 * ((p21[i] - p01[i]) + (p31[i] - p11[i]) + (p61[i] - p41[i]) + (p71[i] - p51[i]))
+        bz = 0.25 * ((p22[i] - p02[i]) + (p32[i] - p12[i]) + (p62[i] - p42[i]) + (p72[i] - p52[i]))
+        cx = 0.25 * ((p40[i] - p00[i]) + (p50[i] - p10[i]) + (p60[i] - p20[i]) + (p70[i] - p30[i]))
+        cy = 0.25 * ((p41[i] - p01[i]) + (p51[i] - p11[i]) + (p61[i] - p21[i]) + (p71[i] - p31[i]))
+        cz = 0.25 * ((p42[i] - p02[i]) + (p52[i] - p12[i]) + (p62[i] - p22[i]) + (p72[i] - p32[i]))
+        # A = b×c, B = c×a, C = a×b
+        Ax = by * cz - bz * cy
+        Ay = bz * cx - bx * cz
+        Az = bx * cy - by * cx
+        Bx = cy * az - cz * ay
+        By = cz * ax - cx * az
+        Bz = cx * ay - cy * ax
+        Cx = ay * bz - az * by
+        Cy = az * bx - ax * bz
+        Cz = ax * by - ay * bx
+        V = ax * Ax + ay * Ay + az * Az
+        v0 = v0s[i]
+        if squared:
+            q = (V * V - v0 * v0) / (2.0 * v0 * v0)
+            w = 0.25 * kv[i] * q * V / v0
+        else:
+            w = 0.25 * kv[i] * (V - v0) / v0
+        Ax *= w
+        Ay *= w
+        Az *= w
+        Bx *= w
+        By *= w
+        Bz *= w
+        Cx *= w
+        Cy *= w
+        Cz *= w
+        g00[i] = Ax + Bx + Cx
+        g01[i] = Ay + By + Cy
+        g02[i] = Az + Bz + Cz
+        g10[i] = Ax + Bx - Cx
+        g11[i] = Ay + By - Cy
+        g12[i] = Az + Bz - Cz
+        g20[i] = Ax - Bx + Cx
+        g21[i] = Ay - By + Cy
+        g22[i] = Az - Bz + Cz
+        g30[i] = Ax - Bx - Cx
+        g31[i] = Ay - By - Cy
+        g32[i] = Az - Bz - Cz
+        f0[i] += Ax + Bx + Cx
+        f1[i] += Ay + By + Cy
+        f2[i] += Az + Bz + Cz
+
+
+# Corner c of a cell -> (gradient slot g, sign of the force): f_c = sign · G[g].
+# G0 = σ(+,+,+) corner 7, G1 = (+,+,−) corner 3, G2 = (+,−,+) corner 5, G3 = (+,−,−) corner 1;
+# the corners with di = 0 have σ = −(those), so f_0 = +G0, f_4 = +G1, f_2 = +G2, f_6 = +G3.
+_CORNER_SLOT = np.array([0, 3, 2, 1, 1, 2, 3, 0], dtype=np.int64)
+_CORNER_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+
+
+@njit(**_OPTS)
+def accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, lo, hi):
+    """Stage B on nodes [lo, hi): add the forces on second nodes (−t_o[p − o]) and on cell
+    corners 1..7 to F, then ``v ← (v + dt (F/m + g)) damp``, ``x ← x + dt v``."""
+    for d in range(3):
+        for j in range(offs.shape[0]):
+            o = offs[j]
+            start = max(lo, o)
+            if start >= hi:
+                continue
+            f = F[d, start:hi]
+            t = T[j, d, start - o:hi - o]
+            for i in range(hi - start):
+                f[i] -= t[i]
+        if has_volume:
+            for c in range(1, 8):
+                o = coff[c]
+                start = max(lo, o)
+                if start >= hi:
+                    continue
+                f = F[d, start:hi]
+                g = G[_CORNER_SLOT[c], d, start - o:hi - o]
+                if _CORNER_SIGN[c] > 0.0:
+                    for i in range(hi - start):
+                        f[i] += g[i]
+                else:
+                    for i in range(hi - start):
+                        f[i] -= g[i]
+        f = F[d, lo:hi]
+        xd = x[d, lo:hi]
+        vd = v[d, lo:hi]
+        im = invm[lo:hi]
+        if has_gravity:
+            ga = gacc[d, lo:hi]
+            for i in range(hi - lo):
+                vd[i] = (vd[i] + dt * (f[i] * im[i] + ga[i])) * damp
+                xd[i] += dt * vd[i]
+        else:
+            for i in range(hi - lo):
+                vd[i] = (vd[i] + dt * (f[i] * im[i])) * damp
+                xd[i] += dt * vd[i]
+
+
+@njit(**_OPTS)
+def _rotation(axis, angle, R):
+    k0, k1, k2 = axis[0], axis[1], axis[2]
+    s = math.sin(angle)
+    c1 = 1.0 - math.cos(angle)
+    # R = I + sin K + (1 − cos) K², K the cross-product matrix of the unit axis
+    K = np.array([[0.0, -k2, k1], [k2, 0.0, -k0], [-k1, k0, 0.0]])
+    for i in range(3):
+        for j in range(3):
+            K2 = K[i, 0] * K[0, j] + K[i, 1] * K[1, j] + K[i, 2] * K[2, j]
+            R[i, j] = (1.0 if i == j else 0.0) + s * K[i, j] + c1 * K2
+
+
+@njit(**_OPTS)
+def plate_displacement(X, nodes, kind, disp, axis, center, angle, s, R, u):
+    """u (3, len(nodes)) of one plate at load factor s (same law as Motion.displacement_at)."""
+    if kind == 1:
+        _rotation(axis, s * angle, R)
+        for i in range(nodes.shape[0]):
+            q = nodes[i]
+            r0 = X[0, q] - center[0]
+            r1 = X[1, q] - center[1]
+            r2 = X[2, q] - center[2]
+            for d in range(3):
+                u[d, i] = (R[d, 0] * r0 + R[d, 1] * r1 + R[d, 2] * r2) + center[d] - X[d, q] + s * disp[d]
+    else:
+        for i in range(nodes.shape[0]):
+            for d in range(3):
+                u[d, i] = s * disp[d]
+
+
+@njit(**_OPTS)
+def apply_plates(x, v, X, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle,
+                 s_old, s_new, dt, R, u_old, u_new):
+    for ip in range(pl_ptr.shape[0] - 1):
+        nodes = pl_nodes[pl_ptr[ip]:pl_ptr[ip + 1]]
+        n = nodes.shape[0]
+        uo = u_old[:, :n]
+        un = u_new[:, :n]
+        plate_displacement(X, nodes, pl_kind[ip], pl_disp[ip], pl_axis[ip], pl_center[ip], pl_angle[ip], s_old, R, uo)
+        plate_displacement(X, nodes, pl_kind[ip], pl_disp[ip], pl_axis[ip], pl_center[ip], pl_angle[ip], s_new, R, un)
+        for d in range(3):
+            if pl_mask[ip, d]:
+                for i in range(n):
+                    q = nodes[i]
+                    x[d, q] = X[d, q] + un[d, i]
+                    v[d, q] = (un[d, i] - uo[d, i]) / dt
+
+
+@njit(**_OPTS)
+def find_bad(x, X, limit2):
+    """A node whose position is not finite, else the node of largest displacement if its square
+    exceeds ``limit2``, else −1."""
+    worst = -1
+    wmax = limit2
+    for p in range(x.shape[1]):
+        d0 = x[0, p] - X[0, p]
+        d1 = x[1, p] - X[1, p]
+        d2 = x[2, p] - X[2, p]
+        s = d0 * d0 + d1 * d1 + d2 * d2
+        if not np.isfinite(s):
+            return p
+        if s > wmax:
+            worst = p
+            wmax = s
+    return worst
+
+
+@njit(**_OPTS)
+def run_serial(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm, gacc, has_gravity,
+               dt, damp, ramp_time, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+               pl_angle, step0, nsteps, check_every, limit2, T, G, F):
+    """Advance ``nsteps`` steps from global step ``step0``.  Returns (steps done, bad node or −1)."""
+    N = x.shape[1]
+    R = np.empty((3, 3))
+    nmax = 1
+    for ip in range(pl_ptr.shape[0] - 1):
+        nmax = max(nmax, pl_ptr[ip + 1] - pl_ptr[ip])
+    u_old = np.empty((3, nmax))
+    u_new = np.empty((3, nmax))
+    has_plates = pl_ptr.shape[0] > 1
+    for n in range(nsteps):
+        springs_stage(x, K, l0, offs, T, F, 0, N)
+        if has_volume:
+            cells_stage(x, kvol, V0, coff, squared, G, F, 0, N)
+        accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, 0, N)
+        step = step0 + n
+        if has_plates:
+            s_old = ramp(step * dt, ramp_time)
+            s_new = ramp((step + 1) * dt, ramp_time)
+            apply_plates(x, v, X, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                         pl_angle, s_old, s_new, dt, R, u_old, u_new)
+        if (n + 1) % check_every == 0 or n == nsteps - 1:
+            bad = find_bad(x, X, limit2)
+            if bad >= 0:
+                return n + 1, bad
+    return nsteps, -1
+
+
+@njit(parallel=True, **_OPTS)
+def run_parallel(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm, gacc, has_gravity,
+                 dt, damp, ramp_time, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                 pl_angle, step0, nsteps, check_every, limit2, T, G, F, bounds):
+    """As :func:`run_serial`, stages A and B split over the node ranges ``bounds`` with prange."""
+    nchunks = bounds.shape[0] - 1
+    R = np.empty((3, 3))
+    nmax = 1
+    for ip in range(pl_ptr.shape[0] - 1):
+        nmax = max(nmax, pl_ptr[ip + 1] - pl_ptr[ip])
+    u_old = np.empty((3, nmax))
+    u_new = np.empty((3, nmax))
+    has_plates = pl_ptr.shape[0] > 1
+    for n in range(nsteps):
+        for ch in prange(nchunks):
+            lo = bounds[ch]
+            hi = bounds[ch + 1]
+            springs_stage(x, K, l0, offs, T, F, lo, hi)
+            if has_volume:
+                cells_stage(x, kvol, V0, coff, squared, G, F, lo, hi)
+        for ch in prange(nchunks):
+            accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt,
+                                 damp, bounds[ch], bounds[ch + 1])
+        step = step0 + n
+        if has_plates:
+            s_old = ramp(step * dt, ramp_time)
+            s_new = ramp((step + 1) * dt, ramp_time)
+            apply_plates(x, v, X, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                         pl_angle, s_old, s_new, dt, R, u_old, u_new)
+        if (n + 1) % check_every == 0 or n == nsteps - 1:
+            bad = find_bad(x, X, limit2)
+            if bad >= 0:
+                return n + 1, bad
+    return nsteps, -1
+
+
+def chunk_bounds(N: int, nchunks: int) -> np.ndarray:
+    """Node ranges [b[i], b[i+1]) splitting 0..N into ``nchunks`` parts aligned to 8 nodes."""
+    step = -(-N // nchunks)
+    step = -(-step // 8) * 8
+    b = np.minimum(np.arange(nchunks + 1, dtype=np.int64) * step, N)
+    b[-1] = N
+    return b
+
+
+def advance(st, x, v, step0, nsteps, check_every, limit2, scratch, threads=1):
+    """Run ``nsteps`` steps of the stencil ``st`` (a :class:`hybmss.explicit.Stencil`) on the grid
+    state ``x, v`` (3, N), in place.  Returns (steps done, bad node or −1)."""
+    T, G, F = scratch
+    args = (x, v, st.Xg, st.K, st.l0, st.offs, st.kvol, st.V0, st.coff, st.squared, st.has_volume,
+            st.invm, st.gacc, st.has_gravity, st.dt, st.damp, st.ramp_time, st.pl_nodes, st.pl_ptr,
+            st.pl_mask, st.pl_kind, st.pl_disp, st.pl_axis, st.pl_center, st.pl_angle,
+            np.int64(step0), np.int64(nsteps), np.int64(max(1, check_every)), float(limit2), T, G, F)
+    if threads <= 1:
+        done, bad = run_serial(*args)
+    else:
+        import numba
+
+        old = numba.get_num_threads()
+        numba.set_num_threads(min(int(threads), numba.config.NUMBA_NUM_THREADS))
+        try:
+            done, bad = run_parallel(*args, chunk_bounds(x.shape[1], int(threads)))
+        finally:
+            numba.set_num_threads(old)
+    return int(done), int(bad)
