@@ -1,0 +1,16 @@
+"""FEM reference (scikit-fem): the same Scene in, the same Result schema out.
+
+- :mod:`~fem_reference.mesh`: hexahedral mesh of the voxel body, refinement, node ↔ particle map;
+- :mod:`~fem_reference.space`: Hex1/Hex2 spaces with explicit quadrature, vectorized assembly;
+- :mod:`~fem_reference.linear`: small-strain elasticity, displacement and mixed u–p;
+- :mod:`~fem_reference.laws`, :mod:`~fem_reference.hyperelastic`: Neo-Hookean and SVK,
+  total Lagrangian Newton with load stepping;
+- :mod:`~fem_reference.dirichlet`: plates → prescribed dofs, reactions;
+- :mod:`~fem_reference.convergence`: refinement studies, observed order, Richardson error;
+- :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``;
+- :mod:`~fem_reference.cli`: the ``fem`` subcommand.
+"""
+
+from .solve import operators, solve
+
+__all__ = ["operators", "solve"]

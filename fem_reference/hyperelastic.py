@@ -1,0 +1,235 @@
+"""Finite-strain hyperelasticity: total Lagrangian, Newton with load stepping and line search.
+
+Displacement formulation (Hex1 or Hex2): find ``u`` (``u = ū(s)`` on the plates) with
+
+    R(u) = ∫ P(F) : ∇v dX − s ∫ ρ g · v dX = 0,     F = I + ∇u,  P = ∂ψ/∂F,
+
+for the laws of :mod:`fem_reference.laws` (gravity is a dead load per reference volume).
+Newton solves ``∫ ∇v : A(F) : ∇δu dX = −R`` with ``A = ∂P/∂F``.
+
+Mixed u–p (Hex2 × Hex1, for ν ≥ 0.45): with ``ψ = W₀ + λ/2 g²``, the saddle point of
+
+    Π(u, p) = ∫ W₀(F) + p g(F) − p²/(2λ) dX − s ∫ ρ g · u dX
+
+gives ``R_u = ∫ (P₀ + p G) : ∇v − s ∫ ρ g · v`` and ``R_p = ∫ (g − p/λ) q``, and the Newton
+system ``[[∫∇v:(A₀ + p H):∇δu, Bᵀ], [B, −M_p/λ]]`` with ``B = ∫ q G : ∇δu``.
+
+Load stepping: the plates' displacements (exact rigid rotations for ``rotate``) and the body load
+are scaled by s = s₁ < s₂ < … < 1.  The first Newton iteration of a step imposes the new plate
+displacements as an inhomogeneous Dirichlet increment (a linearized predictor).  A trial update
+is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
+point) or fails to lower the residual norm; if a step does not converge the load increment is
+halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
+
+The reaction of the plates is ``r = f_int(u) − f_ext`` at the prescribed dofs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from hybmss.scene import Material
+
+from .dirichlet import Dirichlet
+from .laws import LAWS, deviatoric, volumetric
+from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd
+from .linear import FORMULATIONS, Solution
+from .mesh import FemMesh
+from .space import Space
+
+
+class ConvergenceError(RuntimeError):
+    """Newton failed even after the smallest allowed load increment."""
+
+
+@dataclass
+class NewtonLog:
+    steps: list = field(default_factory=list)  # (s, iterations, final residual)
+    iterations: int = 0
+    rejected_steps: int = 0
+    converged: bool = True
+
+
+def _qp(a: np.ndarray) -> np.ndarray:
+    """Move the leading tensor axes of ``a[i, J, e, q]`` behind the point axes."""
+    return np.moveaxis(a, (0, 1), (-2, -1))
+
+
+def _back2(a: np.ndarray) -> np.ndarray:
+    return np.moveaxis(a, (-2, -1), (0, 1))
+
+
+@dataclass(frozen=True, eq=False)
+class Hyperelasticity:
+    """Newton solver for one mesh, formulation (``hex1``, ``hex2``, ``mixed``) and law."""
+
+    fmesh: FemMesh
+    formulation: str = "hex2"
+    law: str = "neo-hookean"
+
+    def __post_init__(self):
+        if self.formulation not in FORMULATIONS:
+            raise ValueError(f"element must be one of {', '.join(FORMULATIONS)}; got {self.formulation!r}")
+        if self.law not in LAWS:
+            raise ValueError(f"law must be one of {', '.join(LAWS)}; got {self.law!r}")
+
+    @property
+    def mixed(self) -> bool:
+        return self.formulation == "mixed"
+
+    @cached_property
+    def space(self) -> Space:
+        return Space.create(self.fmesh, "hex1" if self.formulation == "hex1" else "hex2")
+
+    @cached_property
+    def pspace(self) -> Space:
+        return Space.create(self.fmesh, "hex1", intorder=5)
+
+    @cached_property
+    def pressure_mass(self):
+        return self.pspace.mass()
+
+    @cached_property
+    def nullspace(self) -> np.ndarray:
+        return rigid_modes(self.space.points)
+
+    # ---------------------------------------------------------------- state
+    def _evaluate(self, U, p, s, fext, material, tangent: bool):
+        """Residuals (and tangent blocks) at ``U`` (n_vector), ``p``; ``None`` if inverted."""
+        lam, mu = material.lam, material.G
+        F = np.eye(3) + _qp(self.space.grad(U.reshape(-1, 3)))
+        J = np.linalg.det(F)
+        if not np.all(J > 0):
+            return None
+        W0, P0, A0 = deviatoric(self.law, F, mu)
+        g, G, H = volumetric(self.law, F)
+        out = {"minJ": float(J.min())}
+        if self.mixed:
+            pq = self.pspace.value(p)
+            Pst = P0 + pq[..., None, None] * G
+            out["psi"] = W0 + pq * g - pq**2 / (2 * lam)
+            out["Rp"] = self.pspace.scalar_load(g - pq / lam)
+            if tangent:
+                out["K"] = self.space.tangent(A0 + pq[..., None, None, None, None] * H)
+                out["B"] = self.space.coupling(self.pspace, _back2(G))
+        else:
+            Pst = P0 + lam * g[..., None, None] * G
+            out["psi"] = W0 + 0.5 * lam * g**2
+            if tangent:
+                A = A0 + lam * np.einsum("...iJ,...kL->...iJkL", G, G) + lam * g[..., None, None, None, None] * H
+                out["K"] = self.space.tangent(A)
+        out["fint"] = self.space.vector_load(_back2(Pst))
+        out["Ru"] = out["fint"] - s * fext
+        return out
+
+    def _norm(self, st, free, mu) -> float:
+        r2 = float(np.sum(st["Ru"][free] ** 2))
+        if self.mixed:
+            r2 += float(np.sum((mu * st["Rp"] / self.fmesh.h) ** 2))
+        return np.sqrt(r2)
+
+    # ---------------------------------------------------------------- solve
+    def solve(
+        self,
+        material: Material,
+        dirichlet: Dirichlet,
+        gravity=(0.0, 0.0, 0.0),
+        steps: int = 5,
+        rtol: float = 1e-10,
+        maxiter: int = 25,
+        method: str = "auto",
+        min_increment: float = 1e-4,
+    ) -> tuple[Solution, NewtonLog]:
+        """Solve up to load factor 1 in ``steps`` equal increments (halved on failure)."""
+        if self.mixed and material.lam <= 0:
+            raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
+        lam, mu = material.lam, material.G
+        space = self.space
+        n = space.n_vector
+        fext = space.body_load(material.rho * np.asarray(gravity, float))
+        D = dirichlet.dofs
+        free = np.ones(n, dtype=bool)
+        free[D] = False
+        U = np.zeros(n)
+        p = np.zeros(self.pspace.n_scalar) if self.mixed else None
+        atol = 1e-12 * mu * self.fmesh.body.volume ** (2.0 / 3.0)
+        stats = SolveStats()
+        log = NewtonLog()
+        C = self.pressure_mass / lam if self.mixed else None
+
+        s_done, ds = 0.0, 1.0 / max(1, int(steps))
+        while s_done < 1.0 - 1e-14:
+            s = min(1.0, s_done + ds)
+            ok, U_new, p_new, its, res = self._step(
+                U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C
+            )
+            log.iterations += its
+            if ok:
+                U, p, s_done = U_new, p_new, s
+                log.steps.append((s, its, res))
+                continue
+            log.rejected_steps += 1
+            ds *= 0.5
+            if ds < min_increment:
+                log.converged = False
+                raise ConvergenceError(
+                    f"Newton did not converge at load factor {s:.4g} (increment below {min_increment:g})"
+                )
+        st = self._evaluate(U, p, 1.0, fext, material, tangent=False)
+        r = st["Ru"]
+        energy = space.integrate(st["psi"])
+        return Solution(U.reshape(-1, 3), p, r, energy, stats), log
+
+    def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C):
+        mu = material.G
+        D = dirichlet.dofs
+        target = dirichlet.values(s)
+        U = U.copy()
+        p = None if p is None else p.copy()
+        st = self._evaluate(U, p, s, fext, material, tangent=True)
+        if st is None:
+            return False, U, p, 0, np.inf
+        res = np.inf
+        for it in range(1, maxiter + 1):
+            dD = target - U[D]
+            if self.mixed:
+                du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
+                                      self.nullspace, 1.0 / mu + 1.0 / material.lam,
+                                      method=method, stats=stats)
+            else:
+                du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, stats=stats)
+                dp = None
+            first = np.any(dD != 0.0)
+            res0 = self._norm(st, free, mu)
+            alpha, new = 1.0, None
+            while alpha >= 1.0 / 64:
+                Ut = U + alpha * du
+                pt = None if p is None else p + alpha * dp
+                trial = self._evaluate(Ut, pt, s, fext, material, tangent=False)
+                if trial is not None:
+                    rt = self._norm(trial, free, mu)
+                    if first or rt <= (1.0 - 1e-4 * alpha) * res0 or rt <= atol:
+                        new = (Ut, pt, rt, trial)
+                        break
+                if first:
+                    break  # a predictor that inverts elements: shorten the load step instead
+                alpha *= 0.5
+            if new is None:
+                if first:
+                    return False, U, p, it, np.inf
+                # no decrease: accept the full step only if it keeps J > 0 (Newton may overshoot)
+                trial = self._evaluate(U + du, None if p is None else p + dp, s, fext, material, False)
+                if trial is None:
+                    return False, U, p, it, np.inf
+                new = (U + du, None if p is None else p + dp, self._norm(trial, free, mu), trial)
+                alpha = 1.0
+            U, p, res, st = new
+            ref = max(np.linalg.norm(st["fint"]), s * np.linalg.norm(fext))
+            step_small = np.linalg.norm(alpha * du) <= 1e-13 * (np.linalg.norm(U) + self.fmesh.h)
+            if res <= rtol * ref + atol or (step_small and res <= 1e-6 * ref + atol):
+                return True, U, p, it, res
+            st = self._evaluate(U, p, s, fext, material, tangent=True)
+        return False, U, p, maxiter, res

@@ -1,0 +1,160 @@
+"""One entry point: ``solve(scene, ...) -> Result``, the FEM reference of a Scene.
+
+The mesh is the Scene's voxel body, each cell split into ``refine³`` elements; the plates give
+the prescribed displacements (see :mod:`fem_reference.dirichlet`); gravity ``scene.gravity``
+times ``material.rho`` is the body load.  The Result follows the MSS schema:
+
+- ``X``, ``u``: lattice particles and the FEM displacement at them (vertex dofs);
+- ``volume``: ``∫ det F dX`` for the finite-strain laws, ``∫ (1 + div u) dX`` for the linear
+  law; ``info`` adds ``volume_detF`` (= ``∫ det(I + ∇u)`` also for the linear law),
+  ``integral_lnJ`` (= ``∫ ln J dX``) and ``volume_mss_formula``, the averaged-edge volume
+  ``Σ a·(b×c)`` of the lattice cells at the FEM particle positions (like-for-like with the MSS);
+  ``cell_volumes`` are those per-cell volumes;
+- ``reactions``: per plate, from the residual at its prescribed dofs;
+- ``energy``: ``strain`` (``∫ ψ``, linear ``½ uᵀKu``) and ``gravity`` (``−∫ ρ g · u``);
+- ``iterations``: Newton iterations (1 for a linear solve).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from hybmss.result import Result
+from hybmss.scene import Scene
+
+from .dirichlet import plate_dirichlet
+from .hyperelastic import ConvergenceError, Hyperelasticity
+from .laws import LAWS
+from .linear import FORMULATIONS, LinearElasticity
+from .mesh import build_mesh
+
+ELEMENT_CHOICES = ("auto",) + FORMULATIONS
+LAW_CHOICES = ("linear",) + LAWS
+MIXED_NU = 0.45
+"""``element='auto'`` takes the mixed u–p element from this Poisson ratio on, Hex2 below."""
+
+
+def resolve_element(element: str, nu: float) -> str:
+    """``'auto'`` → ``'mixed'`` if ν ≥ 0.45 else ``'hex2'``; other names are checked and kept."""
+    if element not in ELEMENT_CHOICES:
+        raise ValueError(f"element must be one of {', '.join(ELEMENT_CHOICES)}; got {element!r}")
+    if element == "auto":
+        return "mixed" if nu >= MIXED_NU else "hex2"
+    return element
+
+
+def operators(scene: Scene, element: str = "auto", law: str = "linear", refine: int = 1):
+    """The assembled-once operators for ``scene``'s body; pass them to :func:`solve` as
+    ``operators=`` to reuse the assembly across materials (e.g. a sweep over ν)."""
+    if law not in LAW_CHOICES:
+        raise ValueError(f"law must be one of {', '.join(LAW_CHOICES)}; got {law!r}")
+    element = resolve_element(element, scene.material.nu)
+    fmesh = build_mesh(scene.body, refine)
+    if law == "linear":
+        return LinearElasticity(fmesh, element)
+    return Hyperelasticity(fmesh, element, law)
+
+
+def solve(
+    scene: Scene,
+    element: str = "auto",
+    law: str = "linear",
+    refine: int = 1,
+    steps: int | None = None,
+    method: str = "auto",
+    operators=None,
+) -> Result:
+    """FEM reference solution of ``scene``.
+
+    Parameters
+    ----------
+    element : ``'hex1'``, ``'hex2'``, ``'mixed'`` (Hex2 × Hex1 u–p) or ``'auto'`` (mixed for
+        ν ≥ 0.45, else Hex2).
+    law : ``'linear'`` (small strain), ``'neo-hookean'`` or ``'svk'`` (finite strain).
+    refine : each cell of the body is split into ``refine³`` elements.
+    steps : load steps of the finite-strain Newton solver (default 5; halved on failure).
+    method : linear solver, ``'auto'`` (direct for small systems, AMG-preconditioned Krylov
+        above), ``'direct'`` or ``'amg'``.
+    operators : operators from :func:`operators` to reuse (must match body, element, law, refine).
+    """
+    t0 = time.perf_counter()
+    if law not in LAW_CHOICES:
+        raise ValueError(f"law must be one of {', '.join(LAW_CHOICES)}; got {law!r}")
+    element = resolve_element(element, scene.material.nu)
+    if int(refine) < 1:
+        raise ValueError(f"refine must be an integer >= 1, got {refine!r}")
+    if not scene.plates:
+        raise ValueError("scene has no plate: the FEM needs prescribed displacements (rigid motions are free)")
+    ops = operators
+    if ops is None:
+        fmesh = build_mesh(scene.body, refine)
+        ops = LinearElasticity(fmesh, element) if law == "linear" else Hyperelasticity(fmesh, element, law)
+    else:
+        if ops.fmesh.body != scene.body or ops.fmesh.refine != int(refine) or ops.formulation != element:
+            raise ValueError("operators were built for another body, refinement or element")
+        if (law == "linear") != isinstance(ops, LinearElasticity) or getattr(ops, "law", law) != law:
+            raise ValueError("operators were built for another law")
+    space = ops.space
+    mat = scene.material
+    dirichlet = plate_dirichlet(scene, space)
+    if len(dirichlet.dofs) == 0:
+        raise ValueError("the plates select no FEM node: check their regions")
+    info: dict = {"element": element, "law": law, "refine": int(refine), "h": ops.fmesh.h,
+                  "n_elements": int(ops.fmesh.mesh.t.shape[1]), "n_dofs": int(space.n_vector)}
+    converged, iterations = True, 1
+    if law == "linear":
+        sol = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0), method=method)
+    else:
+        try:
+            sol, log = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0),
+                                 steps=5 if steps is None else int(steps), method=method)
+        except ConvergenceError as exc:
+            raise ConvergenceError(f"{scene.name or 'scene'}: {exc}") from None
+        iterations = log.iterations
+        info["newton"] = {"steps": len(log.steps), "rejected_steps": log.rejected_steps,
+                          "final_residuals": [float(r) for _, _, r in log.steps]}
+    if sol.p is not None:
+        info["n_dofs"] += int(len(sol.p))
+        info["pressure_range"] = [float(sol.p.min()), float(sol.p.max())]
+    info["linear_solver"] = {"method": sol.stats.method, "iterations": sol.stats.iterations,
+                             "solves": sol.stats.calls}
+
+    # ---------------------------------------------------------------- outputs
+    U = sol.U
+    lattice = ops.fmesh.lattice
+    u_p = U[space.particle_dofs]
+    x_p = lattice.X + u_p
+    gradu = np.moveaxis(space.grad(U), (0, 1), (-2, -1))
+    J = np.linalg.det(np.eye(3) + gradu)
+    V0 = scene.body.volume
+    vol_detF = space.integrate(J)
+    volume = V0 + space.integrate(np.trace(gradu, axis1=-2, axis2=-1)) if law == "linear" else vol_detF
+    cellv = lattice.cell_volumes(x_p)
+    info["volume_detF"] = float(vol_detF)
+    info["integral_lnJ"] = float(space.integrate(np.log(J))) if np.all(J > 0) else float("nan")
+    info["volume_mss_formula"] = float(cellv.sum())
+    info["min_J"] = float(J.min())
+    info["inverted_points"] = int(np.count_nonzero(J <= 0))
+    body_load = mat.rho * np.asarray(scene.gravity) * V0 if scene.has_gravity else np.zeros(3)
+    info["body_load"] = [float(b) for b in body_load]
+    fext = space.body_load(mat.rho * np.asarray(scene.gravity)) if scene.has_gravity else None
+    reactions = dirichlet.reactions(sol.r, U, x_p)
+    energy = {"strain": float(sol.energy),
+              "gravity": float(-(fext @ U.reshape(-1))) if fext is not None else 0.0}
+    return Result(
+        solver=f"fem-{element}-{law}",
+        scene_digest=scene.digest(),
+        X=lattice.X.copy(),
+        u=u_p,
+        volume=float(volume),
+        volume0=float(V0),
+        reactions=reactions,
+        energy=energy,
+        iterations=int(iterations),
+        wall_time_s=time.perf_counter() - t0,
+        converged=converged,
+        cell_volumes=cellv,
+        info=info,
+    )

@@ -1,0 +1,219 @@
+"""Finite-element spaces on a :class:`~fem_reference.mesh.FemMesh` and vectorized assembly.
+
+A :class:`Space` wraps a scalar scikit-fem :class:`~skfem.Basis` (``ElementHex1`` or the
+27-node Lagrange ``ElementHex2``) with an explicit quadrature order (SPEC §9: the default
+order for Hex2 is far higher than needed and slow).  Vector fields use three components per
+scalar dof, interleaved as scikit-fem's ``ElementVector`` does: vector dof ``3 s + c`` is
+component ``c`` of scalar dof ``s``.
+
+Element matrices are built from the basis values and gradients at the quadrature points with
+NumPy contractions (one ``einsum`` over all elements), then scattered once into a sparse matrix.
+This is the same integral as a scikit-fem ``BilinearForm`` but avoids its loop over the
+81 × 81 local dof pairs of a vector Hex2 element, which dominates the time of the
+finite-strain tangent (assembled at every Newton iteration).
+
+With ``dN[n, J, e, q]`` the gradient of local basis function ``n`` in element ``e`` at
+quadrature point ``q`` and ``dx[e, q]`` the quadrature weight times the Jacobian:
+
+- linear elasticity, ``a(u, v) = ∫ λ div u div v + 2μ ε(u):ε(v) dx`` is split into
+  ``K_λ = ∫ div u div v`` and ``K_μ = ∫ 2 ε(u):ε(v)`` so ``K = λ K_λ + μ K_μ``;
+- a general tangent ``∫ ∇v : A : ∇du dx`` with a fourth-order field ``A[e, q, i, J, k, L]``;
+- the coupling ``∫ q G : ∇v dx`` with a second-order field ``G[i, J, e, q]`` and a scalar
+  (pressure) space for ``q``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis, ElementHex1, ElementHex2
+
+from .mesh import FemMesh
+
+ELEMENTS = {"hex1": (ElementHex1, 3), "hex2": (ElementHex2, 5)}
+"""Element name → (scikit-fem element, quadrature order).  Order 3 is 2 Gauss points per
+direction (exact for the Hex1 stiffness on cubes), order 5 is 3 points (exact for Hex2)."""
+
+_CHUNK = 256  # elements per block in the tangent contraction (bounds temporary memory)
+
+
+@dataclass(frozen=True, eq=False)
+class Space:
+    """A scalar Lagrange space on a mesh, with cached quadrature data.
+
+    Attributes
+    ----------
+    fmesh : the :class:`FemMesh`.
+    element : ``"hex1"`` or ``"hex2"``.
+    basis : the scalar scikit-fem basis.
+    """
+
+    fmesh: FemMesh
+    element: str
+    basis: Basis
+
+    @classmethod
+    def create(cls, fmesh: FemMesh, element: str, intorder: int | None = None) -> "Space":
+        if element not in ELEMENTS:
+            raise ValueError(f"element must be one of {', '.join(ELEMENTS)}; got {element!r}")
+        elem, order = ELEMENTS[element]
+        basis = Basis(fmesh.mesh, elem(), intorder=order if intorder is None else int(intorder))
+        return cls(fmesh, element, basis)
+
+    # ---------------------------------------------------------------- data
+    @property
+    def n_scalar(self) -> int:
+        return int(self.basis.N)
+
+    @property
+    def n_vector(self) -> int:
+        return 3 * self.n_scalar
+
+    @property
+    def edofs(self) -> np.ndarray:
+        """(nn, ne) scalar dofs of each element."""
+        return self.basis.element_dofs
+
+    @cached_property
+    def vedofs(self) -> np.ndarray:
+        """(3 nn, ne) vector dofs of each element, local order (n, c) → 3 n + c."""
+        e = self.edofs
+        return (3 * e[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, e.shape[1])
+
+    @cached_property
+    def points(self) -> np.ndarray:
+        """(n_scalar, 3) reference position of each scalar dof (Lagrange node)."""
+        return np.ascontiguousarray(self.basis.doflocs.T)
+
+    @cached_property
+    def N(self) -> np.ndarray:
+        """(nn, ne, nq) basis values at the quadrature points."""
+        return np.stack([b[0].value for b in self.basis.basis])
+
+    @cached_property
+    def dN(self) -> np.ndarray:
+        """(nn, 3, ne, nq) basis gradients at the quadrature points."""
+        return np.stack([b[0].grad for b in self.basis.basis])
+
+    @property
+    def dx(self) -> np.ndarray:
+        """(ne, nq) quadrature weights times |det J|."""
+        return self.basis.dx
+
+    @property
+    def vertex_dofs(self) -> np.ndarray:
+        """Scalar dof of each mesh vertex (Hex1 and Hex2 number vertices first)."""
+        return self.basis.nodal_dofs[0]
+
+    @cached_property
+    def particle_dofs(self) -> np.ndarray:
+        """Scalar dof of each lattice particle."""
+        return self.vertex_dofs[self.fmesh.particle_nodes]
+
+    # ---------------------------------------------------------------- fields
+    def grad(self, U: np.ndarray) -> np.ndarray:
+        """Displacement gradient ``∇u[i, J, e, q]`` of nodal vectors ``U`` (n_scalar, 3)."""
+        Ue = U[self.edofs]  # (nn, ne, 3)
+        return np.einsum("nei,nJeq->iJeq", Ue, self.dN, optimize=True)
+
+    def value(self, P: np.ndarray) -> np.ndarray:
+        """Scalar field ``p[e, q]`` of nodal values ``P`` (n_scalar,)."""
+        return np.einsum("ne,neq->eq", P[self.edofs], self.N, optimize=True)
+
+    def integrate(self, f: np.ndarray) -> float:
+        """``∫ f dx`` of a quadrature field ``f[e, q]``."""
+        return float(np.sum(f * self.dx))
+
+    # ---------------------------------------------------------------- assembly
+    def _scatter(self, Ke: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape) -> sp.csr_matrix:
+        """Sparse matrix from element blocks ``Ke[a, b, e]`` with dofs ``rows[a, e]``, ``cols[b, e]``."""
+        I = np.broadcast_to(rows[:, None, :], Ke.shape).ravel()
+        J = np.broadcast_to(cols[None, :, :], Ke.shape).ravel()
+        return sp.coo_matrix((Ke.ravel(), (I, J)), shape=shape).tocsr()
+
+    def elasticity_parts(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """``(K_λ, K_μ)`` with ``K_λ = ∫ div u div v`` and ``K_μ = ∫ 2 ε(u):ε(v)``.
+
+        Assemble once per mesh and element; ``K = λ K_λ + μ K_μ`` for any material.
+        """
+        dN, dx = self.dN, self.dx
+        nn, ne = dN.shape[0], dN.shape[2]
+        G = np.einsum("nceq,mdeq,eq->ncmde", dN, dN, dx, optimize=True)  # ∫ ∂_c N_n ∂_d N_m
+        Klam = G  # (n, c, m, d): div u div v couples component c of n with d of m
+        trace = np.einsum("nkmke->nme", G)
+        eye = np.eye(3)
+        Kmu = (
+            eye[None, :, None, :, None] * trace[:, None, :, None, :]
+            + G.transpose(0, 3, 2, 1, 4)
+        )
+        shape = (self.n_vector, self.n_vector)
+        r = self.vedofs
+        Klam = self._scatter(Klam.reshape(3 * nn, 3 * nn, ne), r, r, shape)
+        Kmu = self._scatter(Kmu.reshape(3 * nn, 3 * nn, ne), r, r, shape)
+        return Klam, Kmu
+
+    @cached_property
+    def dNq(self) -> np.ndarray:
+        """(ne, nq, nn, 3) basis gradients, points first (for batched matrix products)."""
+        return np.ascontiguousarray(self.dN.transpose(2, 3, 0, 1))
+
+    def tangent(self, A: np.ndarray) -> sp.csr_matrix:
+        """``∫ ∇v : A : ∇du dx`` for a field ``A[e, q, i, J, k, L]`` (vector space).
+
+        Element block ``K[(n,i),(m,k)] = Σ_q dx Σ_JL ∂_J N_n A_iJkL ∂_L N_m``, computed as two
+        batched matrix products per block of elements.
+        """
+        dNq, dx = self.dNq, self.dx
+        ne, nq, nn, _ = dNq.shape
+        Ke = np.empty((ne, 3 * nn, 3 * nn))
+        for s in range(0, ne, _CHUNK):
+            sl = slice(s, min(s + _CHUNK, ne))
+            b = sl.stop - sl.start
+            Aw = A[sl] * dx[sl][:, :, None, None, None, None]
+            Ar = Aw.transpose(0, 1, 3, 2, 4, 5).reshape(b, nq, 3, 27)  # (e, q, J, (i,k,L))
+            T = np.matmul(dNq[sl], Ar)  # (e, q, n, (i,k,L))
+            T = T.reshape(b, nq, nn, 3, 3, 3).transpose(0, 4, 2, 3, 1, 5).reshape(b, 3, 3 * nn, 3 * nq)
+            W = dNq[sl].transpose(0, 1, 3, 2).reshape(b, 1, 3 * nq, nn)  # (e, (q,L), m)
+            K = np.matmul(T, W)  # (e, k, (n,i), m)
+            Ke[sl] = K.reshape(b, 3, 3 * nn, nn).transpose(0, 2, 3, 1).reshape(b, 3 * nn, 3 * nn)
+        r = self.vedofs
+        return self._scatter(np.moveaxis(Ke, 0, -1), r, r, (self.n_vector, self.n_vector))
+
+    def vector_load(self, P: np.ndarray) -> np.ndarray:
+        """``∫ P : ∇v dx`` for a field ``P[i, J, e, q]`` (e.g. the first Piola stress)."""
+        fe = np.einsum("nJeq,iJeq,eq->nie", self.dN, P, self.dx, optimize=True)
+        out = np.zeros(self.n_vector)
+        np.add.at(out, self.vedofs.ravel(), fe.reshape(-1, fe.shape[-1]).ravel())
+        return out
+
+    def body_load(self, b: np.ndarray) -> np.ndarray:
+        """``∫ b · v dx`` for a constant body force density ``b`` (3,)."""
+        w = np.einsum("neq,eq->ne", self.N, self.dx)  # ∫ N_n per element
+        fe = w[:, None, :] * np.asarray(b, float)[None, :, None]  # (nn, 3, ne)
+        out = np.zeros(self.n_vector)
+        np.add.at(out, self.vedofs.ravel(), fe.reshape(-1, fe.shape[-1]).ravel())
+        return out
+
+    def coupling(self, pspace: "Space", G: np.ndarray) -> sp.csr_matrix:
+        """``B[q, v] = ∫ q G : ∇v dx`` (rows: pressure dofs, columns: vector dofs)."""
+        Be = np.einsum("peq,nJeq,iJeq,eq->pnie", pspace.N, self.dN, G, self.dx, optimize=True)
+        npn, nn, ne = Be.shape[0], Be.shape[1], Be.shape[-1]
+        return self._scatter(
+            Be.reshape(npn, 3 * nn, ne), pspace.edofs, self.vedofs, (pspace.n_scalar, self.n_vector)
+        )
+
+    def scalar_load(self, f: np.ndarray) -> np.ndarray:
+        """``∫ f q dx`` for a quadrature field ``f[e, q]`` (scalar space)."""
+        fe = np.einsum("neq,eq->ne", self.N, f * self.dx)
+        out = np.zeros(self.n_scalar)
+        np.add.at(out, self.edofs.ravel(), fe.ravel())
+        return out
+
+    def mass(self, c: np.ndarray | float = 1.0) -> sp.csr_matrix:
+        """``∫ c p q dx`` (scalar space), ``c`` a constant or a quadrature field."""
+        w = self.dx * c
+        Me = np.einsum("peq,req,eq->pre", self.N, self.N, w, optimize=True)
+        return self._scatter(Me, self.edofs, self.edofs, (self.n_scalar, self.n_scalar))
