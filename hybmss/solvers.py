@@ -271,6 +271,26 @@ def _result(system: System, solver: str, x: np.ndarray, f_total: np.ndarray, par
 
 
 # --------------------------------------------------------------------------------- static
+def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: float, s_new: float) -> str:
+    """Why the load could not be increased past ``s``: the smallest eigenvalue of the
+    constrained Hessian at the last equilibrium and at the predicted state just beyond it."""
+    lam = smallest_eigenvalue(S, x)
+    lam_next = smallest_eigenvalue(S, guess)
+    head = (f"static solve of scene {scene.name or '(unnamed)'} failed at load factor s={s_new:.6g} "
+            f"(last converged s={s:.6g}); smallest eigenvalue of the constrained Hessian: {lam:.4g} N/m at "
+            f"s={s:.6g}, {lam_next:.4g} N/m at the predicted state s={s_new:.6g}")
+    if s == 0.0 and lam < 0:
+        return head + ("; the model is not positive definite even at rest (its effective bulk or shear "
+                       "modulus is negative for these constants): no stable equilibrium exists")
+    if min(lam, lam_next) < 0:
+        if S.kappa < 0:
+            return head + (f"; the volume term has kappa={S.kappa:.4g} Pa < 0 (nu < 1/4) and is unbounded "
+                           "below under dilation: the equilibrium is lost at a limit point (instability), "
+                           "not a numerical failure")
+        return head + "; the Hessian becomes indefinite: the equilibrium path is unstable (buckling or zero-energy modes)"
+    return head + "; the Hessian stays positive definite: Newton failed to converge (try more load steps)"
+
+
 def solve_static(scene: Scene, options: StaticOptions | None = None, system: System | None = None) -> Result:
     """Static equilibrium of ``scene`` (solver name ``mss-static``)."""
     opts = options or StaticOptions()
@@ -304,21 +324,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             continue
         ds *= 0.5
         if ds < opts.min_step:
-            lam = smallest_eigenvalue(S, x)
-            cause = ""
-            if s == 0.0 and lam < 0:
-                cause = ("; the model is not positive definite even at rest (its effective bulk or shear "
-                         "modulus is negative for these constants): no stable equilibrium exists")
-            elif S.kappa < 0 and lam <= 0:
-                cause = (f"; the volume term has kappa={S.kappa:.4g} Pa < 0 (nu < 1/4), unbounded below "
-                         "under dilation: the equilibrium is lost (instability), not a numerical failure")
-            elif lam <= 0:
-                cause = "; the constrained Hessian is not positive definite there (instability or zero-energy modes)"
-            raise StaticSolveError(
-                f"static solve of scene {scene.name or '(unnamed)'} failed at load factor s={s_new:.6g} "
-                f"(last converged s={s:.6g}); smallest eigenvalue of the constrained Hessian at "
-                f"s={s:.6g}: {lam:.4g} N/m{cause}"
-            )
+            raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_new))
     e, f, parts = energy_forces(S, x)
     r = float(np.linalg.norm(f.ravel()[free]))
     info = {
