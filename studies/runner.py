@@ -175,7 +175,9 @@ def run_task(task: Task, store_root: str) -> dict:
         row.update(measure(task.scene, res))
         row["status"] = "ok" if res.converged else "not-converged"
         row["message"] = ""
-        arrays = {"X": res.X, "u": res.u}
+        from hybmss.lattice import Lattice
+
+        arrays = {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
         if res.cell_volumes is not None:
             arrays["cell_volumes"] = res.cell_volumes
         row["info"] = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
