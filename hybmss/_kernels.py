@@ -11,7 +11,7 @@ vectorizes (sqrt and division included, ``error_model='numpy'``).  Layouts (buil
 - ``x, v, X``: (3, N) positions, velocities (at half steps), reference positions;
 - ``K``: (n_off, N) spring constants of the active offsets ``offs`` (n_off,), rest lengths
   ``l0`` (n_off,) (one per offset: the grid is regular);
-- ``kvol, V0``: (N,) κ and rest volume of the cell whose lowest corner is p (κ = 0 where no cell);
+- ``kv``: (2, N) κ and rest volume of the cell whose lowest corner is p (κ = 0 where no cell);
 - ``invm``: (N,) 1/m (0 at absent nodes, which therefore never move); ``gacc`` (3, N) gravity
   at present nodes.
 
@@ -97,85 +97,81 @@ def springs_stage(x, K, l0, offs, T, F, lo, hi):
 
 
 @njit(**_OPTS)
-def cells_stage(x, kvol, V0, coff, squared, G, F, lo, hi):
-    """Stage A, cells with lowest corner p in [lo, hi): G[g] = (W'/4)(σ1 b×c + σ2 c×a + σ3 a×b)
-    for σ = (+,+,+), (+,+,−), (+,−,+), (+,−,−); adds corner 0's force (+G0) to F[p]."""
+def cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi):
+    """Stage A, cells with lowest corner p in [lo, hi), in four unit-stride passes (each simple
+    enough for LLVM to vectorize without alias trouble):
+
+    1. averaged edge vectors ``ABC[3 d + i]`` (axis d, component i): ¼ Σ of the 4 parallel edges;
+    2. ``CR[0:3] = b×c``, ``CR[3:6] = c×a``, ``CR[6:9] = a×b``, ``CR[9] = V' = a·(b×c)``;
+    3. ``CR[9] ← W'(V')/4`` (``kv[0]`` = κ, 0 where no cell; ``kv[1]`` = rest volume);
+    4. ``G[g] = CR[9]·(b×c + σ2 c×a + σ3 a×b)`` for (σ2, σ3) = (+,+), (+,−), (−,+), (−,−).
+    """
     N = x.shape[1]
     end = min(hi, N - coff[7])
     if end <= lo:
         return
     n = end - lo
-    o1, o2, o3, o4, o5, o6, o7 = coff[1], coff[2], coff[3], coff[4], coff[5], coff[6], coff[7]
-    X0 = x[0]
-    X1 = x[1]
-    X2 = x[2]
-    p00, p01, p02 = X0[lo:end], X1[lo:end], X2[lo:end]
-    p10, p11, p12 = X0[lo + o1:end + o1], X1[lo + o1:end + o1], X2[lo + o1:end + o1]
-    p20, p21, p22 = X0[lo + o2:end + o2], X1[lo + o2:end + o2], X2[lo + o2:end + o2]
-    p30, p31, p32 = X0[lo + o3:end + o3], X1[lo + o3:end + o3], X2[lo + o3:end + o3]
-    p40, p41, p42 = X0[lo + o4:end + o4], X1[lo + o4:end + o4], X2[lo + o4:end + o4]
-    p50, p51, p52 = X0[lo + o5:end + o5], X1[lo + o5:end + o5], X2[lo + o5:end + o5]
-    p60, p61, p62 = X0[lo + o6:end + o6], X1[lo + o6:end + o6], X2[lo + o6:end + o6]
-    p70, p71, p72 = X0[lo + o7:end + o7], X1[lo + o7:end + o7], X2[lo + o7:end + o7]
-    kv = kvol[lo:end]
-    v0s = V0[lo:end]
-    g00, g01, g02 = G[0, 0, lo:end], G[0, 1, lo:end], G[0, 2, lo:end]
-    g10, g11, g12 = G[1, 0, lo:end], G[1, 1, lo:end], G[1, 2, lo:end]
-    g20, g21, g22 = G[2, 0, lo:end], G[2, 1, lo:end], G[2, 2, lo:end]
-    g30, g31, g32 = G[3, 0, lo:end], G[3, 1, lo:end], G[3, 2, lo:end]
-    f0, f1, f2 = F[0, lo:end], F[1, lo:end], F[2, lo:end]
+    # corners along axis d: the 4 edges go from p + e to p + e + coff[1 << d]
+    for d in range(3):
+        od = coff[1 << d]
+        e1 = coff[1 << ((d + 1) % 3)]
+        e2 = coff[1 << ((d + 2) % 3)]
+        e3 = e1 + e2
+        for c in range(3):
+            xc = x[c]
+            a0 = xc[lo:end]
+            a1 = xc[lo + od:end + od]
+            b0 = xc[lo + e1:end + e1]
+            b1 = xc[lo + e1 + od:end + e1 + od]
+            c0 = xc[lo + e2:end + e2]
+            c1 = xc[lo + e2 + od:end + e2 + od]
+            d0 = xc[lo + e3:end + e3]
+            d1 = xc[lo + e3 + od:end + e3 + od]
+            out = ABC[3 * d + c, lo:end]
+            for i in range(n):
+                out[i] = 0.25 * (((a1[i] - a0[i]) + (b1[i] - b0[i])) + ((c1[i] - c0[i]) + (d1[i] - d0[i])))
+    ax, ay, az = ABC[0, lo:end], ABC[1, lo:end], ABC[2, lo:end]
+    bx, by, bz = ABC[3, lo:end], ABC[4, lo:end], ABC[5, lo:end]
+    cx, cy, cz = ABC[6, lo:end], ABC[7, lo:end], ABC[8, lo:end]
+    Ax, Ay, Az = CR[0, lo:end], CR[1, lo:end], CR[2, lo:end]
+    Bx, By, Bz = CR[3, lo:end], CR[4, lo:end], CR[5, lo:end]
+    Cx, Cy, Cz = CR[6, lo:end], CR[7, lo:end], CR[8, lo:end]
+    W = CR[9, lo:end]
     for i in range(n):
-        # averaged edge vectors a (corners with bit 0 set minus without), b (bit 1), c (bit 2)
-        ax = 0.25 * ((p10[i] - p00[i]) + (p30[i] - p20[i]) + (p50[i] - p40[i]) + (p70[i] - p60[i]))
-        ay = 0.25 * ((p11[i] - p01[i]) + (p31[i] - p21[i]) + (p51[i] - p41[i]) + (p71[i] - p61[i]))
-        az = 0.25 * ((p12[i] - p02[i]) + (p32[i] - p22[i]) + (p52[i] - p42[i]) + (p72[i] - p62[i]))
-        bx = 0.25 * ((p20[i] - p00[i]) + (p30[i] - p10[i]) + (p60[i] - p40[i]) + (p70[i] - p50[i]))
-        by = 0.25 * ((p21[i] - p01[i]) + (p31[i] - p11[i]) + (p61[i] - p41[i]) + (p71[i] - p51[i]))
-        bz = 0.25 * ((p22[i] - p02[i]) + (p32[i] - p12[i]) + (p62[i] - p42[i]) + (p72[i] - p52[i]))
-        cx = 0.25 * ((p40[i] - p00[i]) + (p50[i] - p10[i]) + (p60[i] - p20[i]) + (p70[i] - p30[i]))
-        cy = 0.25 * ((p41[i] - p01[i]) + (p51[i] - p11[i]) + (p61[i] - p21[i]) + (p71[i] - p31[i]))
-        cz = 0.25 * ((p42[i] - p02[i]) + (p52[i] - p12[i]) + (p62[i] - p22[i]) + (p72[i] - p32[i]))
-        # A = b×c, B = c×a, C = a×b
-        Ax = by * cz - bz * cy
-        Ay = bz * cx - bx * cz
-        Az = bx * cy - by * cx
-        Bx = cy * az - cz * ay
-        By = cz * ax - cx * az
-        Bz = cx * ay - cy * ax
-        Cx = ay * bz - az * by
-        Cy = az * bx - ax * bz
-        Cz = ax * by - ay * bx
-        V = ax * Ax + ay * Ay + az * Az
-        v0 = v0s[i]
-        if squared:
-            q = (V * V - v0 * v0) / (2.0 * v0 * v0)
-            w = 0.25 * kv[i] * q * V / v0
-        else:
-            w = 0.25 * kv[i] * (V - v0) / v0
-        Ax *= w
-        Ay *= w
-        Az *= w
-        Bx *= w
-        By *= w
-        Bz *= w
-        Cx *= w
-        Cy *= w
-        Cz *= w
-        g00[i] = Ax + Bx + Cx
-        g01[i] = Ay + By + Cy
-        g02[i] = Az + Bz + Cz
-        g10[i] = Ax + Bx - Cx
-        g11[i] = Ay + By - Cy
-        g12[i] = Az + Bz - Cz
-        g20[i] = Ax - Bx + Cx
-        g21[i] = Ay - By + Cy
-        g22[i] = Az - Bz + Cz
-        g30[i] = Ax - Bx - Cx
-        g31[i] = Ay - By - Cy
-        g32[i] = Az - Bz - Cz
-        f0[i] += Ax + Bx + Cx
-        f1[i] += Ay + By + Cy
-        f2[i] += Az + Bz + Cz
+        Ax[i] = by[i] * cz[i] - bz[i] * cy[i]
+        Ay[i] = bz[i] * cx[i] - bx[i] * cz[i]
+        Az[i] = bx[i] * cy[i] - by[i] * cx[i]
+        Bx[i] = cy[i] * az[i] - cz[i] * ay[i]
+        By[i] = cz[i] * ax[i] - cx[i] * az[i]
+        Bz[i] = cx[i] * ay[i] - cy[i] * ax[i]
+        Cx[i] = ay[i] * bz[i] - az[i] * by[i]
+        Cy[i] = az[i] * bx[i] - ax[i] * bz[i]
+        Cz[i] = ax[i] * by[i] - ay[i] * bx[i]
+        W[i] = ax[i] * Ax[i] + ay[i] * Ay[i] + az[i] * Az[i]
+    kap = kv[0, lo:end]
+    V0 = kv[1, lo:end]
+    if squared:  # W = κ/2 Vc q², q = (V'² − Vc²)/(2 Vc²):  W' = κ q V'/Vc
+        for i in range(n):
+            V = W[i]
+            q = (V * V - V0[i] * V0[i]) / (2.0 * V0[i] * V0[i])
+            W[i] = 0.25 * kap[i] * q * V / V0[i]
+    else:  # W = κ/2 Vc J², J = (V' − Vc)/Vc:  W' = κ J
+        for i in range(n):
+            W[i] = 0.25 * kap[i] * (W[i] - V0[i]) / V0[i]
+    for c in range(3):
+        A = CR[c, lo:end]
+        B = CR[3 + c, lo:end]
+        C = CR[6 + c, lo:end]
+        g0 = G[0, c, lo:end]
+        g1 = G[1, c, lo:end]
+        g2 = G[2, c, lo:end]
+        g3 = G[3, c, lo:end]
+        for i in range(n):
+            w = W[i]
+            g0[i] = w * ((A[i] + B[i]) + C[i])
+            g1[i] = w * ((A[i] + B[i]) - C[i])
+            g2[i] = w * ((A[i] - B[i]) + C[i])
+            g3[i] = w * ((A[i] - B[i]) - C[i])
 
 
 # Corner c of a cell -> (gradient slot g, sign of the force): f_c = sign · G[g].
@@ -187,8 +183,8 @@ _CORNER_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 
 @njit(**_OPTS)
 def accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, lo, hi):
-    """Stage B on nodes [lo, hi): add the forces on second nodes (−t_o[p − o]) and on cell
-    corners 1..7 to F, then ``v ← (v + dt (F/m + g)) damp``, ``x ← x + dt v``."""
+    """Stage B on nodes [lo, hi): add the forces on second nodes (−t_o[p − o]) and on the cell
+    corners (±G[p − coff_c]) to F, then ``v ← (v + dt (F/m + g)) damp``, ``x ← x + dt v``."""
     for d in range(3):
         for j in range(offs.shape[0]):
             o = offs[j]
@@ -200,7 +196,7 @@ def accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_
             for i in range(hi - start):
                 f[i] -= t[i]
         if has_volume:
-            for c in range(1, 8):
+            for c in range(8):
                 o = coff[c]
                 start = max(lo, o)
                 if start >= hi:
@@ -242,8 +238,10 @@ def _rotation(axis, angle, R):
 
 
 @njit(**_OPTS)
-def plate_displacement(X, nodes, kind, disp, axis, center, angle, s, R, u):
-    """u (3, len(nodes)) of one plate at load factor s (same law as Motion.displacement_at)."""
+def plate_displacement(X, nodes, U1, kind, axis, center, angle, disp, s, R, u):
+    """u (3, len(nodes)) of one plate at load factor s: ``s · U1`` for motions linear in s
+    (kind 0: clamped, translate, slide, affine), the exact rotation for kind 1 (same law as
+    :meth:`hybmss.scene.Motion.displacement_at`)."""
     if kind == 1:
         _rotation(axis, s * angle, R)
         for i in range(nodes.shape[0]):
@@ -256,19 +254,20 @@ def plate_displacement(X, nodes, kind, disp, axis, center, angle, s, R, u):
     else:
         for i in range(nodes.shape[0]):
             for d in range(3):
-                u[d, i] = s * disp[d]
+                u[d, i] = s * U1[d, i]
 
 
 @njit(**_OPTS)
-def apply_plates(x, v, X, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle,
-                 s_old, s_new, dt, R, u_old, u_new):
+def apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                 pl_angle, s_old, s_new, dt, R, u_old, u_new):
     for ip in range(pl_ptr.shape[0] - 1):
         nodes = pl_nodes[pl_ptr[ip]:pl_ptr[ip + 1]]
+        U1 = pl_U1[:, pl_ptr[ip]:pl_ptr[ip + 1]]
         n = nodes.shape[0]
         uo = u_old[:, :n]
         un = u_new[:, :n]
-        plate_displacement(X, nodes, pl_kind[ip], pl_disp[ip], pl_axis[ip], pl_center[ip], pl_angle[ip], s_old, R, uo)
-        plate_displacement(X, nodes, pl_kind[ip], pl_disp[ip], pl_axis[ip], pl_center[ip], pl_angle[ip], s_new, R, un)
+        plate_displacement(X, nodes, U1, pl_kind[ip], pl_axis[ip], pl_center[ip], pl_angle[ip], pl_disp[ip], s_old, R, uo)
+        plate_displacement(X, nodes, U1, pl_kind[ip], pl_axis[ip], pl_center[ip], pl_angle[ip], pl_disp[ip], s_new, R, un)
         for d in range(3):
             if pl_mask[ip, d]:
                 for i in range(n):
@@ -297,9 +296,9 @@ def find_bad(x, X, limit2):
 
 
 @njit(**_OPTS)
-def run_serial(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm, gacc, has_gravity,
-               dt, damp, ramp_time, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
-               pl_angle, step0, nsteps, check_every, limit2, T, G, F):
+def run_serial(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc, has_gravity,
+               dt, damp, ramp_time, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+               pl_center, pl_angle, step0, nsteps, check_every, limit2, T, ABC, CR, G, F):
     """Advance ``nsteps`` steps from global step ``step0``.  Returns (steps done, bad node or −1)."""
     N = x.shape[1]
     R = np.empty((3, 3))
@@ -312,14 +311,14 @@ def run_serial(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm, 
     for n in range(nsteps):
         springs_stage(x, K, l0, offs, T, F, 0, N)
         if has_volume:
-            cells_stage(x, kvol, V0, coff, squared, G, F, 0, N)
+            cells_stage(x, kv, coff, squared, ABC, CR, G, 0, N)
         accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, 0, N)
         step = step0 + n
         if has_plates:
             s_old = ramp(step * dt, ramp_time)
             s_new = ramp((step + 1) * dt, ramp_time)
-            apply_plates(x, v, X, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
-                         pl_angle, s_old, s_new, dt, R, u_old, u_new)
+            apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                         pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new)
         if (n + 1) % check_every == 0 or n == nsteps - 1:
             bad = find_bad(x, X, limit2)
             if bad >= 0:
@@ -328,9 +327,9 @@ def run_serial(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm, 
 
 
 @njit(parallel=True, **_OPTS)
-def run_parallel(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm, gacc, has_gravity,
-                 dt, damp, ramp_time, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
-                 pl_angle, step0, nsteps, check_every, limit2, T, G, F, bounds):
+def run_parallel(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc, has_gravity,
+                 dt, damp, ramp_time, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                 pl_center, pl_angle, step0, nsteps, check_every, limit2, T, ABC, CR, G, F, bounds):
     """As :func:`run_serial`, stages A and B split over the node ranges ``bounds`` with prange."""
     nchunks = bounds.shape[0] - 1
     R = np.empty((3, 3))
@@ -346,7 +345,7 @@ def run_parallel(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm
             hi = bounds[ch + 1]
             springs_stage(x, K, l0, offs, T, F, lo, hi)
             if has_volume:
-                cells_stage(x, kvol, V0, coff, squared, G, F, lo, hi)
+                cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi)
         for ch in prange(nchunks):
             accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt,
                                  damp, bounds[ch], bounds[ch + 1])
@@ -354,8 +353,8 @@ def run_parallel(x, v, X, K, l0, offs, kvol, V0, coff, squared, has_volume, invm
         if has_plates:
             s_old = ramp(step * dt, ramp_time)
             s_new = ramp((step + 1) * dt, ramp_time)
-            apply_plates(x, v, X, pl_nodes, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
-                         pl_angle, s_old, s_new, dt, R, u_old, u_new)
+            apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                         pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new)
         if (n + 1) % check_every == 0 or n == nsteps - 1:
             bad = find_bad(x, X, limit2)
             if bad >= 0:
@@ -375,11 +374,11 @@ def chunk_bounds(N: int, nchunks: int) -> np.ndarray:
 def advance(st, x, v, step0, nsteps, check_every, limit2, scratch, threads=1):
     """Run ``nsteps`` steps of the stencil ``st`` (a :class:`hybmss.explicit.Stencil`) on the grid
     state ``x, v`` (3, N), in place.  Returns (steps done, bad node or −1)."""
-    T, G, F = scratch
-    args = (x, v, st.Xg, st.K, st.l0, st.offs, st.kvol, st.V0, st.coff, st.squared, st.has_volume,
-            st.invm, st.gacc, st.has_gravity, st.dt, st.damp, st.ramp_time, st.pl_nodes, st.pl_ptr,
+    T, ABC, CR, G, F = scratch
+    args = (x, v, st.Xg, st.K, st.l0, st.offs, st.kv, st.coff, st.squared, st.has_volume,
+            st.invm, st.gacc, st.has_gravity, st.dt, st.damp, st.ramp_time, st.pl_nodes, st.pl_U1, st.pl_ptr,
             st.pl_mask, st.pl_kind, st.pl_disp, st.pl_axis, st.pl_center, st.pl_angle,
-            np.int64(step0), np.int64(nsteps), np.int64(max(1, check_every)), float(limit2), T, G, F)
+            np.int64(step0), np.int64(nsteps), np.int64(max(1, check_every)), float(limit2), T, ABC, CR, G, F)
     if threads <= 1:
         done, bad = run_serial(*args)
     else:

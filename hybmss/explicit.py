@@ -124,8 +124,7 @@ class Stencil:
     l0: np.ndarray  # (n_off,)
     offs: np.ndarray  # (n_off,) flat offsets
     offsets: np.ndarray  # (n_off, 3) grid offsets
-    kvol: np.ndarray  # (N,)
-    V0: np.ndarray  # (N,)
+    kv: np.ndarray  # (2, N): κ of the cell whose lowest corner is p (0: no cell), its rest volume
     coff: np.ndarray  # (8,) flat corner offsets
     squared: bool
     has_volume: bool
@@ -136,6 +135,7 @@ class Stencil:
     damp: float
     ramp_time: float
     pl_nodes: np.ndarray
+    pl_U1: np.ndarray  # (3, total plate nodes): u at s = 1 of motions linear in s
     pl_ptr: np.ndarray
     pl_mask: np.ndarray
     pl_kind: np.ndarray
@@ -149,8 +149,10 @@ class Stencil:
         return int(np.prod(self.shape))
 
     def scratch(self):
-        """Zeroed work arrays (T, G, F) of the kernel (entries never written must stay 0)."""
-        return (np.zeros((len(self.offs), 3, self.N)), np.zeros((4, 3, self.N)), np.zeros((3, self.N)))
+        """Zeroed work arrays (T, ABC, CR, G, F) of the kernel (entries never written stay 0)."""
+        N = self.N
+        return (np.zeros((len(self.offs), 3, N)), np.zeros((9, N)), np.zeros((10, N)),
+                np.zeros((4, 3, N)), np.zeros((3, N)))
 
     def to_grid(self, y: np.ndarray, fill: np.ndarray | None = None) -> np.ndarray:
         """(n, 3) particle array → (3, N) grid array (absent nodes from ``fill`` or 0)."""
@@ -199,12 +201,12 @@ def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
 
     corners = np.array([[(c >> 0) & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
     coff = corners @ strides
-    kvol = np.zeros(N)
-    V0 = np.ones(N)
+    kv = np.zeros((2, N))
+    kv[1] = 1.0
     if system.has_volume:
         p = flat[system.vol_cells[:, 0]]
-        kvol[p] = system.kappa
-        V0[p] = system.vol_V0
+        kv[0, p] = system.kappa
+        kv[1, p] = system.vol_V0
 
     if (system.mass <= 0).any():
         raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
@@ -214,14 +216,21 @@ def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
     if system.gravity is not None:
         gacc[:, flat] = system.gravity[:, None]
 
-    nodes, ptr, mask, kind, disp, axis, center, angle = [], [0], [], [], [], [], [], []
+    nodes, U1, ptr, mask, kind, disp, axis, center, angle = [], [], [0], [], [], [], [], [], []
     for plate, ps in zip(scene.plates, system.plates):
         m = plate.motion
+        Xp = system.X[ps.particles]
+        u1 = m.displacement_at(Xp, 1.0)
+        if m.kind != "rotate" and not np.allclose(m.displacement_at(Xp, 0.5), 0.5 * u1, rtol=1e-12,
+                                                  atol=1e-12 * le):
+            raise ValueError(f"plate {plate.name!r}: the stencil kernel needs a motion linear in the "
+                             f"load factor or a rotation, got {m.kind!r}; use kernel='numpy'")
         nodes.append(flat[ps.particles])
+        U1.append(u1.T)
         ptr.append(ptr[-1] + len(ps.particles))
         mask.append(ps.constrained)
         kind.append(1 if m.kind == "rotate" else 0)
-        disp.append(m.displacement if m.kind != "clamped" else (0.0, 0.0, 0.0))
+        disp.append(m.displacement)
         axis.append(m.axis)
         center.append(m.center if m.center is not None else system.X[ps.particles].mean(axis=0))
         angle.append(m.angle)
@@ -234,8 +243,7 @@ def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
         l0=l0_all[active],
         offs=OFFSETS[active] @ strides,
         offsets=OFFSETS[active],
-        kvol=kvol,
-        V0=V0,
+        kv=kv,
         coff=coff,
         squared=system.volume_energy == "squared",
         has_volume=system.has_volume,
@@ -246,6 +254,7 @@ def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
         damp=1.0 / (1.0 + system.scene.damping * dt),
         ramp_time=float(ramp_time),
         pl_nodes=np.concatenate(nodes).astype(np.int64) if nodes else np.zeros(0, dtype=np.int64),
+        pl_U1=np.ascontiguousarray(np.concatenate(U1, axis=1)) if U1 else np.zeros((3, 0)),
         pl_ptr=np.asarray(ptr, dtype=np.int64),
         pl_mask=np.asarray(mask, dtype=np.bool_).reshape(n_pl, 3),
         pl_kind=np.asarray(kind, dtype=np.int64),
