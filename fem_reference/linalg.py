@@ -152,7 +152,10 @@ def solve_saddle(
     rhs = np.concatenate([bu, bp])
     kind = _choose(method, S)
     if kind == "direct":
-        lu = spla.splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A")
+        # [[A, Bᵀ], [B, −C]] with A, C positive definite is symmetric quasi-definite: an LDLᵀ
+        # factorization exists for every symmetric ordering, so no pivoting is needed.
+        lu = spla.splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options=dict(SymmetricMode=True))
         x = lu.solve(rhs)
         its = 1
     else:
