@@ -127,6 +127,12 @@ STUDIES = {
 }
 
 
+EXTRA_STUDIES: dict[str, str] = {}
+"""Studies with their own driver, run after the task lists above: name -> "module:function",
+where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool) -> None``
+and writes its own tables into ``store`` (e.g. performance, speed against error, stability)."""
+
+
 def tasks_for(names=None, quick: bool = False) -> list[Task]:
     names = list(STUDIES) if not names else list(names)
     unknown = [n for n in names if n not in STUDIES]
@@ -139,10 +145,20 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
     """Run (or resume) the named studies into the results folder ``out`` and write the tables."""
     from .tables import write_tables
 
+    import importlib
+
     store = Store(Path(out))
-    names = list(STUDIES) if not names else list(names)
+    names = list(STUDIES) + list(EXTRA_STUDIES) if not names else list(names)
+    unknown = [n for n in names if n not in STUDIES and n not in EXTRA_STUDIES]
+    if unknown:
+        raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(list(STUDIES) + list(EXTRA_STUDIES))}")
     rows = []
     for name in names:
-        rows += run_tasks(tasks_for([name], quick), store, jobs=jobs, progress=progress, desc=name)
+        if name in STUDIES:
+            rows += run_tasks(tasks_for([name], quick), store, jobs=jobs, progress=progress, desc=name)
     write_tables(store)
+    for name in names:
+        if name in EXTRA_STUDIES:
+            module, func = EXTRA_STUDIES[name].split(":")
+            getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress)
     return rows
