@@ -173,7 +173,9 @@ def solve_saddle(
 
         P = spla.LinearOperator(S.shape, matvec=apply, dtype=float)
         count = [0]
-        x, info = spla.minres(S, rhs, M=P, rtol=rtol, maxiter=10000,
+        # scipy's MINRES stops on ‖r‖ ≤ rtol (‖S‖ ‖x‖ + ‖b‖), looser than ‖r‖ ≤ rtol ‖b‖ when
+        # the blocks are scaled as differently as here (forces vs volumes): tighten it.
+        x, info = spla.minres(S, rhs, M=P, rtol=rtol * 1e-3, maxiter=10000,
                               callback=lambda xk: count.__setitem__(0, count[0] + 1))
         if info != 0:
             raise RuntimeError(f"block-preconditioned MINRES did not converge ({count[0]} iterations)")

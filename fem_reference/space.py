@@ -91,7 +91,7 @@ class Space:
     @cached_property
     def N(self) -> np.ndarray:
         """(nn, ne, nq) basis values at the quadrature points."""
-        return np.stack([b[0].value for b in self.basis.basis])
+        return np.stack([np.asarray(b[0]) for b in self.basis.basis])
 
     @cached_property
     def dN(self) -> np.ndarray:

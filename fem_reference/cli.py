@@ -1,0 +1,162 @@
+"""The ``fem`` subcommand: solve a simple scene with the FEM reference.
+
+``hybmss fem --scene compression --mesh 10x10x10 --le 0.5 --E 1e4 --nu 0.25 --deformation 0.2
+--element auto --law neo-hookean --refine 1 --json`` prints one JSON object
+(:meth:`Result.summary` plus the scene).  ``--scene-json FILE`` solves any stored Scene
+(``Scene.to_dict`` format) instead.  The scenes built here are minimal loadings of a box
+(the publication's named scenes live in ``studies``):
+
+- ``compression``: bottom (z−) clamped, top (z+) moved by −d·H along z;
+- ``tension``: bottom clamped, top moved by +d·H along z;
+- ``shear``: bottom clamped, top moved by d·H along x;
+- ``torsion``: bottom clamped, top rotated by θ = d·√2 rad about the vertical axis through its
+  centre (the top corners of a square cube move by about d·side);
+- ``bending``: bottom clamped, gravity ``--gravity`` m/s² along −y.
+
+``register(subparsers)`` adds the subcommand to a parser (``studies.cli`` assembles the
+``hybmss`` command); ``python -m fem_reference`` runs it alone.  Bad arguments exit with status 2
+and a one-line message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+SCENES = ("compression", "tension", "shear", "torsion", "bending")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _mesh(text: str):
+    from hybmss.scene import parse_mesh
+
+    try:
+        return parse_mesh(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def build_scene(args):
+    """The Scene described by the parsed arguments."""
+    from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
+
+    if args.scene_json:
+        try:
+            with open(args.scene_json) as fh:
+                return Scene.from_dict(json.load(fh))
+        except OSError as exc:
+            raise ValueError(f"cannot read --scene-json: {exc.strerror}: {args.scene_json}") from None
+        except (KeyError, TypeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"--scene-json is not a scene: {exc}") from None
+    if args.le <= 0:
+        raise ValueError(f"--le must be > 0 m, got {args.le}")
+    nx, ny, nz = args.mesh
+    body = Body.box(nx, ny, nz, args.le)
+    mat = Material(args.E, args.nu, args.rho)
+    H = nz * args.le
+    d = args.deformation
+    bottom = Plate("bottom", Region("z-"), Motion("clamped"))
+    gravity = (0.0, 0.0, 0.0)
+    if args.scene == "compression":
+        plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -d * H))))
+    elif args.scene == "tension":
+        plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, d * H))))
+    elif args.scene == "shear":
+        plates = (bottom, Plate("top", Region("z+"), Motion("translate", (d * H, 0.0, 0.0))))
+    elif args.scene == "torsion":
+        center = (nx * args.le / 2, ny * args.le / 2, H)
+        plates = (bottom, Plate("top", Region("z+"), Motion("rotate", angle=d * math.sqrt(2.0), center=center)))
+    else:
+        plates = (bottom,)
+        gravity = (0.0, -args.gravity, 0.0)
+    name = f"{args.scene} {nx}x{ny}x{nz} E={args.E:g} nu={args.nu:g} d={d:g}"
+    return Scene(body, mat, plates=plates, gravity=gravity, name=name)
+
+
+def format_result(res) -> str:
+    lines = [
+        f"{res.solver}  ({res.info['n_dofs']:,} dofs, {res.info['n_elements']:,} elements, "
+        f"{res.iterations} Newton iteration(s), {res.wall_time_s:.2f} s)",
+        f"  volume change  ∫det F: {100 * res.volume_change:+.4f} %   "
+        f"averaged-edge (MSS formula): {100 * (res.info['volume_mss_formula'] / res.volume0 - 1):+.4f} %",
+        f"  max |u| = {res.max_displacement:.6g} m   strain energy = {res.energy['strain']:.6g} J",
+    ]
+    for name, r in res.reactions.items():
+        F = ", ".join(f"{v:.6g}" for v in r.force)
+        T = ", ".join(f"{v:.6g}" for v in r.torque)
+        lines.append(f"  plate {name}: F = ({F}) N   T = ({T}) N·m")
+    return "\n".join(lines)
+
+
+def cmd_fem(args) -> int:
+    from .solve import solve
+
+    scene = build_scene(args)
+    res = solve(scene, element=args.element, law=args.law, refine=args.refine, steps=args.steps,
+                method=args.solver)
+    if args.json:
+        out = res.summary()
+        out["scene"] = scene.to_dict()
+        json.dump(out, sys.stdout, default=float)
+        sys.stdout.write("\n")
+    else:
+        sys.stdout.write(format_result(res) + "\n")
+    return 0
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Add the ``fem`` subcommand to ``subparsers`` (from ``ArgumentParser.add_subparsers``)."""
+    from .solve import ELEMENT_CHOICES, LAW_CHOICES
+
+    q = subparsers.add_parser("fem", help="FEM reference (scikit-fem) of a simple scene")
+    q.add_argument("--scene", choices=SCENES, default="compression", help="loading (default compression)")
+    q.add_argument("--scene-json", default=None, metavar="FILE", help="solve a stored Scene (JSON) instead")
+    q.add_argument("--mesh", type=_mesh, default=(10, 10, 10), help="NXxNYxNZ cells (default 10x10x10)")
+    q.add_argument("--le", type=float, default=0.5, help="cell edge, m (default 0.5)")
+    q.add_argument("--E", type=float, default=10_000.0, help="Young's modulus, Pa (default 1e4)")
+    q.add_argument("--nu", type=float, default=0.25, help="Poisson ratio in (-1, 0.5) (default 0.25)")
+    q.add_argument("--rho", type=float, default=1000.0, help="density, kg/m^3 (default 1000)")
+    q.add_argument("--deformation", "-d", type=float, default=0.05,
+                   help="plate displacement / height d (torsion: angle d*sqrt(2) rad; default 0.05)")
+    q.add_argument("--gravity", type=float, default=10.0, help="bending: gravity, m/s^2 (default 10)")
+    q.add_argument("--element", choices=ELEMENT_CHOICES, default="auto",
+                   help="hex1, hex2, mixed (Hex2 x Hex1 u-p) or auto (mixed for nu >= 0.45; default)")
+    q.add_argument("--law", choices=LAW_CHOICES, default="linear", help="material law (default linear)")
+    q.add_argument("--refine", type=_positive_int, default=1, help="split each cell into r^3 elements")
+    q.add_argument("--steps", type=_positive_int, default=None, help="load steps (finite strain; default 5)")
+    q.add_argument("--solver", choices=("auto", "direct", "amg"), default="auto", help="linear solver")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.set_defaults(func=cmd_fem)
+    return q
+
+
+def main(argv=None) -> int:
+    """``python -m fem_reference [fem] ...``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] != "fem":
+        argv = ["fem"] + argv
+    p = _Parser(prog="hybmss")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    register(sub)
+    args = p.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ValueError as exc:
+        p.exit(2, f"{p.prog}: error: {' '.join(str(exc).split())}\n")
+    return 0
