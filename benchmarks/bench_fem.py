@@ -1,0 +1,113 @@
+"""Speed of the FEM references (issue 3): the 10×10×10 cube and the 8×8×48 beam.
+
+``python -m benchmarks.bench_fem [--quick] [--json] [--only NAME ...]`` times, per body,
+Hex1, Hex2 and mixed linear solves and a Neo-Hookean solve at 20 % deformation (cube:
+bonded compression; beam 0.4 × 0.4 × 2.4 m: tension), including assembly.  The mixed element runs
+at ν = 0.499 (its purpose), the others at ν = 0.25.  ``--quick`` uses 4×4×4 and 2×2×12 meshes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+
+import numpy as np
+
+from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
+
+
+def _scene(kind: str, mesh, le: float, nu: float, d: float) -> Scene:
+    nx, ny, nz = mesh
+    H = nz * le
+    sign = -1.0 if kind == "cube" else 1.0
+    return Scene(
+        Body.box(nx, ny, nz, le),
+        Material(1e4, nu, 1000.0),
+        plates=(
+            Plate("bottom", Region("z-")),
+            Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, sign * d * H))),
+        ),
+        name=f"{'compression' if kind == 'cube' else 'tension'} {nx}x{ny}x{nz}",
+    )
+
+
+def cases(quick: bool = False):
+    """(name, scene, solve keyword arguments) of every benchmark case."""
+    bodies = {"cube": ((4, 4, 4), 1.25) if quick else ((10, 10, 10), 0.5),
+              "beam": ((2, 2, 12), 0.2) if quick else ((8, 8, 48), 0.05)}
+    out = []
+    for kind, (mesh, le) in bodies.items():
+        out += [
+            (f"{kind}-hex1", _scene(kind, mesh, le, 0.25, 0.05), dict(element="hex1", law="linear")),
+            (f"{kind}-hex2", _scene(kind, mesh, le, 0.25, 0.05), dict(element="hex2", law="linear")),
+            (f"{kind}-mixed", _scene(kind, mesh, le, 0.499, 0.05), dict(element="mixed", law="linear")),
+            (f"{kind}-neo-hookean-20%", _scene(kind, mesh, le, 0.25, 0.20), dict(element="hex2", law="neo-hookean")),
+        ]
+    return out
+
+
+def run(quick: bool = False, only=None) -> dict:
+    from fem_reference import solve
+
+    rows = []
+    for name, scene, kw in cases(quick):
+        if only and name not in only:
+            continue
+        t0 = time.perf_counter()
+        res = solve(scene, **kw)
+        wall = time.perf_counter() - t0
+        top = res.reactions["top"].force[2]
+        rows.append({
+            "case": name,
+            "mesh": "x".join(map(str, scene.body.shape)),
+            "solver": res.solver,
+            "nu": scene.material.nu,
+            "dofs": res.info["n_dofs"],
+            "linear_solver": res.info["linear_solver"]["method"],
+            "linear_iterations": res.info["linear_solver"]["iterations"],
+            "newton_iterations": res.iterations,
+            "time_s": wall,
+            "volume_change": res.volume_change,
+            "top_force_z": top,
+        })
+    return {
+        "benchmark": "fem",
+        "quick": quick,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "rows": rows,
+    }
+
+
+def format_table(d: dict) -> str:
+    head = f"{'case':<24}{'mesh':>9}{'nu':>7}{'dofs':>9}{'solver':>12}{'lin.it':>8}{'newton':>7}{'time s':>9}{'dV/V %':>10}{'F_top N':>13}"
+    lines = [head]
+    for r in d["rows"]:
+        lines.append(
+            f"{r['case']:<24}{r['mesh']:>9}{r['nu']:>7g}{r['dofs']:>9,}{r['linear_solver']:>12}"
+            f"{r['linear_iterations']:>8}{r['newton_iterations']:>7}{r['time_s']:>9.2f}"
+            f"{100 * r['volume_change']:>10.4f}{r['top_force_z']:>13.6g}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.bench_fem", description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="small meshes (seconds)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--only", nargs="*", default=None, help="case names to run")
+    args = p.parse_args(argv)
+    d = run(quick=args.quick, only=args.only)
+    if args.json:
+        json.dump(d, sys.stdout, default=float)
+        sys.stdout.write("\n")
+    else:
+        sys.stdout.write(format_table(d) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
