@@ -130,24 +130,18 @@ def cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi):
             out = ABC[3 * d + c, lo:end]
             for i in range(n):
                 out[i] = 0.25 * (((a1[i] - a0[i]) + (b1[i] - b0[i])) + ((c1[i] - c0[i]) + (d1[i] - d0[i])))
-    ax, ay, az = ABC[0, lo:end], ABC[1, lo:end], ABC[2, lo:end]
-    bx, by, bz = ABC[3, lo:end], ABC[4, lo:end], ABC[5, lo:end]
-    cx, cy, cz = ABC[6, lo:end], ABC[7, lo:end], ABC[8, lo:end]
-    Ax, Ay, Az = CR[0, lo:end], CR[1, lo:end], CR[2, lo:end]
-    Bx, By, Bz = CR[3, lo:end], CR[4, lo:end], CR[5, lo:end]
-    Cx, Cy, Cz = CR[6, lo:end], CR[7, lo:end], CR[8, lo:end]
+    # b×c, c×a, a×b component by component: one store stream per loop keeps LLVM's run-time
+    # alias checks few enough for it to vectorize
+    for r in range(3):  # cross product r: (b×c, c×a, a×b) = (A_{1}×A_{2}) with cyclic axes
+        u = 3 * ((r + 1) % 3)
+        w = 3 * ((r + 2) % 3)
+        for c in range(3):
+            c1 = (c + 1) % 3
+            c2 = (c + 2) % 3
+            _cross_component(CR[3 * r + c, lo:end], ABC[u + c1, lo:end], ABC[w + c2, lo:end],
+                             ABC[u + c2, lo:end], ABC[w + c1, lo:end])
     W = CR[9, lo:end]
-    for i in range(n):
-        Ax[i] = by[i] * cz[i] - bz[i] * cy[i]
-        Ay[i] = bz[i] * cx[i] - bx[i] * cz[i]
-        Az[i] = bx[i] * cy[i] - by[i] * cx[i]
-        Bx[i] = cy[i] * az[i] - cz[i] * ay[i]
-        By[i] = cz[i] * ax[i] - cx[i] * az[i]
-        Bz[i] = cx[i] * ay[i] - cy[i] * ax[i]
-        Cx[i] = ay[i] * bz[i] - az[i] * by[i]
-        Cy[i] = az[i] * bx[i] - ax[i] * bz[i]
-        Cz[i] = ax[i] * by[i] - ay[i] * bx[i]
-        W[i] = ax[i] * Ax[i] + ay[i] * Ay[i] + az[i] * Az[i]
+    _dot3(W, ABC[0, lo:end], ABC[1, lo:end], ABC[2, lo:end], CR[0, lo:end], CR[1, lo:end], CR[2, lo:end])
     kap = kv[0, lo:end]
     V0 = kv[1, lo:end]
     if squared:  # W = κ/2 Vc q², q = (V'² − Vc²)/(2 Vc²):  W' = κ q V'/Vc
@@ -162,16 +156,29 @@ def cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi):
         A = CR[c, lo:end]
         B = CR[3 + c, lo:end]
         C = CR[6 + c, lo:end]
-        g0 = G[0, c, lo:end]
-        g1 = G[1, c, lo:end]
-        g2 = G[2, c, lo:end]
-        g3 = G[3, c, lo:end]
-        for i in range(n):
-            w = W[i]
-            g0[i] = w * ((A[i] + B[i]) + C[i])
-            g1[i] = w * ((A[i] + B[i]) - C[i])
-            g2[i] = w * ((A[i] - B[i]) + C[i])
-            g3[i] = w * ((A[i] - B[i]) - C[i])
+        _combine(G[0, c, lo:end], W, A, B, C, 1.0, 1.0)
+        _combine(G[1, c, lo:end], W, A, B, C, 1.0, -1.0)
+        _combine(G[2, c, lo:end], W, A, B, C, -1.0, 1.0)
+        _combine(G[3, c, lo:end], W, A, B, C, -1.0, -1.0)
+
+
+@njit(**_OPTS)
+def _cross_component(out, p, q, r, s):
+    for i in range(out.shape[0]):
+        out[i] = p[i] * q[i] - r[i] * s[i]
+
+
+@njit(**_OPTS)
+def _dot3(out, a0, a1, a2, b0, b1, b2):
+    for i in range(out.shape[0]):
+        out[i] = a0[i] * b0[i] + a1[i] * b1[i] + a2[i] * b2[i]
+
+
+@njit(**_OPTS)
+def _combine(out, w, A, B, C, sB, sC):
+    """out = w ((A ± B) ± C) (the signs are ±1: exact)."""
+    for i in range(out.shape[0]):
+        out[i] = w[i] * ((A[i] + sB * B[i]) + sC * C[i])
 
 
 # Corner c of a cell -> (gradient slot g, sign of the force): f_c = sign · G[g].
