@@ -1,0 +1,199 @@
+"""Read a stored results folder: run rows, tables, arrays and the publication's values.
+
+Layout (written by ``studies``): ``runs/<key>.json`` (one row per run), ``runs/<key>.npz``
+(``X``, ``u``, ``cells``, ``cell_volumes``), ``tables/<name>.csv``.  Nothing here runs a solver.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from functools import cached_property
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+
+#: lattice corner c = di + 2 dj + 4 dk  ->  VTK hexahedron order
+VTK_HEX_ORDER = [0, 1, 3, 2, 4, 5, 7, 6]
+
+EXPERIMENT_ORDER = ("compression", "tension", "shear", "torsion", "bending")
+
+
+def is_fem(solver: str) -> bool:
+    return str(solver).startswith("fem")
+
+
+def reference_law(experiment: str, deformation: float = 0.0, angle_deg: float = 0.0) -> str:
+    """FEM law each MSS run is compared with (the rule of ``studies.compare.default_law``)."""
+    from studies.compare import default_law
+
+    return default_law(SimpleNamespace(experiment=experiment, deformation=float(deformation),
+                                       angle_deg=float(angle_deg)))
+
+
+class Results:
+    """A results folder, read lazily."""
+
+    def __init__(self, root):
+        self.root = Path(root)
+        self.runs_dir = self.root / "runs"
+        self.tables_dir = self.root / "tables"
+        self._arrays: dict[str, dict] = {}
+        if not self.runs_dir.is_dir() and not self.tables_dir.is_dir():
+            raise FileNotFoundError(f"no results in {self.root}: expected runs/ and tables/ (run "
+                                    f"'python -m studies run --all --out {self.root}' first)")
+
+    # ----------------------------------------------------------------- rows
+    @cached_property
+    def rows(self) -> pd.DataFrame:
+        """Every stored run, one row each, with ``variant``, ``method`` and ``load`` columns."""
+        recs = []
+        for p in sorted(self.runs_dir.glob("*.json")) if self.runs_dir.is_dir() else []:
+            try:
+                recs.append(json.loads(p.read_text()))
+            except (OSError, json.JSONDecodeError):
+                continue
+        if not recs:
+            return pd.DataFrame()
+        df = pd.DataFrame(recs)
+        for col, default in (("scene_e_form", False), ("status", "ok"), ("message", ""),
+                             ("scene_angle_deg", 0.0), ("scene_deformation", 0.0), ("elapsed_s", np.nan),
+                             ("solver_law", ""), ("solver_refine", 1), ("scene_model", "")):
+            if col not in df:
+                df[col] = default
+        df["scene_e_form"] = df["scene_e_form"].fillna(False).astype(bool)
+        df["message"] = df["message"].fillna("")
+        df["variant"] = np.where(df["scene_e_form"], df["scene_model"] + " (E-form)", df["scene_model"])
+        fem = df["solver"].map(is_fem)
+        df["method"] = np.where(fem, df["solver"],
+                                df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
+        df["is_fem"] = fem
+        return df
+
+    def ok(self) -> pd.DataFrame:
+        df = self.rows
+        return df[df["status"] == "ok"] if not df.empty else df
+
+    def row(self, key: str) -> pd.Series:
+        return self.rows.set_index("key").loc[key]
+
+    # ----------------------------------------------------------------- environment
+    @cached_property
+    def environment(self) -> dict:
+        """Most frequent value of every ``env_*`` field, and every git revision seen."""
+        df = self.rows
+        out: dict = {}
+        if df.empty:
+            return out
+        for c in sorted(c for c in df.columns if c.startswith("env_")):
+            vals = [str(v) for v in df[c].dropna()]
+            if vals:
+                out[c[4:]] = Counter(vals).most_common(1)[0][0]
+        if "env_git_revision" in df:
+            out["git_revisions"] = sorted({str(v) for v in df["env_git_revision"].dropna()})
+        if "env_code_version" in df:
+            out["code_versions"] = sorted({str(v) for v in df["env_code_version"].dropna()})
+        return out
+
+    # ----------------------------------------------------------------- tables
+    def table_names(self) -> list[str]:
+        if not self.tables_dir.is_dir():
+            return []
+        return sorted(p.stem for p in self.tables_dir.glob("*.csv"))
+
+    def table(self, name: str) -> pd.DataFrame | None:
+        path = self.tables_dir / f"{name}.csv"
+        if not path.exists():
+            return None
+        try:
+            df = pd.read_csv(path)
+        except (pd.errors.EmptyDataError, OSError):
+            return None
+        return df if not df.empty else None
+
+    # ----------------------------------------------------------------- arrays
+    def arrays(self, key: str) -> dict:
+        """``X``, ``u``, ``cells`` (and ``cell_volumes``) of a run; empty if not stored."""
+        if key not in self._arrays:
+            path = self.runs_dir / f"{key}.npz"
+            if path.exists():
+                with np.load(path) as z:
+                    self._arrays[key] = {k: z[k] for k in z.files}
+            else:
+                self._arrays[key] = {}
+        return self._arrays[key]
+
+    def npz_mtime(self, key: str) -> float:
+        path = self.runs_dir / f"{key}.npz"
+        return path.stat().st_mtime if path.exists() else 0.0
+
+    # ----------------------------------------------------------------- lookup
+    def find(self, experiment: str, *, nu=None, mesh=None, deformation=None, angle_deg=None, E=None,
+             method=None, law=None, fem=None, ok_only=True) -> pd.DataFrame:
+        """Rows matching the given scene parameters (floats compared with a tolerance)."""
+        df = self.ok() if ok_only else self.rows
+        if df.empty:
+            return df
+        m = df["scene_experiment"] == experiment
+        for col, val in (("scene_nu", nu), ("scene_deformation", deformation), ("scene_angle_deg", angle_deg),
+                         ("scene_E", E)):
+            if val is not None:
+                m &= np.isclose(df[col].astype(float), float(val))
+        if mesh is not None:
+            m &= df["scene_mesh"] == mesh
+        if method is not None:
+            m &= df["method"] == method
+        if law is not None:
+            m &= df["solver_law"] == law
+        if fem is not None:
+            m &= df["is_fem"] == bool(fem)
+        return df[m]
+
+    def reference(self, experiment: str, **scene) -> pd.Series | None:
+        """The FEM reference run of a scene (law of :func:`reference_law`, refine 1)."""
+        law = reference_law(experiment, scene.get("deformation") or 0.0, scene.get("angle_deg") or 0.0)
+        sub = self.find(experiment, fem=True, law=law, **scene)
+        if "solver_refine" in sub:
+            sub = sub[sub["solver_refine"].fillna(1).astype(int) == 1]
+        return None if sub.empty else sub.iloc[0]
+
+    def primary_mesh(self, experiment: str) -> str | None:
+        """The finest mesh of an experiment in the results (the one the figures show)."""
+        sub = self.ok()
+        if sub.empty:
+            return None
+        sub = sub[sub["scene_experiment"] == experiment]
+        if sub.empty:
+            return None
+        meshes = sorted(sub["scene_mesh"].unique(), key=lambda s: int(np.prod([int(v) for v in s.split("x")])))
+        return meshes[-1]
+
+
+def paper_table(name: str) -> pd.DataFrame | None:
+    """A table of the publication from ``studies/data`` (``None`` if absent)."""
+    try:
+        from studies.paper import load
+
+        return load(name)
+    except (FileNotFoundError, OSError, ModuleNotFoundError):
+        return None
+
+
+def paper_source(name: str) -> str:
+    try:
+        from studies.paper import source
+
+        return source(name)
+    except (FileNotFoundError, OSError, ModuleNotFoundError):
+        return ""
+
+
+def mesh_counts(n: int) -> dict:
+    """Counts of an n×n×n lattice (SPEC §1): volumes, vertices, springs without face diagonals
+    (edges + 4 inner diagonals per cell) and with 12 unmerged face diagonals per cell."""
+    edges = 3 * n * (n + 1) ** 2
+    inner = 4 * n**3
+    return {"volumes": n**3, "vertices": (n + 1) ** 3, "springs_no_fd": edges + inner,
+            "springs_with_fd": edges + inner + 12 * n**3}

@@ -1,0 +1,269 @@
+"""Deformed shapes rendered off-screen with pyvista (Figs 3, 4, 7, 9 of [G20]).
+
+Each figure is a grid: rows hybmss-fd / hybmss / FEM reference, columns ν ∈ {0, 0.25, 0.499}; each
+panel is the deformed lattice (displacements to scale) coloured by |u| (m) with one colour range
+per figure, the undeformed body drawn as a grey outline.  Panels are rendered with a single
+off-screen plotter (EGL, no display needed) and assembled with matplotlib, which draws the labels
+and the shared colour bar.  Figures are cached by the keys and file times of the runs they show.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import palette
+from .data import VTK_HEX_ORDER, Results, reference_law
+
+#: bump when the look of the renders changes (invalidates the cache)
+RENDER_VERSION = "4"
+PANEL_SIZE = (400, 350)
+BEAM_PANEL_SIZE = (420, 170)
+NUS = (0.0, 0.25, 0.499)
+ROWS = ("hybmss-fd static", "hybmss static", "FEM")
+
+FIGURE_NUMBERS = {"compression": 3, "tension": 4, "shear": 7, "torsion": 9}
+
+
+@dataclass
+class RenderFigure:
+    """One rendered grid figure, its scene parameters and the runs it shows."""
+
+    experiment: str
+    load: str  # "d = 20 %" or "θ = 45°"
+    path: Path
+    mesh: str
+    caption: str
+    keys: list = field(default_factory=list)
+    umax: float = 0.0
+
+
+def hex_grid(X: np.ndarray, u: np.ndarray, cells: np.ndarray):
+    """pyvista UnstructuredGrid of the deformed lattice with point data ``|u|``."""
+    import pyvista as pv
+
+    grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: np.asarray(cells)[:, VTK_HEX_ORDER]},
+                               np.asarray(X + u, dtype=float))
+    grid.point_data["|u| (m)"] = np.linalg.norm(u, axis=1)
+    return grid
+
+
+class PanelRenderer:
+    """One small off-screen pyvista plotter reused for every panel."""
+
+    def __init__(self, size=PANEL_SIZE):
+        import pyvista as pv
+
+        self._pv = pv
+        self.plotter = pv.Plotter(off_screen=True, window_size=list(size))
+        self.plotter.set_background("white")
+
+    def close(self):
+        self.plotter.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def panel(self, X, u, cells, clim, view: dict, size=PANEL_SIZE) -> np.ndarray:
+        pv, p = self._pv, self.plotter
+        p.clear()
+        if tuple(p.window_size) != tuple(size):
+            p.window_size = list(size)
+        grid = hex_grid(X, u, cells)
+        p.add_mesh(grid, scalars="|u| (m)", clim=clim, cmap=palette.CMAP, show_edges=True,
+                   edge_color="#303030", line_width=0.6, show_scalar_bar=False, lighting=True)
+        lo, hi = X.min(axis=0), X.max(axis=0)
+        p.add_mesh(pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])).outline(),
+                   color="#9a9a9a", line_width=1.2)
+        cam = p.camera
+        cam.focal_point = view["focal"]
+        cam.position = view["position"]
+        cam.up = view["up"]
+        p.enable_parallel_projection()
+        cam.parallel_scale = view["scale"]
+        p.render()
+        return p.screenshot(return_img=True)
+
+
+def _view(boxes: list[tuple[np.ndarray, np.ndarray]], beam: bool, size) -> dict:
+    """A common camera for all panels of a figure: parallel projection fitted to every box."""
+    lo = np.min([b[0] for b in boxes], axis=0)
+    hi = np.max([b[1] for b in boxes], axis=0)
+    if beam:  # the beam lies along z: show it horizontally
+        d, up = np.array([0.45, -1.0, 0.3]), np.array([1.0, 0.0, 0.0])
+    else:
+        d, up = np.array([1.0, -1.25, 0.8]), np.array([0.0, 0.0, 1.0])
+    d = d / np.linalg.norm(d)
+    up = up - up.dot(d) * d
+    up /= np.linalg.norm(up)
+    right = np.cross(d, up)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    pr, pu = corners @ right, corners @ up
+    c_screen = 0.5 * (pr.min() + pr.max()) * right + 0.5 * (pu.min() + pu.max()) * up
+    depth = (0.5 * (lo + hi)).dot(d) * d
+    focal = c_screen + depth
+    aspect = size[0] / size[1]
+    scale = 1.06 * max(0.5 * (pu.max() - pu.min()), 0.5 * (pr.max() - pr.min()) / aspect)
+    ext = float(np.linalg.norm(hi - lo))
+    return {"focal": tuple(focal), "position": tuple(focal + 4 * ext * d), "up": tuple(up), "scale": scale}
+
+
+def _select(results: Results, experiment: str, mesh: str, nu: float, load: dict, row: str):
+    if row == "FEM":
+        return results.reference(experiment, mesh=mesh, nu=nu, **load)
+    sub = results.find(experiment, mesh=mesh, nu=nu, method=row, **load)
+    if "study" in sub:
+        sub = sub[sub["study"] == experiment] if (sub["study"] == experiment).any() else sub
+    return None if sub.empty else sub.iloc[0]
+
+
+def _loads(results: Results, experiment: str, mesh: str) -> list[dict]:
+    sub = results.find(experiment, mesh=mesh)
+    if experiment == "torsion":
+        vals = sorted(sub["scene_angle_deg"].astype(float).unique())
+        return [{"angle_deg": v} for v in vals]
+    vals = sorted(sub["scene_deformation"].astype(float).unique())
+    return [{"deformation": v} for v in vals]
+
+
+def load_tag(load: dict) -> str:
+    if "angle_deg" in load:
+        return f"theta{load['angle_deg']:g}deg"
+    return f"d{100 * load['deformation']:g}pct"
+
+
+def load_label(load: dict) -> str:
+    if "angle_deg" in load:
+        return f"θ = {load['angle_deg']:g}°"
+    return f"d = {100 * load['deformation']:g} %"
+
+
+def render_figures(results: Results, out_dir: Path, cache_dir: Path | None = None) -> list[RenderFigure]:
+    """Every grid figure the results allow (one per experiment and load level)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    figs: list[RenderFigure] = []
+    renderer = None
+    try:
+        for experiment in FIGURE_NUMBERS:
+            mesh = results.primary_mesh(experiment)
+            if mesh is None:
+                continue
+            for load in _loads(results, experiment, mesh):
+                panels = {}
+                for r, row in enumerate(ROWS):
+                    for c, nu in enumerate(NUS):
+                        sel = _select(results, experiment, mesh, nu, load, row)
+                        if sel is not None and "u" in results.arrays(sel["key"]):
+                            panels[(r, c)] = sel
+                if not panels:
+                    continue
+                tag = f"{experiment}_{mesh}_{load_tag(load)}"
+                name = f"render_{tag}.png"
+                path = out_dir / name
+                sig = hashlib.sha256(json.dumps(
+                    [RENDER_VERSION, tag] + sorted((str(k), s["key"], results.npz_mtime(s["key"]))
+                                                   for k, s in panels.items())).encode()).hexdigest()[:20]
+                cached = Path(cache_dir) / f"{sig}.png" if cache_dir else None
+                umax = max(float(np.linalg.norm(results.arrays(s["key"])["u"], axis=1).max())
+                           for s in panels.values())
+                if cached is not None and cached.exists():
+                    shutil.copyfile(cached, path)
+                else:
+                    if renderer is None:
+                        renderer = PanelRenderer()
+                    _compose(results, renderer, experiment, mesh, load, panels, umax, path)
+                    if cached is not None:
+                        cached.parent.mkdir(parents=True, exist_ok=True)
+                        shutil.copyfile(path, cached)
+                figs.append(RenderFigure(experiment, load_label(load), path, mesh,
+                                         _caption(results, experiment, mesh, load, panels, umax),
+                                         [s["key"] for s in panels.values()], umax))
+    finally:
+        if renderer is not None:
+            renderer.close()
+    return figs
+
+
+def _caption(results, experiment, mesh, load, panels, umax) -> str:
+    any_row = next(iter(panels.values()))
+    fem = [s for (r, _), s in panels.items() if ROWS[r] == "FEM"]
+    law = reference_law(experiment, load.get("deformation", 0.0), load.get("angle_deg", 0.0))
+    femtxt = f"FEM: {fem[0]['solver']} ({law})" if fem else "FEM: no reference stored"
+    missing = 9 - len(panels)
+    miss = f"; {missing} panel(s) empty (run missing or failed, see the failures table)" if missing else ""
+    return (f"{experiment.capitalize()}, mesh {mesh}, E = {any_row['scene_E']:g} Pa, ρ = {any_row['scene_rho']:g} kg/m³, "
+            f"{load_label(load)}; static equilibrium (MSS: Newton), {femtxt}. Deformed shape to scale, colour = "
+            f"displacement magnitude |u| (m), one colour range 0–{umax:.3g} m for all panels; grey box: undeformed "
+            f"body{miss}.")
+
+
+def _failed(results, experiment, mesh, load) -> dict:
+    """Status of runs that exist but failed, per panel position."""
+    out = {}
+    for r, row in enumerate(ROWS):
+        if row == "FEM":
+            continue
+        for c, nu in enumerate(NUS):
+            sub = results.find(experiment, mesh=mesh, nu=nu, method=row, ok_only=False, **load)
+            sub = sub[sub["status"] != "ok"]
+            if not sub.empty:
+                out[(r, c)] = f"{sub.iloc[0]['status']}\n(see failures)"
+    return out
+
+
+def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
+    failed = _failed(results, experiment, mesh, load)
+    beam = experiment in ("tension", "bending")
+    boxes = []
+    for s in panels.values():
+        a = results.arrays(s["key"])
+        x = a["X"] + a["u"]
+        boxes += [(x.min(axis=0), x.max(axis=0)), (a["X"].min(axis=0), a["X"].max(axis=0))]
+    size = BEAM_PANEL_SIZE if beam else PANEL_SIZE
+    view = _view(boxes, beam, size)
+    clim = (0.0, umax if umax > 0 else 1.0)
+    images = {}
+    for (r, c), s in panels.items():
+        a = results.arrays(s["key"])
+        images[(r, c)] = renderer.panel(a["X"], a["u"], a["cells"], clim, view, size)
+
+    with palette.style() as plt:
+        import matplotlib as mpl
+
+        w, h = size
+        fig_w = 7.0
+        fig_h = 0.83 * fig_w * h / w + 0.45
+        fig, axes = plt.subplots(3, 3, figsize=(fig_w, fig_h),
+                                 gridspec_kw=dict(wspace=0.02, hspace=0.06, left=0.07, right=0.885,
+                                                  top=1 - 0.3 / fig_h, bottom=0.01))
+        for r in range(3):
+            for c in range(3):
+                ax = axes[r, c]
+                ax.set_axis_off()
+                if (r, c) in images:
+                    ax.imshow(images[(r, c)])
+                else:
+                    ax.imshow(np.full((h, w, 3), 245, dtype=np.uint8))
+                    ax.text(0.5, 0.5, failed.get((r, c), "no run stored"), ha="center", va="center",
+                            transform=ax.transAxes, color="#a00", fontsize=8)
+                if r == 0:
+                    ax.set_title(f"ν = {NUS[c]:g}")
+            label = ROWS[r].replace(" static", "")
+            fam = "fem-linear" if label == "FEM" else label
+            axes[r, 0].text(-0.04, 0.5, label, rotation=90, ha="right", va="center", transform=axes[r, 0].transAxes,
+                            color=palette.COLORS.get(fam, "k"), fontsize=9.5, fontweight="bold")
+        cax = fig.add_axes([0.905, 0.08, 0.022, 0.8])
+        sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(*clim), cmap=palette.CMAP)
+        cb = fig.colorbar(sm, cax=cax)
+        cb.set_label("|u| (m)")
+        fig.savefig(path, dpi=130)
+        plt.close(fig)
