@@ -1,0 +1,450 @@
+"""matplotlib figures of the report (Agg backend), drawn from stored results only.
+
+- :func:`beam_deflection`: neutral axis of the clamped beam under its weight, MSS and FEM against
+  Euler–Bernoulli ([G20] Fig. 5).
+- :func:`cross_sections`: middle-layer cross sections, MSS over FEM, for shear (vertical section
+  y = W/2, seen along y) and torsion (horizontal layer z = H/2, seen from above) ([G20] Figs 8, 10).
+- :func:`volume_change`: e (%) against ν per method with the publication's values (Tables 2, 3).
+- :func:`reactions`: shear force and torsion torque against ν per method (Tables 4, 5).
+- :func:`differences`: relative L2 nodal difference MSS vs FEM per experiment and ν.
+- :func:`generic`: performance, speed-against-error (Pareto) or stability tables, when present.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import palette
+from .data import Results, paper_table, reference_law
+
+BEAM_WIDTH = 0.4  # m, [G20] §6 (the tension and bending beam is 0.4 × 0.4 × 2.4 m)
+NUS = (0.0, 0.25, 0.499)
+MSS_METHODS = ("hybmss-fd static", "hybmss static")
+
+
+@dataclass
+class Figure:
+    id: str
+    title: str
+    path: Path
+    caption: str
+
+
+def _save(plt, fig, path: Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150, bbox_inches="tight", pad_inches=0.04)
+    plt.close(fig)
+    return path
+
+
+# ----------------------------------------------------------------------------- beam (Fig 5)
+def neutral_axis(X: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(z, u_y) along the particles nearest to the beam's centre line (averaged per z)."""
+    cx, cy = 0.5 * (X[:, 0].min() + X[:, 0].max()), 0.5 * (X[:, 1].min() + X[:, 1].max())
+    d = np.hypot(X[:, 0] - cx, X[:, 1] - cy)
+    sel = np.flatnonzero(d <= d.min() + 1e-9)
+    z = np.round(X[sel, 2], 12)
+    zs = np.unique(z)
+    return zs - X[:, 2].min(), np.array([u[sel][z == v, 1].mean() for v in zs])
+
+
+def euler_bernoulli(z: np.ndarray, L: float, E: float, rho: float, g: float, width=BEAM_WIDTH, height=BEAM_WIDTH):
+    """[G20]: ``y(z) = ρ g l h /(24 E I) (4 L z³ − 6 L² z² − z⁴)``, ``I = l h³/12`` (m)."""
+    I = width * height**3 / 12.0
+    return rho * g * width * height / (24.0 * E * I) * (4 * L * z**3 - 6 * L**2 * z**2 - z**4)
+
+
+def beam_deflection(results: Results, path: Path) -> Figure | None:
+    df = results.find("bending")
+    if df.empty:
+        return None
+    meshes = sorted(df["scene_mesh"].unique(), key=lambda s: int(np.prod([int(v) for v in s.split("x")])))
+    Es = sorted(df["scene_E"].astype(float).unique(), reverse=True)
+    methods = [m for m in ("hybmss static", "hybmss-fd static", "hybmss-cf static") if m in set(df["method"])]
+    methods += sorted(m for m in df["method"].unique() if m.startswith("fem"))
+    methods += sorted(m for m in df["method"].unique() if m not in methods)
+    with palette.style() as plt:
+        fig, axes = plt.subplots(len(meshes), len(Es), figsize=(3.4 * len(Es), 2.5 * len(meshes) + 0.4),
+                                 squeeze=False, sharex=True)
+        for i, mesh in enumerate(meshes):
+            for j, E in enumerate(Es):
+                ax = axes[i, j]
+                sub = df[(df["scene_mesh"] == mesh) & np.isclose(df["scene_E"], E)]
+                L = rho = g = None
+                for m in methods:
+                    s = sub[sub["method"] == m]
+                    if s.empty:
+                        continue
+                    r = s.iloc[0]
+                    a = results.arrays(r["key"])
+                    if "u" not in a:
+                        continue
+                    z, uy = neutral_axis(a["X"], a["u"])
+                    L = float(a["X"][:, 2].max() - a["X"][:, 2].min())
+                    rho, g = float(r["scene_rho"]), float(r["scene_gravity"])
+                    ax.plot(z, uy, color=palette.color(m), ls=palette.linestyle(m), marker=palette.marker(m),
+                            markevery=max(1, len(z) // 8), label=m.replace(" static", ""))
+                if L is not None:
+                    zz = np.linspace(0.0, L, 200)
+                    ax.plot(zz, euler_bernoulli(zz, L, E, rho, g), color=palette.COLORS["Euler-Bernoulli"],
+                            ls="-.", lw=1.2, label="Euler–Bernoulli")
+                ax.set_title(f"mesh {mesh}, E = {E / 1e6:g} MPa")
+                if i == len(meshes) - 1:
+                    ax.set_xlabel("distance from clamp z (m)")
+                if j == 0:
+                    ax.set_ylabel("deflection $u_y$ (m)")
+        handles, labels = axes[0, 0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), frameon=False,
+                   bbox_to_anchor=(0.5, 1.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    r0 = df.iloc[0]
+    return Figure("fig5", "Beam deflection under gravity (Fig. 5)", Path(path),
+                  f"Clamped beam 0.4 × 0.4 × 2.4 m, ν = {r0['scene_nu']:g}, ρ = {r0['scene_rho']:g} kg/m³, "
+                  f"g = {r0['scene_gravity']:g} m/s², static equilibrium; vertical displacement of the centre line "
+                  f"(m) against the distance from the clamped end (m). FEM: Hex2 elements on the same grid.")
+
+
+# ----------------------------------------------------------------------------- cross sections (Figs 8, 10)
+def _layer_grid(X: np.ndarray, P: np.ndarray, axis: int, a: int, b: int):
+    """Points P of the layer ``X[:, axis] ≈ middle`` arranged as a 2D grid over axes (a, b)."""
+    lev = np.unique(np.round(X[:, axis], 9))
+    mid = 0.5 * (lev.min() + lev.max())
+    target = lev[np.argmin(np.abs(lev - mid))]
+    sel = np.flatnonzero(np.abs(X[:, axis] - target) < 1e-7)
+    ua, ub = np.unique(np.round(X[sel, a], 9)), np.unique(np.round(X[sel, b], 9))
+    ia = np.searchsorted(ua, np.round(X[sel, a], 9))
+    ib = np.searchsorted(ub, np.round(X[sel, b], 9))
+    G = np.full((len(ua), len(ub), 2), np.nan)
+    G[ia, ib, 0] = P[sel, a]
+    G[ia, ib, 1] = P[sel, b]
+    return G, float(target)
+
+
+def _draw_grid(ax, G, **kw):
+    label = kw.pop("label", None)
+    for k in range(G.shape[0]):
+        ax.plot(G[k, :, 0], G[k, :, 1], **kw)
+    for k in range(G.shape[1]):
+        ax.plot(G[:, k, 0], G[:, k, 1], **kw, label=label if k == 0 else None)
+
+
+def cross_sections(results: Results, experiment: str, path: Path) -> Figure | None:
+    mesh = results.primary_mesh(experiment)
+    if mesh is None:
+        return None
+    df = results.find(experiment, mesh=mesh)
+    if experiment == "torsion":
+        loads = [{"angle_deg": v} for v in sorted(df["scene_angle_deg"].astype(float).unique())]
+        axis, a, b, names = 2, 0, 1, ("x (m)", "y (m)")
+    else:
+        loads = [{"deformation": v} for v in sorted(df["scene_deformation"].astype(float).unique())]
+        axis, a, b, names = 1, 0, 2, ("x (m)", "z (m)")
+    diffs = results.table("differences")
+    with palette.style() as plt:
+        fig, axes = plt.subplots(len(loads), 3, figsize=(7.2, 2.55 * len(loads) + 0.5), squeeze=False)
+        level = None
+        for i, load in enumerate(loads):
+            ref = None
+            for j, nu in enumerate(NUS):
+                ax = axes[i, j]
+                ref = results.reference(experiment, mesh=mesh, nu=nu, **load)
+                txt = []
+                if ref is not None:
+                    A = results.arrays(ref["key"])
+                    G0, level = _layer_grid(A["X"], A["X"], axis, a, b)
+                    _draw_grid(ax, G0, color="#c8c8c8", lw=0.7, label="undeformed")
+                    G, _ = _layer_grid(A["X"], A["X"] + A["u"], axis, a, b)
+                    _draw_grid(ax, G, color=palette.color(ref["solver"]), lw=1.5,
+                               label=f"FEM ({ref['solver_law']})")
+                for m, ls in zip(MSS_METHODS, ("--", ":")):
+                    s = results.find(experiment, mesh=mesh, nu=nu, method=m, **load)
+                    if s.empty:
+                        continue
+                    B = results.arrays(s.iloc[0]["key"])
+                    if "u" not in B:
+                        continue
+                    G, level = _layer_grid(B["X"], B["X"] + B["u"], axis, a, b)
+                    _draw_grid(ax, G, color=palette.color(m), lw=1.3, ls=ls, label=m.replace(" static", ""))
+                    if diffs is not None and "mss_key" in diffs:
+                        d = diffs[diffs["mss_key"] == s.iloc[0]["key"]]
+                        if not d.empty:
+                            txt.append(f"{m.split()[0]}: {1e3 * d.iloc[0]['mid_layer_mean_m']:.3g} mm")
+                if txt:
+                    ax.text(0.02, 0.02, "mean |Δu|, z = H/2:\n" + "\n".join(txt), transform=ax.transAxes,
+                            fontsize=6.5, va="bottom", ha="left",
+                            bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.8))
+                ax.autoscale_view()
+                lo, hi = ax.get_ylim()
+                ax.set_ylim(lo - 0.38 * (hi - lo), hi)
+                ax.set_aspect("equal", adjustable="box")
+                lab = f"θ = {load['angle_deg']:g}°" if "angle_deg" in load else f"d = {100 * load['deformation']:g} %"
+                ax.set_title(f"ν = {nu:g}, {lab}")
+                if i == len(loads) - 1:
+                    ax.set_xlabel(names[0])
+                if j == 0:
+                    ax.set_ylabel(names[1])
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                if l not in labels:
+                    handles.append(h)
+                    labels.append(l)
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False, bbox_to_anchor=(0.5, 1.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    r0 = df.iloc[0]
+    where = ("horizontal layer at mid-height z = H/2 seen from above" if experiment == "torsion"
+             else "vertical section through the middle (y = W/2) seen along y")
+    num, fid = ("10", "fig10") if experiment == "torsion" else ("8", "fig8")
+    return Figure(fid, f"{experiment.capitalize()}: middle cross sections, MSS over FEM (Fig. {num})", Path(path),
+                  f"{experiment.capitalize()}, mesh {mesh}, E = {r0['scene_E']:g} Pa, static equilibrium; {where}; "
+                  f"deformed positions (m), undeformed grid in grey. FEM: linear at ≤ 5 % / ≤ 5°, Neo-Hookean above. "
+                  f"Boxes: mean |u_MSS − u_FEM| over the z = H/2 layer (mm), the metric of [G20] §6.")
+
+
+# ----------------------------------------------------------------------------- Tables 2, 3 as plots
+def _methods_in(table: pd.DataFrame) -> list[str]:
+    skip = {"mesh", "nu", "d", "deformation", "angle_deg", "E"}
+    return [c for c in table.columns if c not in skip and not c.startswith("paper")]
+
+
+def volume_change(results: Results, path: Path) -> Figure | None:
+    panels = []
+    for exp, name in (("compression", "table2_compression"), ("tension", "table3_tension")):
+        t = results.table(name)
+        if t is not None:
+            mesh = results.primary_mesh(exp)
+            t = t[t["mesh"] == mesh] if mesh in set(t["mesh"]) else t
+            for d in sorted(t["d"].unique()):
+                panels.append((exp, mesh, d, t[np.isclose(t["d"], d)].sort_values("nu")))
+    if not panels:
+        return None
+    with palette.style() as plt:
+        ncol = min(4, len(panels))
+        nrow = int(np.ceil(len(panels) / ncol))
+        fig, axes = plt.subplots(nrow, ncol, figsize=(1.85 * ncol + 0.4, 2.5 * nrow + 0.4), squeeze=False)
+        for ax in axes.flat[len(panels):]:
+            ax.set_visible(False)
+        for ax, (exp, mesh, d, t) in zip(axes.flat, panels):
+            for m in _methods_in(t):
+                if t[m].notna().any():
+                    ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
+                            lw=1.0, label=m.replace(" static", ""))
+            for m, mk in (("paper hybmss", "o"), ("paper hybmss-fd", "s"), ("paper FEM (LS-Dyna)", "h")):
+                if m in t and t[m].notna().any():
+                    base = m.replace("paper ", "").replace(" (LS-Dyna)", "-linear")
+                    ax.plot(t["nu"], t[m], ls="none", marker=mk, mfc="none", ms=7, mew=1.1,
+                            color=palette.color(base if base != "FEM-linear" else "fem"),
+                            label=m.replace("paper", "[G20]"))
+            ax.set_title(f"{exp}, d = {100 * d:g} %\nmesh {mesh}")
+            ax.set_xlabel("ν")
+            ax.set_xticks(list(NUS))
+            ax.set_xticklabels(["0", "0.25", "0.499"])
+        for r in range(nrow):
+            axes[r, 0].set_ylabel("relative volume change e (%)")
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                if l not in labels:
+                    handles.append(h)
+                    labels.append(l)
+        fig.legend(handles, labels, loc="upper center", ncol=4, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("fig_e", "Relative volume change against ν (Tables 2, 3)", Path(path),
+                  "e = |V′ − V0|/V0 (%) of the static equilibria, E = 10⁴ Pa; filled markers: this "
+                  "reproduction; hollow markers: the publication's values ([G20] Tables 2, 3, 10×10×10 cube and "
+                  "4×4×24 beam, LS-Dyna FEM). hybmss-cf is ν-blind (always ν = 1/4).")
+
+
+def reactions(results: Results, path: Path) -> Figure | None:
+    panels = []
+    for exp, name, col, unit, q in (("shear", "table4_shear", "deformation", "N", "reaction force F_x"),
+                                    ("torsion", "table5_torsion", "angle_deg", "N·m", "reaction torque T_z")):
+        t = results.table(name)
+        if t is None:
+            continue
+        mesh = results.primary_mesh(exp)
+        t = t[t["mesh"] == mesh] if mesh in set(t["mesh"]) else t
+        for v in sorted(t[col].unique()):
+            panels.append((exp, mesh, col, v, unit, q, t[np.isclose(t[col], v)].sort_values("nu")))
+    if not panels:
+        return None
+    with palette.style() as plt:
+        ncol = min(4, len(panels))
+        nrow = int(np.ceil(len(panels) / ncol))
+        fig, axes = plt.subplots(nrow, ncol, figsize=(1.85 * ncol + 0.5, 2.5 * nrow + 0.4), squeeze=False)
+        for ax in axes.flat[len(panels):]:
+            ax.set_visible(False)
+        for ax, (exp, mesh, col, v, unit, q, t) in zip(axes.flat, panels):
+            for m in _methods_in(t):
+                if t[m].notna().any():
+                    ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
+                            lw=1.0, label=m.replace(" static", ""))
+            lab = f"θ = {v:g}°" if col == "angle_deg" else f"d = {100 * v:g} %"
+            ax.set_title(f"{exp}, {lab}\nmesh {mesh}")
+            ax.set_xlabel("ν")
+            ax.set_xticks(list(NUS))
+            ax.set_xticklabels(["0", "0.25", "0.499"])
+            ax.set_ylabel(f"{q} ({unit})")
+            ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                if l not in labels:
+                    handles.append(h)
+                    labels.append(l)
+        fig.legend(handles, labels, loc="upper center", ncol=4, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("fig_reactions", "Top-plate reactions against ν (Tables 4, 5)", Path(path),
+                  "Shear: reaction force F_x (N) on the top plate; torsion: reaction torque T_z (N·m) about the "
+                  "vertical axis; E = 10⁴ Pa, static equilibria. FEM at 5 % / 1° is linear (small strain), the "
+                  "finite-strain laws (Neo-Hookean, SVK) are the references at 20 % / 45°.")
+
+
+def differences(results: Results, path: Path) -> Figure | None:
+    t = results.table("differences")
+    if t is None or "rel_l2" not in t:
+        return None
+    exps = [e for e in ("compression", "tension", "shear", "torsion") if e in set(t["experiment"])]
+    if not exps:
+        return None
+    with palette.style() as plt:
+        fig, axes = plt.subplots(1, len(exps), figsize=(1.85 * len(exps) + 0.5, 2.6), squeeze=False, sharey=True)
+        for ax, exp in zip(axes[0], exps):
+            sub = t[t["experiment"] == exp].copy()
+            mesh = results.primary_mesh(exp)
+            if mesh in set(sub["mesh"]):
+                sub = sub[sub["mesh"] == mesh]
+            loadcol = "angle_deg" if exp == "torsion" else "d"
+            loads = sorted(sub[loadcol].unique())
+            for m in sorted(sub["method"].unique()):
+                for v, ls in zip(loads, ("-", "--", ":", "-.")):
+                    s = sub[(sub["method"] == m) & np.isclose(sub[loadcol], v)].sort_values("nu")
+                    if s.empty:
+                        continue
+                    lab = f"θ={v:g}°" if loadcol == "angle_deg" else f"d={100 * v:g}%"
+                    ax.plot(s["nu"], 100 * s["rel_l2"], color=palette.color(m), marker=palette.marker(m), ls=ls,
+                            lw=1.0, label=f"{m.replace(' static', '')}, {lab}")
+            ax.set_yscale("log")
+            ax.set_title(f"{exp}, mesh {mesh}")
+            ax.set_xlabel("ν")
+            ax.set_xticks(list(NUS))
+            ax.set_xticklabels(["0", "0.25", "0.499"])
+        axes[0, 0].set_ylabel("‖u_MSS − u_FEM‖ / ‖u_FEM‖ (%)")
+        from matplotlib.lines import Line2D
+
+        methods = sorted(t["method"].unique())
+        handles = [Line2D([], [], color=palette.color(m), marker=palette.marker(m), lw=1.0,
+                          label=m.replace(" static", "")) for m in methods]
+        handles += [Line2D([], [], color="k", ls="-", lw=1.0, label="small load (5 %, 1°)"),
+                    Line2D([], [], color="k", ls="--", lw=1.0, label="large load (20 %, 45°)")]
+        fig.legend(handles=handles, loc="upper center", ncol=3, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("fig_diff", "Nodal displacement difference MSS vs FEM", Path(path),
+                  "Relative L2 difference of the nodal displacements (%) of each MSS static equilibrium against its "
+                  "FEM reference on the same grid (linear at ≤ 5 % / ≤ 5°, Neo-Hookean above); solid: small load, "
+                  "dashed: large load; E = 10⁴ Pa.")
+
+
+# ----------------------------------------------------------------------------- optional studies
+_X_PREF = ("volumes", "n_volumes", "cells", "n_cells", "particles", "n_particles", "vertices", "nu", "dt",
+           "angle_deg", "steps")
+_GROUP_PREF = ("variant", "model", "method", "solver", "kernel", "scene_model")
+
+
+def _numeric(df: pd.DataFrame) -> list[str]:
+    return [c for c in df.columns if pd.api.types.is_numeric_dtype(df[c]) and df[c].notna().any()]
+
+
+def generic(name: str, df: pd.DataFrame, path: Path) -> Figure | None:
+    """A plot of a study table whose columns are not fixed in advance (performance, Pareto,
+    stability): x is a size (volumes, cells, …) or a time for a Pareto table, y are time or error
+    columns, one line per model; logarithmic axes where the values span over a decade."""
+    num = _numeric(df)
+    if len(num) < 2:
+        return None
+    group = next((g for g in _GROUP_PREF if g in df.columns and not pd.api.types.is_numeric_dtype(df[g])), None)
+    is_pareto = "pareto" in name
+    if is_pareto:
+        x = next((c for c in num if "time" in c or c.endswith("_s")), None)
+        ys = [c for c in num if c != x and ("err" in c or "l2" in c or "diff" in c)][:1]
+    else:
+        x = next((c for c in _X_PREF if c in num), None)
+        ys = [c for c in num if c != x and ("time" in c or c.endswith("_s") or "dt" in c or "speed" in c)][:3]
+        if not ys:
+            ys = [c for c in num if c != x][:2]
+    if x is None or not ys:
+        return None
+    with palette.style() as plt:
+        fig, axes = plt.subplots(1, len(ys), figsize=(3.4 * len(ys) + 0.3, 2.7), squeeze=False)
+        for ax, y in zip(axes[0], ys):
+            groups = df.groupby(group) if group else [("all", df)]
+            for gname, g in groups:
+                g = g.dropna(subset=[x, y]).sort_values(x)
+                if g.empty:
+                    continue
+                kw = dict(color=palette.color(str(gname)), marker=palette.marker(str(gname)), label=str(gname))
+                if is_pareto:
+                    ax.plot(g[x], g[y], ls="none", alpha=0.5, **kw)
+                    front = g.sort_values([x, y])
+                    front = front[front[y] <= front[y].cummin()]
+                    ax.plot(front[x], front[y], ls="-", color=kw["color"], lw=1.2)
+                else:
+                    ax.plot(g[x], g[y], ls="-", lw=1.1, **kw)
+            for col, setter in ((x, ax.set_xscale), (y, ax.set_yscale)):
+                v = df[col].dropna()
+                v = v[v > 0]
+                if len(v) > 1 and v.max() / v.min() > 20:
+                    setter("log")
+            ax.set_xlabel(_unit_label(x))
+            ax.set_ylabel(_unit_label(y))
+        handles, labels = axes[0, 0].get_legend_handles_labels()
+        if labels:
+            fig.legend(handles, labels, loc="upper center", ncol=min(5, len(labels)), frameon=False,
+                       bbox_to_anchor=(0.5, 0.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    what = "Pareto fronts (lines: non-dominated runs)" if is_pareto else f"{', '.join(ys)} against {x}"
+    return Figure(f"fig_{name}", f"{name.replace('_', ' ').capitalize()}", Path(path),
+                  f"From tables/{name}.csv: {what}; one colour per model (the report's palette).")
+
+
+def _unit_label(col: str) -> str:
+    c = col.lower()
+    if c.endswith("_s") or c in ("time", "wall_time", "seconds"):
+        return f"{col} (s)"
+    if c.endswith("_ms"):
+        return f"{col} (ms)"
+    if c.endswith("_pct"):
+        return f"{col} (%)"
+    if c.endswith("_m"):
+        return f"{col} (m)"
+    if c in ("nu",):
+        return "ν"
+    if "rel" in c or c in ("volumes", "cells", "vertices", "particles", "steps"):
+        return f"{col} (–)"
+    return col
+
+
+def all_figures(results: Results, out_dir: Path) -> dict[str, Figure]:
+    out_dir = Path(out_dir)
+    figs = {}
+    for fn, fname in ((volume_change, "volume_change.png"), (reactions, "reactions.png"),
+                      (differences, "differences.png"), (beam_deflection, "fig5_beam.png")):
+        f = fn(results, out_dir / fname)
+        if f is not None:
+            figs[f.id] = f
+    for exp, fname in (("shear", "fig8_shear_sections.png"), ("torsion", "fig10_torsion_sections.png")):
+        f = cross_sections(results, exp, out_dir / fname)
+        if f is not None:
+            figs[f.id] = f
+    return figs
