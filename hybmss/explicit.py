@@ -62,14 +62,18 @@ class DivergenceError(RuntimeError):
     """An explicit run left the physical range (non-finite values or a runaway displacement).
 
     Attributes: ``step`` (1-based step at which it was detected), ``particle`` (index),
-    ``grid`` (its integer grid coordinates), ``dt`` and ``dt_crit``.
+    ``grid`` (its integer grid coordinates), ``displacement`` (its |u|, m; nan or inf if not
+    finite), ``positions`` (n, 3) when detected, ``dt`` and ``dt_crit``.  The particle is the
+    first with a non-finite position, else the one with the largest displacement.
     """
 
-    def __init__(self, message, *, step, particle, grid, dt, dt_crit):
+    def __init__(self, message, *, step, particle, grid, displacement, dt, dt_crit, positions=None):
         super().__init__(message)
+        self.positions = positions
         self.step = step
         self.particle = particle
         self.grid = grid
+        self.displacement = displacement
         self.dt = dt
         self.dt_crit = dt_crit
 
@@ -310,13 +314,14 @@ def _numpy_advance(system, x, v, dt, damp, ramp_time, step0, nsteps, check_every
 
 
 # ------------------------------------------------------------------------------ the run
-def _divergence(system, x, particle, step, dt, limit, dt_c):
+def _divergence(system, x, particle, step, dt, limit, dt_c, check_every):
     grid = tuple(int(g) for g in system.lattice.grid[particle])
     u = x[particle] - system.X[particle]
+    unorm = float(np.linalg.norm(u))
     if not np.all(np.isfinite(u)):
         what = "has a non-finite position"
     else:
-        what = (f"moved {float(np.linalg.norm(u)):.3g} m, more than {BLOWUP_FACTOR:g}× the body size "
+        what = (f"moved {unorm:.3g} m, more than {BLOWUP_FACTOR:g}× the body size "
                 f"({limit:.3g} m)")
     if dt_c is None:
         try:
@@ -331,9 +336,11 @@ def _divergence(system, x, particle, step, dt, limit, dt_c):
             "itself ran away: large deformation (inverted cells, a plate ramp too fast) or a volume "
             "energy with κ < 0 (ν < 1/4) that rewards dilation"
         )
-    msg = (f"explicit run diverged at step {step} (t = {step * dt:.6g} s): particle {particle} "
+    msg = (f"explicit run diverged at step {step} (t = {step * dt:.6g} s; checked every "
+           f"{check_every} steps): particle {particle} "
            f"(grid {grid}) {what}. Likely cause: {cause}.")
-    return DivergenceError(msg, step=step, particle=int(particle), grid=grid, dt=dt, dt_crit=dt_c)
+    return DivergenceError(msg, step=step, particle=int(particle), grid=grid, displacement=unorm,
+                           dt=dt, dt_crit=dt_c, positions=x)
 
 
 def _energies(system, x, v_half, dt, damp):
@@ -429,8 +436,11 @@ def simulate_explicit(
         xg = st.to_grid(x, st.Xg)
         vg = st.to_grid(v)
 
+        node_to_particle = sys_.lattice.node_id.ravel()
+
         def advance(step0, n):
-            return _kernels.advance(st, xg, vg, step0, n, check_every, limit2, scratch, threads)
+            k, bad = _kernels.advance(st, xg, vg, step0, n, check_every, limit2, scratch, threads)
+            return k, (int(node_to_particle[bad]) if bad >= 0 else -1)
 
         def state():
             return st.from_grid(xg), st.from_grid(vg)
@@ -469,7 +479,7 @@ def simulate_explicit(
         wall += time.perf_counter() - t0
         if bad >= 0:
             xs, _ = state()
-            raise _divergence(sys_, xs, bad, done + k, dt, limit, dt_c)
+            raise _divergence(sys_, xs, bad, done + k, dt, limit, dt_c, check_every)
         done += n
         if history is not None:
             record(done)

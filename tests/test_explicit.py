@@ -111,9 +111,17 @@ def test_energy_is_conserved_at_half_the_stability_limit():
     assert r.info["dt_crit"] == dc and r.iterations == 10_000
 
 
+def _l_shape_scene():
+    mask = np.ones((3, 2, 3), dtype=bool)
+    mask[0, :, 1:] = False  # absent grid nodes come first, so node and particle indices differ
+    return Scene(Body.from_mask(mask, 0.5), Material(1e4, 0.3, 1000.0), Model("hybmss"),
+                 plates=(Plate("bottom", Region("z-")),))
+
+
 @pytest.mark.parametrize("kernel", KERNELS)
-def test_run_beyond_the_stability_limit_raises_naming_step_and_particle(kernel):
-    scene = _clamped_cube(3, 0.3)
+@pytest.mark.parametrize("shape", ["cube", "l-shape"])
+def test_run_beyond_the_stability_limit_raises_naming_step_and_particle(kernel, shape):
+    scene = _clamped_cube(3, 0.3) if shape == "cube" else _l_shape_scene()
     system = build(scene)
     dc = dt_crit(system)
     with pytest.raises(DivergenceError) as info:
@@ -122,7 +130,12 @@ def test_run_beyond_the_stability_limit_raises_naming_step_and_particle(kernel):
     err = info.value
     assert isinstance(err, RuntimeError)
     assert 1 <= err.step <= 10_000
-    assert err.grid == tuple(system.lattice.grid[err.particle])
+    assert 0 <= err.particle < system.n and err.grid == tuple(system.lattice.grid[err.particle])
+    limit = 10 * max(scene.body.size)
+    assert not err.displacement <= limit  # the particle named is one that ran away (or NaN)
+    u2 = ((err.positions - system.X) ** 2).sum(axis=1)  # state when detected
+    bad = np.flatnonzero(~np.isfinite(u2))
+    assert err.particle == (bad[0] if len(bad) else np.argmax(u2))
     msg = str(err)
     assert f"step {err.step}" in msg and f"particle {err.particle}" in msg and str(err.grid) in msg
     assert "exceeds the explicit stability limit" in msg and f"dt={1.2 * dc:g}" in msg
