@@ -1,0 +1,250 @@
+"""Performance of the explicit kernel: [G20] Figs 11–12 and Table 6.
+
+Wall time of ``steps`` (1,000) semi-implicit Euler steps of
+
+- the compression scene on the cubes 10³, 15³, 20³, 30³ (dt = 1 ms, the publication's);
+- the beam under gravity (the bending scene, E = 10 MPa) on 4×4×24, 8×8×48, 10×10×60,
+  16×16×96 ([G20] ran 300,000 steps; the per-step figure is what compares).  The stiff beam
+  needs a smaller step than 1 ms: ``dt = ½ dt_crit`` of the finest beam (the cost of a step does
+  not depend on dt);
+
+for the variants ``hybmss-fd``, ``hybmss-cf`` and ``hybmss`` at ν = 0.3 (≠ ¼, so hybmss and
+hybmss-fd carry the volume term) and ``hybmss`` at ν = ¼ (κ = 0: :func:`hybmss.system.build`
+drops the volume term, so it should cost what hybmss-cf costs), with the numba stencil kernel on
+1 and 2 threads.
+
+**Timing protocol.**  The machine is shared, so every figure is the best of ``repeats`` runs
+(more for runs shorter than :data:`MIN_SPAN`/``repeats``),
+and the variants of one mesh and thread count are timed round-robin (variant 1, 2, 3, 4, then
+again) so that the ratios compare runs made in the same minute.  ``wall_time_s`` of
+:func:`hybmss.explicit.simulate_explicit` is the stepping alone (no set-up, no dt_crit).
+
+**Bandwidth ceiling.**  The memory bandwidth is measured in the same run with NumPy on arrays
+far larger than the caches: ``np.copyto(b, a)`` (2 streams of 8 B per element) and
+``np.add(a, b, out=c)`` (3 streams); the best of several trials of either is the ceiling.  The
+bytes one step must move follow the stencil kernel's streaming model (8-byte words per grid node
+of the ``(nx+1)(ny+1)(nz+1)`` grid, each array counted once per pass that reads or writes it,
+caches ignored): springs ``7 n_off`` (K read, T written then read back, ×3 components) +
+``22`` (x read twice, v read and written, x written, F written then read, 1/m) ; volume
+``+ 64`` (κ and V₀, averaged edges ABC written and read, cross products and W written and
+read, 12 corner gradients written and read); gravity ``+ 3``.  ``n_off`` = 13 with face
+diagonals, 7 without.  Small meshes fit in the caches, so their fraction can exceed 1: the
+ceiling is DRAM bandwidth.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from .paper import load as load_paper
+from .scenes import SceneSpec
+from .store import Store
+
+CUBES = ((10, 10, 10), (15, 15, 15), (20, 20, 20), (30, 30, 30))
+BEAMS = ((4, 4, 24), (8, 8, 48), (10, 10, 60), (16, 16, 96))
+NU_OTHER = 0.3
+VARIANTS = (
+    ("hybmss-fd", NU_OTHER),
+    ("hybmss-cf", NU_OTHER),
+    ("hybmss", NU_OTHER),
+    ("hybmss", 0.25),
+)
+THREADS = (1, 2)
+BEAM_E = 1e7
+CUBE_DT = 1e-3
+WORD = 8  # bytes (float64)
+MIN_SPAN = 0.5
+"""Seconds of stepping each figure spans at least (short runs get more repeats)."""
+MAX_REPEATS = 25
+
+
+# ------------------------------------------------------------------------------ bandwidth
+def measure_bandwidth(n_bytes: int = 256 * 2**20, trials: int = 5) -> dict:
+    """Memory bandwidth (GB/s) of NumPy streaming kernels on arrays of ``n_bytes`` each:
+    ``copy`` (np.copyto, 2 streams) and ``add`` (c = a + b, 3 streams); best of ``trials``."""
+    n = n_bytes // WORD
+    a = np.ones(n)
+    b = np.full(n, 2.0)
+    c = np.empty(n)
+    best = {"copy": 0.0, "add": 0.0}
+    for _ in range(trials):
+        t0 = time.perf_counter()
+        np.copyto(b, a)
+        dt = time.perf_counter() - t0
+        best["copy"] = max(best["copy"], 2 * n * WORD / dt / 1e9)
+        t0 = time.perf_counter()
+        np.add(a, b, out=c)
+        dt = time.perf_counter() - t0
+        best["add"] = max(best["add"], 3 * n * WORD / dt / 1e9)
+    best["ceiling"] = max(best["copy"], best["add"])
+    best["array_MB"] = n_bytes / 2**20
+    return best
+
+
+def bytes_per_step(n_grid: int, n_off: int, has_volume: bool, has_gravity: bool) -> int:
+    """Bytes one explicit step streams under the model of the module docstring."""
+    words = 7 * n_off + 22 + (64 if has_volume else 0) + (3 if has_gravity else 0)
+    return int(words * WORD * n_grid)
+
+
+# ------------------------------------------------------------------------------ scenes
+def _spec(kind: str, mesh, model: str, nu: float) -> SceneSpec:
+    if kind == "compression":
+        return SceneSpec.default("compression", mesh=mesh, nu=nu, model=model, deformation=0.05, damping=2.0)
+    return SceneSpec.default("bending", mesh=mesh, nu=nu, model=model, E=BEAM_E, gravity=10.0, damping=2.0)
+
+
+def beam_dt(meshes) -> float:
+    """½ dt_crit of the finest beam: dt_crit (∝ le at fixed material) is computed on the
+    coarsest beam for each variant, the smallest is scaled to the finest le."""
+    from hybmss.explicit import dt_crit
+
+    coarse = min(meshes, key=lambda m: m[2])
+    fine = max(meshes, key=lambda m: m[2])
+    dts = [dt_crit(_spec("beam", coarse, m, nu).build()) for m, nu in VARIANTS]
+    return 0.5 * min(dts) * coarse[2] / fine[2]
+
+
+# ------------------------------------------------------------------------------ timing
+def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS) -> list[dict]:
+    """Best-of-``repeats`` wall time of ``steps`` steps for every variant and thread count on
+    one mesh (variants timed round-robin)."""
+    from hybmss.explicit import simulate_explicit, stencil
+    from hybmss.system import build
+
+    systems = {}
+    for model, nu in VARIANTS:
+        spec = _spec(kind, mesh, model, nu)
+        scene = spec.build()
+        systems[(model, nu)] = (scene, build(scene))
+    rows = []
+    for th in threads:
+        times = {v: [] for v in VARIANTS}
+        t_est = 0.0
+        for v in VARIANTS:  # warm-up (loads the cached compiled kernels) and a duration estimate
+            scene, S = systems[v]
+            simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S, compute_dt_crit=False)
+            t_est = max(t_est, simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
+                                                 compute_dt_crit=False, check_every=steps).wall_time_s)
+        # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
+        n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(MIN_SPAN / max(t_est, 1e-6)))))
+        for _ in range(n_rep):
+            for v in VARIANTS:
+                scene, S = systems[v]
+                r = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
+                                      compute_dt_crit=False, check_every=steps)
+                times[v].append(r.wall_time_s)
+        for (model, nu), ts in times.items():
+            scene, S = systems[(model, nu)]
+            st = stencil(S, dt, 1.0)
+            counts = S.lattice.counts()
+            rows.append({
+                "scene": kind,
+                "mesh": "x".join(map(str, mesh)),
+                "variant": model,
+                "nu": nu,
+                "label": f"{model} ν={nu:g}",
+                "threads": th,
+                "steps": steps,
+                "dt": dt,
+                "best_s": float(min(ts)),
+                "median_s": float(np.median(ts)),
+                "repeats": len(ts),
+                "volumes": counts["volumes"],
+                "vertices": counts["vertices"],
+                "springs": int(len(S.spring_k)),
+                "springs_paper_no_fd": counts["paper_springs_no_fd"],
+                "springs_paper_with_fd": counts["paper_springs_with_fd"],
+                "volume_term": bool(S.has_volume),
+                "gravity_term": S.gravity is not None,
+                "stencil_offsets": int(len(st.offs)),
+                "grid_nodes": st.N,
+                "bytes_per_step": bytes_per_step(st.N, len(st.offs), S.has_volume, S.gravity is not None),
+            })
+    return rows
+
+
+def _derive(df: pd.DataFrame, bandwidth: dict) -> pd.DataFrame:
+    paper = load_paper("g20_performance").set_index("quantity")["value"]
+    df = df.copy()
+    df["per_step_us"] = 1e6 * df["best_s"] / df["steps"]
+    df["per_10k_steps_s"] = 1e4 * df["best_s"] / df["steps"]
+    df["springs_per_s"] = df["springs"] * df["steps"] / df["best_s"]
+    df["cells_per_s"] = df["volumes"] * df["steps"] / df["best_s"]
+    df["achieved_GBps"] = df["bytes_per_step"] * df["steps"] / df["best_s"] / 1e9
+    df["bandwidth_GBps"] = bandwidth["ceiling"]
+    df["fraction_of_bandwidth"] = df["achieved_GBps"] / bandwidth["ceiling"]
+    key = ["scene", "mesh", "threads"]
+    fd = df[df["variant"] == "hybmss-fd"].set_index(key)["best_s"]
+    cf = df[df["variant"] == "hybmss-cf"].set_index(key)["best_s"]
+    idx = pd.MultiIndex.from_frame(df[key])
+    df["ratio_to_fd"] = df["best_s"].to_numpy() / fd.reindex(idx).to_numpy()
+    df["ratio_to_cf"] = df["best_s"].to_numpy() / cf.reindex(idx).to_numpy()
+    # the relative spread of one figure (median vs best) is the noise of the comparison
+    df["noise"] = df["median_s"] / df["best_s"] - 1.0
+    df["paper_ratio_to_fd"] = np.nan
+    df.loc[(df["variant"] == "hybmss-cf"), "paper_ratio_to_fd"] = paper["ratio_hybmss_cf_over_fd"]
+    df.loc[(df["variant"] == "hybmss") & (df["nu"] != 0.25), "paper_ratio_to_fd"] = paper["ratio_hybmss_over_fd"]
+    df["paper_per_10k_steps_s"] = np.nan
+    cube10 = (df["scene"] == "compression") & (df["mesh"] == "10x10x10") & (df["threads"] == 1) & (
+        df["variant"] == "hybmss")
+    df.loc[cube10 & (df["nu"] == 0.25), "paper_per_10k_steps_s"] = paper["time_10k_steps_nu_quarter"]
+    df.loc[cube10 & (df["nu"] != 0.25), "paper_per_10k_steps_s"] = paper["time_10k_steps_nu_other"]
+    return df
+
+
+def summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Per mesh and thread count: cf/fd and hybmss/fd (ν = 0.3), and hybmss(ν = ¼)/cf."""
+    out = []
+    for (scene, mesh, th), g in df.groupby(["scene", "mesh", "threads"], sort=False):
+        t = {r.label: r.best_s for r in g.itertuples()}
+        fd, cf = t[f"hybmss-fd ν={NU_OTHER:g}"], t[f"hybmss-cf ν={NU_OTHER:g}"]
+        hy, hq = t[f"hybmss ν={NU_OTHER:g}"], t["hybmss ν=0.25"]
+        out.append({"scene": scene, "mesh": mesh, "threads": th, "volumes": int(g["volumes"].iloc[0]),
+                    "fd_per_step_us": 1e6 * fd / g["steps"].iloc[0],
+                    "cf_over_fd": cf / fd, "paper_cf_over_fd": 1.4,
+                    "hybmss_over_fd": hy / fd, "paper_hybmss_over_fd": 2.1,
+                    "hybmss_quarter_over_cf": hq / cf,
+                    "noise": float(g["noise"].max())})
+    return pd.DataFrame(out)
+
+
+def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
+                    threads=THREADS, progress: bool = False) -> tuple[pd.DataFrame, dict]:
+    """Time every mesh; returns (table, bandwidth)."""
+    cubes = ((4, 4, 4), (6, 6, 6)) if quick else CUBES
+    beams = ((2, 2, 12), (3, 3, 18)) if quick else BEAMS
+    steps = steps or (200 if quick else 1000)
+    repeats = repeats or (2 if quick else 3)
+    bw = measure_bandwidth(64 * 2**20 if quick else 256 * 2**20, trials=3 if quick else 5)
+    dt_b = beam_dt(beams)
+    rows = []
+    jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
+    for kind, mesh, dt in jobs:
+        if progress:
+            print(f"performance: {kind} {'x'.join(map(str, mesh))}", flush=True)
+        rows += time_mesh(kind, mesh, dt, steps, repeats, threads)
+    bw2 = measure_bandwidth(64 * 2**20 if quick else 256 * 2**20, trials=3 if quick else 5)
+    bandwidth = {k: max(bw[k], bw2[k]) for k in bw}
+    return _derive(pd.DataFrame(rows), bandwidth), bandwidth
+
+
+def format_table(df: pd.DataFrame) -> str:
+    cols = ["scene", "mesh", "label", "threads", "per_step_us", "ratio_to_fd", "paper_ratio_to_fd",
+            "per_10k_steps_s", "paper_per_10k_steps_s", "springs_per_s", "cells_per_s",
+            "achieved_GBps", "fraction_of_bandwidth"]
+    with pd.option_context("display.width", 200, "display.max_columns", 30, "display.float_format",
+                           "{:.4g}".format):
+        return df[cols].to_string(index=False)
+
+
+def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True) -> pd.DataFrame:
+    """Study driver (``EXTRA_STUDIES``): always serial (timings)."""
+    df, bw = run_performance(quick=quick, progress=progress)
+    store.write_table("performance", df)
+    store.write_table("performance_summary", summary(df))
+    store.write_table("bandwidth", pd.DataFrame([bw]))
+    return df

@@ -1,0 +1,436 @@
+"""Numerical stability on hard cases (issue "speed against error ... stability").
+
+Six parts, each a table in the results store:
+
+(a) ``dt_stability``: for ν ∈ {−0.9, −0.5, 0.45, 0.49, 0.499, 0.4999} and each variant, the
+    explicit limit ``dt_crit = 2/√λmax(M⁻¹K)`` (:func:`hybmss.explicit.dt_crit`) against the
+    largest dt that runs 10,000 steps of the compression scene (5 %, plates ramped over 1 s)
+    without :class:`~hybmss.explicit.DivergenceError`, found by bisection to 1 % between
+    ``½ dt_crit`` (must pass) and ``1.5 dt_crit`` (must fail).  Undamped (c = 0), as dt_crit is
+    defined; with the implicit mass-proportional damping c the limit of one mode becomes
+    ``ω dt < 2 √(1 + c dt/2)`` (derived from the step's 2×2 amplification matrix, trace
+    ``1 + d − d ω² dt²``, determinant ``d = 1/(1 + c dt)``).
+(b), (c) ``stability``: static Newton and the publication's explicit protocol (1 ms × 10,000
+    steps, c = 2 s⁻¹, ramp 1 s) at 20 % and 50 % compression, 45° and 90° torsion, 50 % shear,
+    ν ∈ {0, ¼, 0.499}, each variant, on a small cube; the status (converged, diverged,
+    unstable = static equilibrium lost, error), the count of inverted cells (V' ≤ 0) of the final
+    state, and the relative L2 nodal difference against the FEM (Neo-Hookean, Hex2, mixed u–p at
+    ν ≥ 0.45, same mesh) where the FEM converges.
+(d) ``limit_stretch``: tension of the beam at ν ∈ {0, −0.5}: the static solver is asked for 100 %
+    stretch and stops where the equilibrium is lost (its :class:`StaticSolveError` message gives
+    the last converged load factor and the smallest eigenvalue of the constrained Hessian there
+    and beyond); the stretch at the loss lies between ``1 + s_last`` and ``1 + s_fail``.  For each
+    variant, with the quadratic volume energy and with the ``squared`` alternative; plus whether
+    the publication's 20 % tension at ν = 0 is reached (static and explicit protocol).
+(e) ``stability`` (part e): irregular input — a lattice whose particles are jittered by 10 % of
+    le at rest (uniform in each component, seeded; particles on the plates keep their z so the
+    plates still select them), an L-shaped voxel body, a single cell, a one-cell-thick wall;
+    5 % compression (the single cell: top sliding down, free sideways).  The jittered lattice
+    is built with :func:`jittered_system` from the public :func:`hybmss.system.build`
+    (``lattice=`` argument): rest lengths and rest volumes are those of the jittered positions,
+    so the jittered body is at rest; its FEM reference is the regular body (the continuum the
+    jittered lattice discretizes), compared particle by particle.
+(f) ``damping_steps``: how many steps of the publication's protocol (c = 2 s⁻¹) bring the
+    compression (5 %) of the 10³ cube within 0.1 % (relative L2 of the nodal displacement) of
+    the static equilibrium, at each ν: explicit runs of increasing length (a grid of step counts),
+    the first count from which every longer run on the grid stays within tolerance.
+
+Runs of (b)–(d) and (f) go through :func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
+call the solvers directly (bisection and custom systems).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import time
+
+import numpy as np
+import pandas as pd
+
+from .compare import diff_metrics
+from .runner import SolverSpec, Task, run_tasks
+from .scenes import SceneSpec
+from .store import Store
+
+VARIANTS = ("hybmss", "hybmss-fd", "hybmss-cf")
+NU_DT = (-0.9, -0.5, 0.45, 0.49, 0.499, 0.4999)
+NU_EXTREME = (0.0, 0.25, 0.499)
+NU_LIMIT = (0.0, -0.5)
+DAMPING = 2.0
+PROTOCOL = SolverSpec("explicit", dt=1e-3, steps=10_000, ramp_time=1.0)
+STATIC = SolverSpec("static")
+EXTREME_CASES = (
+    ("compression", dict(deformation=0.20)),
+    ("compression", dict(deformation=0.50)),
+    ("torsion", dict(angle_deg=45.0)),
+    ("torsion", dict(angle_deg=90.0)),
+    ("shear", dict(deformation=0.50)),
+)
+DAMPING_TOL = 1e-3
+DAMPING_GRID = (1000, 1500, 2000, 3000, 4000, 5000, 6000, 7000, 8000, 10_000, 12_000, 15_000, 20_000,
+                30_000)
+
+
+def _status(row: dict, inverted: int) -> str:
+    if row.get("status") != "ok":
+        return row.get("status", "error")
+    return "inverted" if inverted > 0 else "converged"
+
+
+def _inverted(store: Store, row: dict) -> int:
+    if row.get("status") != "ok":
+        return 0
+    if "inverted_cells" in row and row["inverted_cells"] is not None and not (
+            isinstance(row["inverted_cells"], float) and math.isnan(row["inverted_cells"])):
+        return int(row["inverted_cells"])
+    vols = store.arrays(row["key"]).get("cell_volumes")
+    return int(np.count_nonzero(vols <= 0.0)) if vols is not None else 0
+
+
+# ------------------------------------------------------------------------------ (a) dt
+def bisect_dt(scene, steps: int = 10_000, rel_tol: float = 0.01, lo_factor: float = 0.5,
+              hi_factor: float = 1.5, ramp_time: float = 1.0) -> dict:
+    """dt_crit of ``scene`` and the largest dt (to ``rel_tol``) that runs ``steps`` steps."""
+    from hybmss.explicit import DivergenceError, dt_crit, simulate_explicit
+    from hybmss.system import build
+
+    S = build(scene)
+    dc = dt_crit(S)
+    trials = []
+
+    def runs(dt):
+        try:
+            simulate_explicit(scene, dt=dt, steps=steps, ramp_time=ramp_time, system=S,
+                              dt_crit_value=dc, check_every=20)
+            ok = True
+        except DivergenceError:
+            ok = False
+        trials.append((dt, ok))
+        return ok
+
+    lo, hi = lo_factor * dc, hi_factor * dc
+    out = {"kappa": S.kappa, "dt_crit": dc}
+    if not runs(lo):
+        out.update(dt_stable=float("nan"), dt_unstable=lo, note=f"diverges at {lo_factor} dt_crit")
+    else:
+        while runs(hi):
+            lo, hi = hi, 2 * hi
+            if hi > 20 * dc:
+                break
+        while hi - lo > rel_tol * dc:
+            mid = 0.5 * (lo + hi)
+            if runs(mid):
+                lo = mid
+            else:
+                hi = mid
+        out.update(dt_stable=lo, dt_unstable=hi, note="")
+    out["ratio"] = out["dt_stable"] / dc
+    out["trials"] = len(trials)
+    return out
+
+
+def dt_table(quick: bool = False, nus=NU_DT, variants=VARIANTS, steps: int | None = None) -> pd.DataFrame:
+    mesh = (2, 2, 2) if quick else (4, 4, 4)
+    steps = steps or (2000 if quick else 10_000)
+    rows = []
+    for nu in nus:
+        for model in variants:
+            spec = SceneSpec.default("compression", mesh=mesh, nu=nu, model=model, deformation=0.05)
+            t0 = time.perf_counter()
+            r = bisect_dt(spec.build(), steps=steps)
+            rows.append({"nu": nu, "variant": model, "mesh": "x".join(map(str, mesh)), "steps": steps,
+                         **r, "elapsed_s": time.perf_counter() - t0})
+    return pd.DataFrame(rows)
+
+
+# ------------------------------------------------------------------------------ (b, c) extreme
+def _cube(quick: bool):
+    return (3, 3, 3) if quick else (6, 6, 6)
+
+
+def extreme_tasks(quick: bool = False) -> list[tuple[str, Task]]:
+    out = []
+    cases = EXTREME_CASES[:3] if quick else EXTREME_CASES
+    nus = (0.0, 0.499) if quick else NU_EXTREME
+    for exp, kw in cases:
+        for nu in nus:
+            base = SceneSpec.default(exp, mesh=_cube(quick), nu=nu, **kw)
+            for model in VARIANTS:
+                s = base.replace(model=model)
+                out.append(("c", Task(s, STATIC, "stability")))
+                out.append(("c", Task(s.replace(damping=DAMPING), PROTOCOL, "stability")))
+            out.append(("fem", Task(base, SolverSpec("fem", element="auto", law="neo-hookean"), "stability")))
+    return out
+
+
+def _case_name(spec: SceneSpec) -> str:
+    if spec.experiment == "torsion":
+        return f"torsion {spec.angle_deg:g}°"
+    return f"{spec.experiment} {100 * spec.deformation:g}%"
+
+
+def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict]) -> pd.DataFrame:
+    fem = {}
+    for (kind, t), r in zip(tasks, rows):
+        if kind == "fem":
+            fem[(_case_name(t.scene), t.scene.nu)] = r
+    out = []
+    for (kind, t), r in zip(tasks, rows):
+        if kind == "fem":
+            continue
+        inv = _inverted(store, r)
+        f = fem.get((_case_name(t.scene), t.scene.nu))
+        err = float("nan")
+        if f is not None and f["status"] == "ok" and r["status"] == "ok":
+            a, b = store.arrays(r["key"]), store.arrays(f["key"])
+            err = diff_metrics(a["X"], a["u"], b["u"])["rel_l2"]
+        out.append({
+            "part": "b" if t.scene.experiment == "compression" else "c",
+            "case": _case_name(t.scene), "mesh": "x".join(map(str, t.scene.mesh)), "nu": t.scene.nu,
+            "variant": t.scene.model, "solver": t.solver.label, "status": _status(r, inv),
+            "inverted_cells": inv, "volume_change": r.get("volume_change", float("nan")),
+            "load_steps": r.get("load_steps", float("nan")), "iterations": r.get("iterations", float("nan")),
+            "wall_time_s": r.get("wall_time_s", float("nan")),
+            "fem": f["solver"] if f is not None else "", "fem_status": f["status"] if f is not None else "",
+            "rel_l2_vs_fem": err, "message": r.get("message", ""),
+        })
+    return pd.DataFrame(out)
+
+
+# ------------------------------------------------------------------------------ (d) limit stretch
+_FAIL = re.compile(r"failed at load factor s=(?P<s_fail>[^ ]+) \(last converged s=(?P<s_last>[^)]+)\); "
+                   r"smallest eigenvalue of the constrained Hessian: (?P<lam>[^ ]+) N/m at s=[^,]+, "
+                   r"(?P<lam_next>[^ ]+) N/m")
+
+
+def parse_failure(message: str) -> dict:
+    """Load factors and eigenvalues of a :class:`StaticSolveError` message (NaN if absent)."""
+    m = _FAIL.search(message or "")
+    if not m:
+        return {"s_last": float("nan"), "s_fail": float("nan"), "lambda_min": float("nan"),
+                "lambda_min_next": float("nan")}
+    return {"s_last": float(m["s_last"]), "s_fail": float(m["s_fail"]), "lambda_min": float(m["lam"]),
+            "lambda_min_next": float(m["lam_next"])}
+
+
+D_MAX = 1.0
+
+
+def limit_tasks(quick: bool = False) -> list[tuple[tuple, Task]]:
+    mesh = (2, 2, 12) if quick else (4, 4, 24)
+    out = []
+    for nu in NU_LIMIT:
+        for model in VARIANTS:
+            for ve in (("quadratic",) if model == "hybmss-cf" else ("quadratic", "squared")):
+                base = SceneSpec.default("tension", mesh=mesh, nu=nu, model=model, volume_energy=ve)
+                out.append((("limit", nu, model, ve), Task(base.replace(deformation=D_MAX), STATIC, "stability")))
+                if nu == 0.0:
+                    s20 = base.replace(deformation=0.20)
+                    out.append((("static20", nu, model, ve), Task(s20, STATIC, "stability")))
+                    out.append((("explicit20", nu, model, ve),
+                                Task(s20.replace(damping=DAMPING), PROTOCOL, "stability")))
+    return out
+
+
+def limit_table(store: Store, tasks, rows) -> pd.DataFrame:
+    by = {}
+    for (what, nu, model, ve), r in zip([k for k, _ in tasks], rows):
+        by.setdefault((nu, model, ve), {})[what] = r
+    out = []
+    for (nu, model, ve), d in by.items():
+        r = d["limit"]
+        p = parse_failure(r.get("message", ""))
+        reached = r["status"] == "ok"
+        row = {"nu": nu, "variant": model, "volume_energy": ve, "d_max": D_MAX, "status": r["status"],
+               **p,
+               "stretch_lo": 1.0 + D_MAX * (1.0 if reached else p["s_last"]),
+               "stretch_hi": float("nan") if reached else 1.0 + D_MAX * p["s_fail"],
+               "volume_change_at_end": r.get("volume_change", float("nan")),
+               "message": r.get("message", "")}
+        for what in ("static20", "explicit20"):
+            if what in d:
+                inv = _inverted(store, d[what])
+                row[f"{what}_status"] = _status(d[what], inv)
+                row[f"{what}_volume_change"] = d[what].get("volume_change", float("nan"))
+                row[f"{what}_message"] = d[what].get("message", "")
+        out.append(row)
+    return pd.DataFrame(out)
+
+
+# ------------------------------------------------------------------------------ (e) irregular
+def jittered_system(scene, fraction: float = 0.1, seed: int = 0, keep_axis: int = 2):
+    """:class:`hybmss.system.System` of ``scene`` whose particles sit at rest at the lattice
+    positions plus a uniform jitter in ``[−fraction·le, fraction·le]`` per component (``seed``).
+    Particles on the faces normal to ``keep_axis`` keep that coordinate, so face regions (plates)
+    still select them.  Rest lengths and volumes are those of the jittered positions."""
+    from hybmss.lattice import Lattice
+    from hybmss.system import build
+
+    lat = Lattice.from_body(scene.body)
+    rng = np.random.default_rng(seed)
+    d = rng.uniform(-fraction, fraction, size=lat.X.shape) * scene.body.le
+    g = lat.grid[:, keep_axis]
+    on_face = (g == 0) | (g == scene.body.shape[keep_axis])
+    d[on_face, keep_axis] = 0.0
+    jittered = dataclasses.replace(lat, X=lat.X + d)
+    return build(scene, lattice=jittered)
+
+
+def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str = "hybmss") -> dict:
+    """Name → (scene, builder of its system or None, FEM scene)."""
+    from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
+
+    mat = Material(1e4, nu, 1000.0)
+    mdl = Model(model)
+    n = 3 if quick else 6
+    out = {}
+    cube = SceneSpec.default("compression", mesh=(n, n, n), nu=nu, model=model).build()
+    out["jittered 10% le"] = (cube, lambda sc: jittered_system(sc, 0.1, seed=0), cube)
+    mask = np.ones((n, 2 if quick else 3, n), dtype=bool)
+    mask[n // 2:, :, n // 2:] = False  # L in the x-z plane: the top half of one leg removed
+    body = Body.from_mask(mask, 5.0 / n)
+    H = body.size[2]
+    lshape = Scene(body, mat, mdl, (Plate("bottom", Region("z-"), Motion("clamped")),
+                                    Plate("top", Region("z+"), Motion("translate", (0, 0, -0.05 * H)))),
+                   name="L-shape compression 5%")
+    out["L-shape"] = (lshape, None, lshape)
+    cell = Scene(Body.box(1, 1, 1, 1.0), mat, mdl,
+                 (Plate("bottom", Region("z-"), Motion("clamped")),
+                  Plate("top", Region("z+"), Motion("slide", (0, 0, -0.05), components=(2,)))),
+                 name="single cell, top sliding 5%")
+    out["single cell"] = (cell, None, cell)
+    wall = Body.box(n + 2, 1, n + 2, 5.0 / n)
+    Hw = wall.size[2]
+    plate = Scene(wall, mat, mdl, (Plate("bottom", Region("z-"), Motion("clamped")),
+                                   Plate("top", Region("z+"), Motion("translate", (0, 0, -0.05 * Hw)))),
+                  name="one-cell-thick wall compression 5%")
+    out["one-cell-thick wall"] = (plate, None, plate)
+    return out
+
+
+def irregular_table(quick: bool = False) -> pd.DataFrame:
+    from fem_reference.solve import solve as fem_solve
+    from hybmss.explicit import simulate_explicit
+    from hybmss.solvers import solve_static
+
+    rows = []
+    nus = (0.0, 0.499) if quick else NU_EXTREME
+    steps = 2000 if quick else PROTOCOL.steps
+    for nu in nus:
+        fem_cache = {}
+        for model in VARIANTS:
+            for name, (scene, builder, fem_scene) in irregular_scenes(quick, nu, model).items():
+                if name not in fem_cache:
+                    try:
+                        fem_cache[name] = (fem_solve(fem_scene.with_model(name="hybmss"), element="auto",
+                                                     law="linear"), "ok", "")
+                    except Exception as exc:  # noqa: BLE001 - reported as a row
+                        fem_cache[name] = (None, "error", f"{type(exc).__name__}: {exc}")
+                fem, fem_status, _ = fem_cache[name]
+                S = builder(scene) if builder is not None else None
+                for solver in ("mss-static", "mss-explicit"):
+                    t0 = time.perf_counter()
+                    row = {"part": "e", "case": name, "mesh": "x".join(map(str, scene.body.shape)), "nu": nu,
+                           "variant": model, "solver": solver, "fem": fem.solver if fem else "",
+                           "fem_status": fem_status}
+                    try:
+                        if solver == "mss-static":
+                            res = solve_static(scene, system=S)
+                        else:
+                            sc = dataclasses.replace(scene, damping=DAMPING)
+                            Sx = builder(sc) if builder is not None else None
+                            res = simulate_explicit(sc, dt=PROTOCOL.dt, steps=steps, ramp_time=1.0, system=Sx,
+                                                    kernel="numpy" if builder is not None else "numba")
+                        inv = int(np.count_nonzero(res.cell_volumes <= 0.0))
+                        row.update(status="inverted" if inv else "converged", inverted_cells=inv,
+                                   volume_change=res.volume_change, iterations=res.iterations,
+                                   wall_time_s=res.wall_time_s, message="",
+                                   rel_l2_vs_fem=diff_metrics(res.X, res.u, fem.u)["rel_l2"] if fem else np.nan)
+                        if "load_steps" in res.info:
+                            row["load_steps"] = res.info["load_steps"]
+                    except Exception as exc:  # noqa: BLE001 - reported as a row
+                        nm = type(exc).__name__
+                        row.update(status="diverged" if "Divergence" in nm else (
+                            "unstable" if nm == "StaticSolveError" else "error"),
+                            inverted_cells=0, message=f"{nm}: {' '.join(str(exc).split())}",
+                            rel_l2_vs_fem=np.nan)
+                    row["elapsed_s"] = time.perf_counter() - t0
+                    rows.append(row)
+    return pd.DataFrame(rows)
+
+
+# ------------------------------------------------------------------------------ (f) damping
+def damping_tasks(quick: bool = False) -> list[tuple[tuple, Task]]:
+    mesh = (3, 3, 3) if quick else (10, 10, 10)
+    grid = (1000, 2000, 4000) if quick else DAMPING_GRID
+    out = []
+    for nu in NU_EXTREME:
+        spec = SceneSpec.default("compression", mesh=mesh, nu=nu, deformation=0.05)
+        out.append((("static", nu, 0), Task(spec, STATIC, "stability")))
+        for n in grid:
+            out.append((("explicit", nu, n), Task(spec.replace(damping=DAMPING),
+                                                  dataclasses.replace(PROTOCOL, steps=n), "stability")))
+    return out
+
+
+def damping_table(store: Store, tasks, rows, tol: float = DAMPING_TOL) -> pd.DataFrame:
+    by = {}
+    for (kind, nu, n), r in zip([k for k, _ in tasks], rows):
+        by.setdefault(nu, {})[(kind, n)] = r
+    out = []
+    for nu, d in by.items():
+        st = d[("static", 0)]
+        if st["status"] != "ok":
+            out.append({"nu": nu, "status": "static failed", "message": st.get("message", "")})
+            continue
+        u_ref = store.arrays(st["key"])["u"]
+        errs = []
+        for (kind, n), r in sorted((k, v) for k, v in d.items() if k[0] == "explicit"):
+            if r["status"] != "ok":
+                errs.append((n, float("nan")))
+                continue
+            u = store.arrays(r["key"])["u"]
+            errs.append((n, float(np.linalg.norm(u - u_ref) / np.linalg.norm(u_ref))))
+        ns = np.array([e[0] for e in errs])
+        es = np.array([e[1] for e in errs])
+        ok = es <= tol
+        first = None
+        for i in range(len(ns)):
+            if ok[i:].all():
+                first = int(ns[i])
+                break
+        at10k = dict(errs).get(10_000, float("nan"))
+        out.append({"nu": nu, "damping": DAMPING, "dt": PROTOCOL.dt, "tol": tol,
+                    "steps_to_tol": first if first is not None else f"> {int(ns.max())}",
+                    "error_at_10000": at10k, "error_at_last": float(es[-1]), "last_steps": int(ns[-1]),
+                    "errors": "; ".join(f"{n}:{e:.2e}" for n, e in errs), "status": "ok"})
+    return pd.DataFrame(out)
+
+
+# ------------------------------------------------------------------------------ driver
+def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True) -> dict:
+    """Study driver (``EXTRA_STUDIES``): writes ``dt_stability``, ``stability``,
+    ``limit_stretch`` and ``damping_steps``."""
+    tables = {}
+    tables["dt_stability"] = dt_table(quick)
+    store.write_table("dt_stability", tables["dt_stability"])
+
+    ext = extreme_tasks(quick)
+    rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress, desc="stability extreme")
+    extreme = extreme_table(store, ext, rows)
+    irregular = irregular_table(quick)
+    tables["stability"] = pd.concat([extreme, irregular], ignore_index=True)
+    store.write_table("stability", tables["stability"])
+
+    lim = limit_tasks(quick)
+    rows = run_tasks([t for _, t in lim], store, jobs=jobs, progress=progress, desc="stability limit")
+    tables["limit_stretch"] = limit_table(store, lim, rows)
+    store.write_table("limit_stretch", tables["limit_stretch"])
+
+    dmp = damping_tasks(quick)
+    rows = run_tasks([t for _, t in dmp], store, jobs=jobs, progress=progress, desc="stability damping")
+    tables["damping_steps"] = damping_table(store, dmp, rows)
+    store.write_table("damping_steps", tables["damping_steps"])
+    return tables
