@@ -1,0 +1,22 @@
+"""CI regression: the quick subset's errors against the FEM must not exceed the committed
+baseline (studies/data/regression_baseline.csv) beyond its per-metric tolerances."""
+
+import pandas as pd
+
+from studies.regression import load_baseline, load_tolerances, measure, regressions
+
+
+def test_errors_do_not_regress():
+    now = measure(jobs=1)
+    problems = regressions(now, load_baseline(), load_tolerances())
+    assert not problems, "\n".join(problems)
+
+
+def test_regression_check_catches_a_worse_metric():
+    base = load_baseline()
+    worse = base.copy()
+    worse.loc[0, "rel_l2"] = base.loc[0, "rel_l2"] * 1.5 + 1e-3
+    assert regressions(worse, base, load_tolerances())
+    assert not regressions(base, base, load_tolerances())
+    missing = base.iloc[1:]
+    assert any("only in the baseline" in p for p in regressions(pd.DataFrame(missing), base, load_tolerances()))
