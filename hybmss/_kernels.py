@@ -54,9 +54,10 @@ def ramp(t, T):
 
 
 @njit(**_OPTS)
-def springs_stage(x, K, l0, offs, T, F, lo, hi):
-    """Stage A, springs with first node a in [lo, hi): t = k (1 − l0/l)(x_b − x_a) into T,
-    and F[a] = Σ_o t_o[a] (the forces on the first nodes; F[lo:hi] is overwritten)."""
+def springs_stage(x, K, l0, offs, T, F, P, lo, hi):
+    """Stage A, springs with first node a in [lo, hi): t = k (1 − l0/l)(x_b − x_a) into
+    T[j, :, P + a], and F[a] = Σ_o t_o[a] (the forces on the first nodes; F[lo:hi] is
+    overwritten).  The first P entries of T's rows are a zero pad (see stage B)."""
     N = x.shape[1]
     for d in range(3):
         f = F[d, lo:hi]
@@ -76,9 +77,9 @@ def springs_stage(x, K, l0, offs, T, F, lo, hi):
         xb1 = x[1, lo + o:end + o]
         xb2 = x[2, lo + o:end + o]
         k = K[j, lo:end]
-        t0 = T[j, 0, lo:end]
-        t1 = T[j, 1, lo:end]
-        t2 = T[j, 2, lo:end]
+        t0 = T[j, 0, P + lo:P + end]
+        t1 = T[j, 1, P + lo:P + end]
+        t2 = T[j, 2, P + lo:P + end]
         f0 = F[0, lo:end]
         f1 = F[1, lo:end]
         f2 = F[2, lo:end]
@@ -97,14 +98,15 @@ def springs_stage(x, K, l0, offs, T, F, lo, hi):
 
 
 @njit(**_OPTS)
-def cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi):
+def cells_stage(x, kv, coff, squared, ABC, CR, G, P, lo, hi):
     """Stage A, cells with lowest corner p in [lo, hi), in four unit-stride passes (each simple
     enough for LLVM to vectorize without alias trouble):
 
     1. averaged edge vectors ``ABC[3 d + i]`` (axis d, component i): ¼ Σ of the 4 parallel edges;
     2. ``CR[0:3] = b×c``, ``CR[3:6] = c×a``, ``CR[6:9] = a×b``, ``CR[9] = V' = a·(b×c)``;
     3. ``CR[9] ← W'(V')/4`` (``kv[0]`` = κ, 0 where no cell; ``kv[1]`` = rest volume);
-    4. ``G[g] = CR[9]·(b×c + σ2 c×a + σ3 a×b)`` for (σ2, σ3) = (+,+), (+,−), (−,+), (−,−).
+    4. ``G[g, :, P + p] = CR[9]·(b×c + σ2 c×a + σ3 a×b)`` for (σ2, σ3) = (+,+), (+,−), (−,+),
+       (−,−) (the first P entries of G's rows are a zero pad).
     """
     N = x.shape[1]
     end = min(hi, N - coff[7])
@@ -156,10 +158,10 @@ def cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi):
         A = CR[c, lo:end]
         B = CR[3 + c, lo:end]
         C = CR[6 + c, lo:end]
-        _combine(G[0, c, lo:end], W, A, B, C, 1.0, 1.0)
-        _combine(G[1, c, lo:end], W, A, B, C, 1.0, -1.0)
-        _combine(G[2, c, lo:end], W, A, B, C, -1.0, 1.0)
-        _combine(G[3, c, lo:end], W, A, B, C, -1.0, -1.0)
+        _combine(G[0, c, P + lo:P + end], W, A, B, C, 1.0, 1.0)
+        _combine(G[1, c, P + lo:P + end], W, A, B, C, 1.0, -1.0)
+        _combine(G[2, c, P + lo:P + end], W, A, B, C, -1.0, 1.0)
+        _combine(G[3, c, P + lo:P + end], W, A, B, C, -1.0, -1.0)
 
 
 @njit(**_OPTS)
@@ -181,52 +183,62 @@ def _combine(out, w, A, B, C, sB, sC):
         out[i] = w[i] * ((A[i] + sB * B[i]) + sC * C[i])
 
 
-# Corner c of a cell -> (gradient slot g, sign of the force): f_c = sign · G[g].
-# G0 = σ(+,+,+) corner 7, G1 = (+,+,−) corner 3, G2 = (+,−,+) corner 5, G3 = (+,−,−) corner 1;
-# the corners with di = 0 have σ = −(those), so f_0 = +G0, f_4 = +G1, f_2 = +G2, f_6 = +G3.
-_CORNER_SLOT = np.array([0, 3, 2, 1, 1, 2, 3, 0], dtype=np.int64)
-_CORNER_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+# Corner c of a cell gets the force f_c = sign · G[slot] of the cell (its lowest corner p = q − coff[c]):
+# G0 = σ(+,+,+) corner 7, G1 = (+,+,−) corner 3, G2 = (+,−,+) corner 5, G3 = (+,−,−) corner 1 with a
+# minus sign; the corners with di = 0 have σ = −(those): f_0 = +G0, f_4 = +G1, f_2 = +G2, f_6 = +G3.
+# Corners 0..3 take slots (0, 3, 2, 1), corners 4..7 slots (1, 2, 3, 0), signs (+, −, +, −) both.
 
 
 @njit(**_OPTS)
-def accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, lo, hi):
-    """Stage B on nodes [lo, hi): add the forces on second nodes (−t_o[p − o]) and on the cell
-    corners (±G[p − coff_c]) to F, then ``v ← (v + dt (F/m + g)) damp``, ``x ← x + dt v``."""
+def accumulate_integrate(x, v, F, T, groups, G, coff, has_volume, invm, gacc, has_gravity, dt, damp,
+                         P, lo, hi):
+    """Stage B on nodes [lo, hi): F[q] −= Σ_o t_o[q − o] (forces on second nodes) and
+    F[q] += Σ_c ±G[q − coff_c] (cell corners), then ``v ← (v + dt (F/m + g)) damp``,
+    ``x ← x + dt v``.
+
+    ``groups`` (n_g, 4, 2) lists (T row, offset) four at a time (padded with the all-zero row of
+    T and offset 0), so each pass sums four shifted rows; the zero pad of P entries in front of
+    every row makes every shift q − o ≥ 0 a valid index (reads before the first node give 0).
+    """
+    n = hi - lo
     for d in range(3):
-        for j in range(offs.shape[0]):
-            o = offs[j]
-            start = max(lo, o)
-            if start >= hi:
-                continue
-            f = F[d, start:hi]
-            t = T[j, d, start - o:hi - o]
-            for i in range(hi - start):
-                f[i] -= t[i]
-        if has_volume:
-            for c in range(8):
-                o = coff[c]
-                start = max(lo, o)
-                if start >= hi:
-                    continue
-                f = F[d, start:hi]
-                g = G[_CORNER_SLOT[c], d, start - o:hi - o]
-                if _CORNER_SIGN[c] > 0.0:
-                    for i in range(hi - start):
-                        f[i] += g[i]
-                else:
-                    for i in range(hi - start):
-                        f[i] -= g[i]
         f = F[d, lo:hi]
+        for g in range(groups.shape[0]):
+            r0, r1, r2, r3 = groups[g, 0, 0], groups[g, 1, 0], groups[g, 2, 0], groups[g, 3, 0]
+            a = P + lo - groups[g, 0, 1]
+            b = P + lo - groups[g, 1, 1]
+            c = P + lo - groups[g, 2, 1]
+            e = P + lo - groups[g, 3, 1]
+            t0 = T[r0, d, a:a + n]
+            t1 = T[r1, d, b:b + n]
+            t2 = T[r2, d, c:c + n]
+            t3 = T[r3, d, e:e + n]
+            for i in range(n):
+                f[i] -= (t0[i] + t1[i]) + (t2[i] + t3[i])
+        if has_volume:
+            s = P + lo
+            g0 = G[0, d, s:s + n]
+            g3 = G[3, d, s - coff[1]:s - coff[1] + n]
+            g2 = G[2, d, s - coff[2]:s - coff[2] + n]
+            g1 = G[1, d, s - coff[3]:s - coff[3] + n]
+            for i in range(n):
+                f[i] += (g0[i] - g3[i]) + (g2[i] - g1[i])
+            g1 = G[1, d, s - coff[4]:s - coff[4] + n]
+            g2 = G[2, d, s - coff[5]:s - coff[5] + n]
+            g3 = G[3, d, s - coff[6]:s - coff[6] + n]
+            g0 = G[0, d, s - coff[7]:s - coff[7] + n]
+            for i in range(n):
+                f[i] += (g1[i] - g2[i]) + (g3[i] - g0[i])
         xd = x[d, lo:hi]
         vd = v[d, lo:hi]
         im = invm[lo:hi]
         if has_gravity:
             ga = gacc[d, lo:hi]
-            for i in range(hi - lo):
+            for i in range(n):
                 vd[i] = (vd[i] + dt * (f[i] * im[i] + ga[i])) * damp
                 xd[i] += dt * vd[i]
         else:
-            for i in range(hi - lo):
+            for i in range(n):
                 vd[i] = (vd[i] + dt * (f[i] * im[i])) * damp
                 xd[i] += dt * vd[i]
 
@@ -303,11 +315,12 @@ def find_bad(x, X, limit2):
 
 
 @njit(**_OPTS)
-def run_serial(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc, has_gravity,
+def run_serial(x, v, X, K, l0, offs, groups, kv, coff, squared, has_volume, invm, gacc, has_gravity,
                dt, damp, ramp_time, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                pl_center, pl_angle, step0, nsteps, check_every, limit2, T, ABC, CR, G, F):
     """Advance ``nsteps`` steps from global step ``step0``.  Returns (steps done, bad node or −1)."""
     N = x.shape[1]
+    P = coff[7]
     R = np.empty((3, 3))
     nmax = 1
     for ip in range(pl_ptr.shape[0] - 1):
@@ -316,10 +329,10 @@ def run_serial(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc, 
     u_new = np.empty((3, nmax))
     has_plates = pl_ptr.shape[0] > 1
     for n in range(nsteps):
-        springs_stage(x, K, l0, offs, T, F, 0, N)
+        springs_stage(x, K, l0, offs, T, F, P, 0, N)
         if has_volume:
-            cells_stage(x, kv, coff, squared, ABC, CR, G, 0, N)
-        accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, 0, N)
+            cells_stage(x, kv, coff, squared, ABC, CR, G, P, 0, N)
+        accumulate_integrate(x, v, F, T, groups, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, P, 0, N)
         step = step0 + n
         if has_plates:
             s_old = ramp(step * dt, ramp_time)
@@ -334,11 +347,12 @@ def run_serial(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc, 
 
 
 @njit(parallel=True, **_OPTS)
-def run_parallel(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc, has_gravity,
+def run_parallel(x, v, X, K, l0, offs, groups, kv, coff, squared, has_volume, invm, gacc, has_gravity,
                  dt, damp, ramp_time, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                  pl_center, pl_angle, step0, nsteps, check_every, limit2, T, ABC, CR, G, F, bounds):
     """As :func:`run_serial`, stages A and B split over the node ranges ``bounds`` with prange."""
     nchunks = bounds.shape[0] - 1
+    P = coff[7]
     R = np.empty((3, 3))
     nmax = 1
     for ip in range(pl_ptr.shape[0] - 1):
@@ -350,12 +364,12 @@ def run_parallel(x, v, X, K, l0, offs, kv, coff, squared, has_volume, invm, gacc
         for ch in prange(nchunks):
             lo = bounds[ch]
             hi = bounds[ch + 1]
-            springs_stage(x, K, l0, offs, T, F, lo, hi)
+            springs_stage(x, K, l0, offs, T, F, P, lo, hi)
             if has_volume:
-                cells_stage(x, kv, coff, squared, ABC, CR, G, lo, hi)
+                cells_stage(x, kv, coff, squared, ABC, CR, G, P, lo, hi)
         for ch in prange(nchunks):
-            accumulate_integrate(x, v, F, T, offs, G, coff, has_volume, invm, gacc, has_gravity, dt,
-                                 damp, bounds[ch], bounds[ch + 1])
+            accumulate_integrate(x, v, F, T, groups, G, coff, has_volume, invm, gacc, has_gravity, dt,
+                                 damp, P, bounds[ch], bounds[ch + 1])
         step = step0 + n
         if has_plates:
             s_old = ramp(step * dt, ramp_time)
@@ -382,7 +396,7 @@ def advance(st, x, v, step0, nsteps, check_every, limit2, scratch, threads=1):
     """Run ``nsteps`` steps of the stencil ``st`` (a :class:`hybmss.explicit.Stencil`) on the grid
     state ``x, v`` (3, N), in place.  Returns (steps done, bad node or −1)."""
     T, ABC, CR, G, F = scratch
-    args = (x, v, st.Xg, st.K, st.l0, st.offs, st.kv, st.coff, st.squared, st.has_volume,
+    args = (x, v, st.Xg, st.K, st.l0, st.offs, st.groups, st.kv, st.coff, st.squared, st.has_volume,
             st.invm, st.gacc, st.has_gravity, st.dt, st.damp, st.ramp_time, st.pl_nodes, st.pl_U1, st.pl_ptr,
             st.pl_mask, st.pl_kind, st.pl_disp, st.pl_axis, st.pl_center, st.pl_angle,
             np.int64(step0), np.int64(nsteps), np.int64(max(1, check_every)), float(limit2), T, ABC, CR, G, F)

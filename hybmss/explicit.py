@@ -128,6 +128,7 @@ class Stencil:
     l0: np.ndarray  # (n_off,)
     offs: np.ndarray  # (n_off,) flat offsets
     offsets: np.ndarray  # (n_off, 3) grid offsets
+    groups: np.ndarray  # (n_g, 4, 2) (T row, flat offset) four at a time, padded with the zero row
     kv: np.ndarray  # (2, N): κ of the cell whose lowest corner is p (0: no cell), its rest volume
     coff: np.ndarray  # (8,) flat corner offsets
     squared: bool
@@ -153,10 +154,11 @@ class Stencil:
         return int(np.prod(self.shape))
 
     def scratch(self):
-        """Zeroed work arrays (T, ABC, CR, G, F) of the kernel (entries never written stay 0)."""
-        N = self.N
-        return (np.zeros((len(self.offs), 3, N)), np.zeros((9, N)), np.zeros((10, N)),
-                np.zeros((4, 3, N)), np.zeros((3, N)))
+        """Zeroed work arrays (T, ABC, CR, G, F) of the kernel.  T and G rows have a zero pad of
+        P = coff[7] entries in front, T an extra all-zero row; entries never written stay 0."""
+        N, P = self.N, int(self.coff[7])
+        return (np.zeros((len(self.offs) + 1, 3, P + N)), np.zeros((9, N)), np.zeros((10, N)),
+                np.zeros((4, 3, P + N)), np.zeros((3, N)))
 
     def to_grid(self, y: np.ndarray, fill: np.ndarray | None = None) -> np.ndarray:
         """(n, 3) particle array → (3, N) grid array (absent nodes from ``fill`` or 0)."""
@@ -246,6 +248,7 @@ def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
         K=K,
         l0=l0_all[active],
         offs=OFFSETS[active] @ strides,
+        groups=_groups(OFFSETS[active] @ strides),
         offsets=OFFSETS[active],
         kv=kv,
         coff=coff,
@@ -267,6 +270,17 @@ def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
         pl_center=np.asarray(center, dtype=float).reshape(n_pl, 3),
         pl_angle=np.asarray(angle, dtype=float),
     )
+
+
+def _groups(offs: np.ndarray) -> np.ndarray:
+    """(T row, offset) pairs four at a time; the padding entries read T's all-zero last row."""
+    n = len(offs)
+    ng = -(-n // 4)
+    g = np.zeros((ng * 4, 2), dtype=np.int64)
+    g[:, 0] = n  # the zero row
+    g[:n, 0] = np.arange(n)
+    g[:n, 1] = offs
+    return g.reshape(ng, 4, 2)
 
 
 # ------------------------------------------------------------------------------ NumPy twin
@@ -391,7 +405,8 @@ def simulate_explicit(
     body; while the body still moves it misses the plate particles' own ``m a``, and the
     difference between plate reactions and external loads is the body's inertia.
     ``wall_time_s`` is the time stepping alone (no set-up, dt_crit or post-processing; the
-    numba kernel's first call also compiles unless it is cached).
+    numba kernel's first call also compiles unless it is cached); ``info['cpu_time_s']`` is the
+    process CPU time of the same span (all threads), steadier than wall time on a busy machine.
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
@@ -470,13 +485,15 @@ def simulate_explicit(
         record(0)
     chunk = int(record_every) if record_every > 0 else max(steps, 1)
 
-    wall = 0.0
+    wall = cpu = 0.0
     done = 0
     while done < steps:
         n = min(chunk, steps - done)
+        c0 = time.process_time()
         t0 = time.perf_counter()
         k, bad = advance(done, n)
         wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
         if bad >= 0:
             xs, _ = state()
             raise _divergence(sys_, xs, bad, done + k, dt, limit, dt_c, check_every)
@@ -512,6 +529,7 @@ def simulate_explicit(
         "ramp_time": float(ramp_time),
         "ramp_law": RAMP_LAW,
         "load_factor": s_end,
+        "cpu_time_s": cpu,
         "setup_s": setup_s,
         "dt_crit_s": t_dc,
         "postprocess_s": time.perf_counter() - t_post,
