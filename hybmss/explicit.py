@@ -534,6 +534,8 @@ def simulate_explicit(
         "dt_crit_s": t_dc,
         "postprocess_s": time.perf_counter() - t_post,
         "max_speed": float(np.linalg.norm(vs, axis=1).max()) if len(vs) else 0.0,
+        "inverted_cells": int(np.count_nonzero(vols <= 0.0)),
+        "kappa": float(sys_.kappa),
     }
     if history is not None:
         info["history"] = history
