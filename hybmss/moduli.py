@@ -9,7 +9,9 @@
   state is a saddle of the energy).
 - Simple shear: every boundary particle follows ``u = γ (z − z0) e_x``; interior particles are
   free.  For a homogeneous state the stored energy is ``W = ½ G γ² V`` (det F = 1 exactly), so
-  ``G_eff = 2 W / (γ² V)``.
+  ``G_eff = 2 W / (γ² V)``.  ``baudet2009`` has non-conservative corrections and no energy:
+  its G_eff is the mean shear stress from the plate reactions over γ
+  (:func:`shear_stress_from_reactions`).
 
 For ``hybmss`` and ``hybmss-fd`` these equal E, ν and E/(2(1+ν)) for every ν in (−1, ½)
 (SPEC §8); ``hybmss-cf`` gives ν_eff = 1/4; the E-form of [G20] eq. 5.12 does not.
@@ -51,6 +53,21 @@ def _uniaxial(scene: Scene):
     return r.reactions["top"].force[2], lateral
 
 
+def shear_stress_from_reactions(scene: Scene, result) -> float:
+    """Mean shear stress σ̄_xz (Pa) of a body held by plates, from the forces R_a the plates
+    exert on their particles (average-stress theorem for a body in equilibrium:
+    ``σ̄ = (1/V) Σ_a R_a ⊗ x_a``), symmetrized.  Valid for any force law, conservative or not."""
+    from .forces import internal_forces
+    from .system import build
+
+    S = build(scene)
+    x = result.x
+    R = -internal_forces(S, x)
+    held = S.fixed.any(axis=1)
+    sig = np.einsum("ai,aj->ij", R[held], x[held]) / scene.body.volume
+    return float(0.5 * (sig[0, 2] + sig[2, 0]))
+
+
 def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: int = 2) -> dict:
     """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``."""
     le = 1.0
@@ -61,7 +78,11 @@ def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: in
     F2, lat2 = _uniaxial(uniaxial_scene(model, material, 2.0 * strain, n, le))
     E_eff = (4.0 * F1 - F2) / (2.0 * strain * A)
     nu_eff = -(4.0 * lat1 - lat2) / (2.0 * strain)
-    sh = solve_static(shear_scene(model, material, strain, 3, le))
-    W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)
-    G_eff = 2.0 * W / (strain**2 * sh.volume0)
+    shear = shear_scene(model, material, strain, 3, le)
+    sh = solve_static(shear)
+    if model.name == "baudet2009":  # non-conservative: no energy, G from the plate reactions
+        G_eff = shear_stress_from_reactions(shear, sh) / strain
+    else:
+        W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)
+        G_eff = 2.0 * W / (strain**2 * sh.volume0)
     return {"E_eff": float(E_eff), "nu_eff": float(nu_eff), "G_eff": float(G_eff)}

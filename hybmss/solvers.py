@@ -296,6 +296,10 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     opts = options or StaticOptions()
     t0 = time.perf_counter()
     S = system if system is not None else build(scene)
+    if "baudet" in S.extras:  # [B09] corrections: no energy, force-residual Newton instead
+        from .baudet import solve_equilibrium
+
+        return solve_equilibrium(scene, system=S)
     if S.extras.get("non_conservative"):
         raise StaticSolveError(
             f"model {scene.model.name!r} has non-conservative forces: use its own equilibrium solver"

@@ -109,6 +109,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         fixed[np.ix_(sel, np.flatnonzero(cons))] = True
 
     return System(
+        extras=_variant_extras(scene, lat, c),
         scene=scene,
         lattice=lat,
         consts=c,
@@ -127,3 +128,17 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         plates=tuple(plates),
         fixed=fixed,
     )
+
+
+def _variant_extras(scene: Scene, lat: Lattice, consts: Constants) -> dict:
+    """``System.extras`` of a scene: the [B09] correction forces of ``baudet2009``
+    (non-conservative, see :mod:`hybmss.baudet`)."""
+    extras: dict = {}
+    if scene.model.name == "baudet2009":
+        from .baudet import Corrections
+
+        corr = Corrections.for_system(consts, scene.material, lat)
+        extras["baudet"] = corr
+        extras["non_conservative"] = True
+        extras["forces"] = corr.forces
+    return extras

@@ -1,0 +1,356 @@
+"""The cubic-cell MSS of [B09] (variant ``baudet2009``): lateral correction forces and their
+equilibrium solver.
+
+Springs ([B09], SPEC §4)
+------------------------
+Per cell, each of the 12 edges is a spring ``kx = E le (4ν+1)/(8(1+ν))`` and each of the 4 inner
+diagonals ``kd = 3 E le/(8(1+ν))``; no face diagonals.  Shared edges are merged (Kirchhoff), so
+the family constant of an interior edge is ``4 kx`` (:mod:`hybmss.calibrate`): every cell keeps
+its own share ``kx`` and a homogeneous deformation of a body costs exactly the sum of the cells.
+
+[B09]'s derivation, redone.  A single cube of edge l under the diagonal strain
+``(ε1, ε2, ε3)`` (small strain).  The cell's springs crossing axis i are the 4 i-edges
+(elongation ``l εi``) and the 4 inner diagonals (elongation ``l tr ε/√3``, axial component
+``1/√3``); they pull the two i-faces together with the total normal force
+
+    S_i = 4 kx l εi + (4/3) kd l tr ε = l² (a εi + b tr ε),
+    a = E(4ν+1)/(2(1+ν)),   b = E/(2(1+ν)) = G.
+
+Uniaxial stress along x (ε2 = ε3 = −ν ε1) gives ``S_1 = E l² ε1``: the pulled face carries
+exactly E (this is how [B09] fixed kx once kd is fixed by shear: the edges carry no shear, the
+inner diagonals give ``C_44 = 4 kd/(3 l) = G``).  But the lateral faces are not free:
+``S_2 = S_3 = S_1 (1 − 4ν)/2 ≠ 0`` except at ν = 1/4 (springs alone obey the Cauchy relation).
+[B09] cancels it with forces on the lateral faces, orthogonal to them: the lateral face must
+receive the outward total force ``c S_1`` with
+
+    c = (1 − 4ν)/2,  i.e. per vertex  c S_1/4 = −(4ν − 1) S_1/8 = −F_1 (4ν − 1)/16
+
+where ``F_1 = 2 S_1`` is the sum over the cell's two x-faces of the normal force they carry.
+That is the published ``F⊥ = −F (4ν−1)/16`` per vertex, provided F counts both faces of the
+pair.  (Taking F as the force on one face, the literal formula gives half the correction needed
+ν_eff is wrong: at ν = 0.3 one gets ν_eff = 0.27 and E_eff = 1.02 E.)
+
+Definition of the elongation force F_i used here
+------------------------------------------------
+Inside a lattice the lateral faces of a cell carry forces too, and every axis drives a
+correction on the two others.  If F_i were the force of the cell's *springs* alone, the
+uniaxial test would feed the lateral spring forces ``S_2, S_3`` back as corrections on the
+loaded face and E and ν would both be off (the single-cube derivation assumed the lateral
+faces transmit nothing): at ν = 0.3 that gives ν_eff = 0.295 and E_eff = 0.986 E, at ν = 0.45
+ν_eff = 0.388 and E_eff = 0.80 E, and at ν = 0 (c = 1/2) the lateral faces lose all stiffness.  We therefore take F_i/2 = T_i, the normal force the cell *transmits*
+across its i-faces, springs and corrections together (the cell's ``σ_ii l²``):
+
+    T_i = S_i − c Σ_{j≠i} T_j        (the corrections push the i-faces apart)
+    ⇔  ((1 − c) I + c 𝟙𝟙ᵀ) T = S  ⇔  T = (S − c/(1+2c) (Σ S) 𝟙) / (1 − c),
+
+a 3×3 linear system per cell, regular for ν ≠ 1/2 and ν ≠ −1/4.  On a free lateral face T = 0
+exactly as in [B09]'s test, and for any homogeneous small strain the cell's law becomes
+``σ_ii (1 − c) + c tr σ = a εi + b tr ε``, whose solution is exactly isotropic linear
+elasticity: ``2μ = a/(1 − c) = E/(1+ν)``, ``λ = Eν/((1+ν)(1−2ν))``; shear is carried by the
+inner diagonals with ``G = 4 kd/(3 le)``.  So E, ν *and* G are right for homogeneous states;
+what the model misses is in the inhomogeneous ones (no face diagonals: hourglass modes).
+
+Finite deformation.  ``d_i`` is the unit vector of the cell's averaged edge vector along i
+(``a, b, c`` of SPEC §3, which joins the centroids of the two i-faces); S_i is the sum of the
+forces of the cell's own springs (its shares ``kx``, ``kd``) on the 4 vertices of the i+ face,
+projected on ``−d_i`` (tension positive).  The correction on face j± is ``±c (Σ T − T_j) d_j / 4``
+on each of its 4 vertices.  Being pairs of equal and opposite forces along the line of the face
+centroids, the corrections conserve linear and angular momentum and rotate with the cell
+(objective); for a cube the d_i are the face normals.
+
+Not the gradient of an energy
+-----------------------------
+The correction on the j-faces depends on the springs of the other axes (including the inner
+diagonals' response to non-affine motions), but the j-face motion does not enter those forces
+in the transposed way: the Jacobian ``∂f/∂x`` of the corrections is not symmetric, so the forces
+have a non-zero curl and do work around closed loops (``tests/test_baudet.py`` measures both).
+There is no potential energy: :func:`hybmss.solvers.solve_static` cannot minimize one and
+dispatches this variant to :func:`solve_equilibrium`, a Newton method on the force residual.
+
+What :func:`solve_equilibrium` guarantees: a configuration where the total force (springs,
+corrections, gravity, loads) on every free degree of freedom is below ``rtol`` times the
+largest plate reaction or applied load, reached by continuation from rest over load steps.  It
+does not guarantee stability (without an energy there is no minimum to certify; a dynamic run
+could leave this state) nor uniqueness.  Zero-force (hourglass) modes of the lattice without
+face diagonals are handled by a Levenberg–Marquardt shift, as in the static solver: they keep
+their initial (zero) amplitude.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .lattice import CORNERS, VOLUME_SIGNS
+
+AXIS_SIGNS = 2.0 * CORNERS - 1.0
+"""(8, 3): +1 if corner c lies on the i+ face of its cell, −1 on the i− face."""
+
+EDGE_LO = np.array([[c for c in range(8) if not (c >> i) & 1] for i in range(3)], dtype=np.int64)
+"""(3, 4): the low corner of each of the 4 cell edges along axis i (the high one is ``lo | 1<<i``)."""
+
+DIAG_LO = np.arange(4, dtype=np.int64)
+"""Inner diagonals join corner q and 7 − q, q = 0..3."""
+
+DIAG_SIGN = np.array([[1.0 if not (q >> i) & 1 else -1.0 for i in range(3)] for q in range(4)])
+"""(4, 3): +1 if diagonal q (from q to 7 − q) runs from the i− to the i+ face, else −1."""
+
+
+def coefficient(nu: float) -> float:
+    """c = (1 − 4ν)/2: total lateral correction per face, in units of the transmitted force."""
+    return 0.5 * (1.0 - 4.0 * nu)
+
+
+@dataclass(frozen=True)
+class Corrections:
+    """Parameters of the correction forces of one system: per-cell spring shares ``kx``, ``kd``
+    (N/m), rest edge ``le`` (m), coefficient ``c``, and the cells (m, 8) they act on."""
+
+    cells: np.ndarray
+    kx: float
+    kd: float
+    le: float
+    c: float
+
+    @classmethod
+    def for_system(cls, consts, material, lattice) -> "Corrections":
+        c = coefficient(material.nu)
+        if abs(1.0 - c) < 1e-12 or abs(1.0 + 2.0 * c) < 1e-12:
+            raise ValueError(f"baudet2009 corrections are singular at nu = {material.nu} (need nu != -1/4, 1/2)")
+        return cls(lattice.cells, consts.ke / 4.0, consts.kc, lattice.body.le, c)
+
+    def forces(self, x: np.ndarray) -> np.ndarray:
+        """Correction forces (n, 3) at positions ``x`` (NumPy reference)."""
+        return correction_forces(x, self.cells, self.kx, self.kd, self.le, self.c)
+
+
+# ------------------------------------------------------------------------- NumPy reference
+def _sqrt(v):
+    return np.sqrt(v)  # analytic (complex-step safe): no abs()
+
+
+def cell_transmitted(xc, kx, kd, le):
+    """Spring tensions ``S`` (m, 3) and unit axes ``d`` (m, 3, 3) of cells with corners ``xc``
+    (m, 8, 3).  Written without ``abs`` so that it accepts complex positions (complex step)."""
+    abc = np.einsum("cd,mci->mdi", VOLUME_SIGNS, xc)  # averaged edge vectors a, b, c
+    d = abc / _sqrt(np.einsum("mdi,mdi->md", abc, abc))[..., None]
+    S = np.zeros(xc.shape[:1] + (3,), dtype=xc.dtype)
+    for i in range(3):
+        lo = EDGE_LO[i]
+        E = xc[:, lo | (1 << i)] - xc[:, lo]  # (m, 4, 3)
+        t = kx * (1.0 - le / _sqrt(np.einsum("mei,mei->me", E, E)))
+        S[:, i] += np.einsum("me,mei,mi->m", t, E, d[:, i])
+    D = xc[:, 7 - DIAG_LO] - xc[:, DIAG_LO]  # (m, 4, 3)
+    td = kd * (1.0 - math.sqrt(3.0) * le / _sqrt(np.einsum("mqi,mqi->mq", D, D)))
+    S += np.einsum("mq,qj,mqi,mji->mj", td, DIAG_SIGN, D, d)
+    return S, d
+
+
+def cell_correction_forces(xc, kx, kd, le, c):
+    """Correction forces (m, 8, 3) on the corners of cells ``xc`` (m, 8, 3)."""
+    S, d = cell_transmitted(xc, kx, kd, le)
+    T = (S - (c / (1.0 + 2.0 * c)) * S.sum(axis=1, keepdims=True)) / (1.0 - c)
+    mag = 0.25 * c * (T.sum(axis=1, keepdims=True) - T)  # (m, 3): per vertex, face j
+    P = mag[..., None] * d  # (m, 3 axes, 3 comps)
+    return np.einsum("cj,mji->mci", AXIS_SIGNS, P)
+
+
+def correction_forces(x, cells, kx, kd, le, c):
+    """Correction forces (n, 3) of all ``cells`` at positions ``x`` (n, 3)."""
+    fc = cell_correction_forces(np.asarray(x)[cells], kx, kd, le, c)
+    f = np.zeros(np.shape(x))
+    idx = cells.ravel()
+    for k in range(3):
+        f[:, k] = np.bincount(idx, weights=fc[..., k].ravel(), minlength=len(f))
+    return f
+
+
+def cell_transmitted_forces(x, corr: Corrections) -> np.ndarray:
+    """Transmitted normal forces T (m, 3) per cell (N): the cell's ``σ_ii le²``."""
+    S, _ = cell_transmitted(np.asarray(x)[corr.cells], corr.kx, corr.kd, corr.le)
+    c = corr.c
+    return (S - (c / (1.0 + 2.0 * c)) * S.sum(axis=1, keepdims=True)) / (1.0 - c)
+
+
+def correction_jacobian(x, corr: Corrections) -> sp.csr_matrix:
+    """``∂f_corr/∂x`` (3n × 3n, CSR, not symmetric), exact to round-off by the complex step
+    applied cell by cell (each cell's forces depend on its 8 corners only)."""
+    cells = corr.cells
+    xc = np.asarray(x, dtype=float)[cells]  # (m, 8, 3)
+    m = len(cells)
+    h = 1e-30 * corr.le
+    blocks = np.empty((m, 8, 3, 8, 3))  # [cell, a, i, b, j] = ∂f_{a,i}/∂x_{b,j}
+    for b in range(8):
+        for j in range(3):
+            z = xc.astype(complex)
+            z[:, b, j] += 1j * h
+            blocks[:, :, :, b, j] = cell_correction_forces(z, corr.kx, corr.kd, corr.le, corr.c).imag / h
+    dof = 3 * cells[:, :, None] + np.arange(3)[None, None, :]  # (m, 8, 3)
+    rows = np.broadcast_to(dof[:, :, :, None, None], blocks.shape).ravel()
+    cols = np.broadcast_to(dof[:, None, None, :, :], blocks.shape).ravel()
+    N = 3 * len(x)
+    return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(N, N))
+
+
+# ------------------------------------------------------------------------- equilibrium
+class EquilibriumError(RuntimeError):
+    """The force-residual Newton solver could not reach an equilibrium."""
+
+
+@dataclass(frozen=True)
+class EquilibriumOptions:
+    rtol: float = 1e-8
+    max_iter: int = 30
+    initial_steps: int = 1
+    min_step: float = 1.0 / 1024
+
+
+def _parts(system):
+    corr = system.extras["baudet"]
+    dead = system.extras.get("dead_load")
+    return corr, dead
+
+
+def total_forces(system, x, s: float = 1.0):
+    """Springs + corrections + s·(gravity + dead loads): the residual (n, 3) at load factor s."""
+    from .forces import spring_energy_forces
+
+    corr, dead = _parts(system)
+    e, f = spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
+    f += corr.forces(x)
+    if system.gravity is not None:
+        f += s * system.mass[:, None] * system.gravity[None, :]
+    if dead is not None:
+        f += s * dead
+    return e, f
+
+
+def _scale(system, f):
+    scale = 0.0
+    for p in system.plates:
+        scale = max(scale, float(np.linalg.norm(f[p.particles].sum(axis=0))))
+    if system.gravity is not None:
+        scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
+    dead = system.extras.get("dead_load")
+    if dead is not None:
+        scale = max(scale, float(np.abs(dead).sum()))
+    return scale
+
+
+def _newton(system, x, free, s, rtol, max_iter, stats):
+    from .forces import cell_volumes, hessian
+    from .solvers import _force_floor
+
+    corr = system.extras["baudet"]
+    floor = _force_floor(system)
+    _, f = total_forces(system, x, s)
+    rnorm = np.inf
+    for it in range(max_iter + 1):
+        r = f.ravel()[free]
+        rnorm = float(np.linalg.norm(r))
+        scale = _scale(system, f)
+        if not np.isfinite(rnorm):
+            return False, x, f, rnorm
+        if rnorm <= max(rtol * scale, floor):
+            return True, x, f, rnorm
+        if it == max_iter:
+            break
+        # Jacobian of −f: spring Hessian (symmetric) minus the correction Jacobian (not symmetric)
+        J = (hessian(system, x) - correction_jacobian(x, corr)).tocsr()[free][:, free].tocsc()
+        diag = float(np.abs(J.diagonal()).mean())
+        dx, mu = None, 0.0
+        for _ in range(8):
+            A = J if mu == 0.0 else J + sp.identity(J.shape[0], format="csc") * (mu * diag)
+            try:
+                with np.errstate(all="ignore"):
+                    cand = spla.splu(A).solve(r)
+                ok = bool(np.all(np.isfinite(cand)))
+            except RuntimeError:
+                ok = False
+            if ok:
+                dx = cand
+                break
+            mu = 1e-10 if mu == 0.0 else mu * 100.0
+        if dx is None:
+            return False, x, f, rnorm
+        stats["iterations"] += 1
+        stats["regularized"] += int(mu > 0.0)
+        step = np.zeros(x.size)
+        step[free] = dx
+        step = step.reshape(x.shape)
+        alpha, accepted = 1.0, False
+        for _ in range(12):  # backtracking on the residual norm (there is no energy)
+            xt = x + alpha * step
+            if np.all(cell_volumes(xt, system.lattice.cells) > 0.0):
+                _, ft = total_forces(system, xt, s)
+                rt = float(np.linalg.norm(ft.ravel()[free]))
+                if rt <= (1.0 - 1e-4 * alpha) * rnorm:
+                    accepted = True
+                    break
+            alpha *= 0.5
+        if not accepted:
+            return False, x, f, rnorm
+        x, f = xt, ft
+    return False, x, f, rnorm
+
+
+def solve_equilibrium(scene, options: EquilibriumOptions | None = None, system=None):
+    """Static equilibrium of a ``baudet2009`` scene (solver name ``mss-static``).
+
+    Newton's method on the force residual with the exact Jacobian (spring Hessian plus the
+    complex-step Jacobian of the corrections, not symmetric), a backtracking line search on the
+    residual norm and load steps ``s ∈ (0, 1]`` that scale the plates' motion, gravity and
+    loads together (halved on failure).  See the module docstring for what the result
+    guarantees: zero net force, not stability."""
+    from .solvers import _force_floor, _result
+    from .system import build
+
+    opts = options or EquilibriumOptions()
+    t0 = time.perf_counter()
+    S = system if system is not None else build(scene)
+    if "baudet" not in S.extras:
+        raise ValueError(f"solve_equilibrium is for model baudet2009, got {scene.model.name!r}")
+    free = ~S.fixed.ravel()
+    stats = {"iterations": 0, "regularized": 0}
+    x = S.X.copy()
+    s, ds = 0.0, 1.0 / max(1, opts.initial_steps)
+    load_steps = 0
+    while s < 1.0 - 1e-14:
+        s_new = min(1.0, s + ds)
+        guess = x.copy()
+        target = S.prescribed(s_new)
+        guess[S.fixed] = target[S.fixed]
+        ok, x_new, f, rnorm = _newton(S, guess, free, s_new, opts.rtol, opts.max_iter, stats)
+        if ok:
+            x, s = x_new, s_new
+            load_steps += 1
+            ds = min(1.0, 1.5 * ds)
+            continue
+        ds *= 0.5
+        if ds < opts.min_step:
+            raise EquilibriumError(
+                f"baudet2009 equilibrium of scene {scene.name or '(unnamed)'} not reached at load factor "
+                f"s={s_new:.6g} (last converged s={s:.6g}); residual {rnorm:.3g} N: the non-conservative "
+                "corrections have no energy to certify a stable state; the equilibrium path may be lost")
+    e_spr, f = total_forces(S, x, 1.0)
+    parts = {"springs": float(e_spr)}
+    if S.gravity is not None:
+        parts["gravity"] = -float(np.dot(S.mass, x @ S.gravity))
+    r = float(np.linalg.norm(f.ravel()[free]))
+    info = {
+        "equilibrium": "force-residual Newton (non-conservative corrections, no energy)",
+        "load_steps": load_steps,
+        "regularized_steps": stats["regularized"],
+        "residual": r,
+        "relative_residual": r / _scale(S, f) if _scale(S, f) > 0 else 0.0,
+        "residual_floor": _force_floor(S),
+        "kappa": 0.0,
+        "springs": int(len(S.spring_k)),
+        "correction_c": float(S.extras["baudet"].c),
+    }
+    return _result(S, "mss-static", x, f, parts, stats["iterations"], t0, True, info)
