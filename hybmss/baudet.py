@@ -354,3 +354,44 @@ def solve_equilibrium(scene, options: EquilibriumOptions | None = None, system=N
         "correction_c": float(S.extras["baudet"].c),
     }
     return _result(S, "mss-static", x, f, parts, stats["iterations"], t0, True, info)
+
+
+# ------------------------------------------------------------------------- stencil layout
+@dataclass(frozen=True, eq=False)
+class GridCorrections:
+    """The corrections of a system laid out on its full grid for the Numba twin
+    (:mod:`hybmss._kernels_baudet`): ``flat`` (n,) grid index of each particle, ``kc`` (2, N)
+    per-cell ``kx``, ``kd`` at the cell's lowest corner (0: no cell), ``coff`` (8,) corner offsets."""
+
+    shape: tuple[int, int, int]
+    flat: np.ndarray
+    kc: np.ndarray
+    coff: np.ndarray
+    le: float
+    c: float
+    Xg: np.ndarray
+
+    @classmethod
+    def from_system(cls, system) -> "GridCorrections":
+        corr = system.extras["baudet"]
+        lat = system.lattice
+        shape = tuple(int(n) + 1 for n in system.scene.body.shape)
+        strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
+        N = int(np.prod(shape))
+        flat = lat.grid @ strides
+        kc = np.zeros((2, N))
+        low = lat.cell_ijk @ strides
+        kc[0, low] = corr.kx
+        kc[1, low] = corr.kd
+        gi = np.indices(shape).reshape(3, -1).astype(float)
+        Xg = np.asarray(system.scene.body.origin, dtype=float)[:, None] + gi * corr.le
+        return cls(shape, flat, kc, (CORNERS @ strides).astype(np.int64), corr.le, corr.c, Xg)
+
+    def forces(self, x: np.ndarray) -> np.ndarray:
+        """Correction forces (n, 3) at particle positions ``x`` (n, 3), by the Numba kernel."""
+        from ._kernels_baudet import correction_forces_grid
+
+        xg = self.Xg.copy()
+        xg[:, self.flat] = np.asarray(x, dtype=float).T
+        F = correction_forces_grid(xg, self.kc, self.coff, self.le, self.c)
+        return np.ascontiguousarray(F[:, self.flat].T)
