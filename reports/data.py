@@ -190,10 +190,12 @@ def paper_source(name: str) -> str:
         return ""
 
 
-def mesh_counts(n: int) -> dict:
-    """Counts of an n×n×n lattice (SPEC §1): volumes, vertices, springs without face diagonals
+def mesh_counts(nx: int, ny: int | None = None, nz: int | None = None) -> dict:
+    """Counts of an nx×ny×nz lattice (SPEC §1): volumes, vertices, springs without face diagonals
     (edges + 4 inner diagonals per cell) and with 12 unmerged face diagonals per cell."""
-    edges = 3 * n * (n + 1) ** 2
-    inner = 4 * n**3
-    return {"volumes": n**3, "vertices": (n + 1) ** 3, "springs_no_fd": edges + inner,
-            "springs_with_fd": edges + inner + 12 * n**3}
+    ny = nx if ny is None else ny
+    nz = nx if nz is None else nz
+    cells = nx * ny * nz
+    edges = nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz
+    return {"volumes": cells, "vertices": (nx + 1) * (ny + 1) * (nz + 1), "springs_no_fd": edges + 4 * cells,
+            "springs_with_fd": edges + 16 * cells}

@@ -44,6 +44,18 @@ class Claim:
         return {REPRODUCED: "good", PARTLY: "warn", NOT: "bad"}.get(self.verdict, "")
 
 
+def thresholds() -> list[str]:
+    """The thresholds of the verdicts, as printed on the summary page."""
+    return [
+        f"moduli: |E_eff/E − 1|, |G_eff/G − 1| ≤ {100 * E_MODULI_TOL:g} % and |ν_eff − ν| ≤ {NU_MODULI_TOL:g}",
+        f"volume change against FEM: |e_hybmss − e_FEM| ≤ {E_FEM_PP[0.05]:g} pp at d = 5 %, ≤ {E_FEM_PP[0.20]:g} pp at 20 %",
+        f"near incompressibility: e ≤ {INCOMPRESSIBLE_E_PCT:g} % at ν = 0.499",
+        f"agreement with the publication's hybmss column: |e − e_[G20]| ≤ {PAPER_PP:g} pp",
+        f"reactions (shear force, torsion torque) and beam tip deflection: within {REL_PCT:g} % of the reference",
+        "'partly reproduced': at least half of the cases meet the criterion",
+    ]
+
+
 def _e_threshold(d: float) -> float:
     return E_FEM_PP[0.05] if d <= 0.05 + 1e-12 else E_FEM_PP[0.20]
 

@@ -201,16 +201,16 @@ def meshes_table(results: Results) -> Table | None:
             "lattice volumes", "lattice vertices", "lattice springs (no FD)", "lattice springs (with FD)"]
     rows = []
     for _, r in paper.iterrows():
-        n = int(str(r["mesh"]).split("x")[0])
-        c = mesh_counts(n)
+        c = mesh_counts(*[int(v) for v in str(r["mesh"]).split("x")])
         row = [(r["mesh"], "")] + [(fmt(int(r[k])), "paper") for k in
                                     ("volumes", "vertices", "springs_no_fd", "springs_with_fd")]
         for k in ("volumes", "vertices", "springs_no_fd", "springs_with_fd"):
             row.append((fmt(c[k]), "good" if c[k] == int(r[k]) else "bad"))
         rows.append(row)
     return Table("table6", "Table 6: meshes of the performance study",
-                 "Counts of the n×n×n cube lattices: [G20] Table 6 next to the counts of this lattice (SPEC §1: "
-                 "3n(n+1)² edge springs + 4n³ inner diagonals; with FD: + 12 unmerged face diagonals per cell). "
+                 "Counts of the lattices of the performance study: [G20] Table 6 next to the counts of this lattice "
+                 "(SPEC §1: edge springs + 4 inner diagonals per cell; with FD: + 12 unmerged face diagonals per "
+                 "cell). "
                  f"Green: identical. Publication: {paper_source('g20_table6_meshes')}", cols, rows)
 
 
@@ -287,7 +287,8 @@ def differences_table(results: Results) -> Table | None:
     for c in ("mean_m", "max_m", "mid_layer_mean_m"):
         t[c.replace("_m", "_mm")] = 1e3 * t[c]
     order = {e: i for i, e in enumerate(("compression", "tension", "shear", "torsion", "bending"))}
-    t = t.sort_values(["experiment", "mesh", "load", "nu", "method"], key=lambda s: s.map(order) if s.name == "experiment" else s)
+    t["_exp"] = t["experiment"].map(order).fillna(99)
+    t = t.sort_values(["_exp", "mesh", "d", "angle_deg", "E", "nu", "method"])
 
     def cls(r, c):
         if c == "rel_l2_pct":

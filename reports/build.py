@@ -1,0 +1,282 @@
+"""Assemble the report: figures, renders, tables and VTU files into ``index.html`` (self-contained,
+images embedded as base64) and ``report.pdf`` (weasyprint), from a stored results folder.
+
+Figures and renders are cached under ``<out>/.cache`` by a fingerprint of the stored files they
+read and of the code that draws them, so restyling the report does not redraw what did not change
+and a rebuild from unchanged results takes a few seconds.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import hashlib
+import json
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import figures as figmod
+from . import render as rendermod
+from . import summary, tables, vtu
+from .data import Results
+
+TEMPLATES = Path(__file__).parent / "templates"
+#: study tables that get their own section when present (table + a plot if the columns allow)
+OPTIONAL_TABLES = ("performance", "pareto", "stability")
+KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
+                "differences", "eform_check", "moduli", *OPTIONAL_TABLES}
+
+
+@dataclass
+class Section:
+    id: str
+    title: str
+    intro: str = ""
+    items: list = field(default_factory=list)  # ("table", Table) | ("figure", dict)
+    screen_only: bool = False
+
+
+@dataclass
+class BuildResult:
+    html: Path
+    pdf: Path | None
+    pages: int
+    seconds: float
+    figures: int
+    tables: dict
+    vtu: int
+    page_text: list = field(default_factory=list)  # text laid out on each PDF page
+    page_anchors: list = field(default_factory=list)  # element ids on each PDF page
+
+
+def _b64(path: Path) -> str:
+    return "data:image/png;base64," + base64.b64encode(Path(path).read_bytes()).decode("ascii")
+
+
+def _fingerprint(results: Results, *modules) -> str:
+    """Hash of the stored files (name, size, mtime) and of the given modules' source."""
+    h = hashlib.sha256()
+    for d in (results.runs_dir, results.tables_dir):
+        if d.is_dir():
+            for p in sorted(d.iterdir()):
+                st = p.stat()
+                h.update(f"{p.name}:{st.st_size}:{st.st_mtime_ns};".encode())
+    for m in modules:
+        h.update(Path(m.__file__).read_bytes())
+    return h.hexdigest()[:20]
+
+
+def _cached_figures(results: Results, fig_dir: Path, cache: Path) -> dict:
+    """matplotlib figures, reused when neither the results nor the drawing code changed."""
+    from . import palette
+
+    key = _fingerprint(results, figmod, palette)
+    manifest = cache / f"figures-{key}.json"
+    if manifest.exists():
+        data = json.loads(manifest.read_text())
+        if all((cache / "figures" / Path(f["path"]).name).exists() for f in data.values()):
+            out = {}
+            for fid, f in data.items():
+                dst = fig_dir / Path(f["path"]).name
+                shutil.copyfile(cache / "figures" / dst.name, dst)
+                out[fid] = figmod.Figure(fid, f["title"], dst, f["caption"])
+            return out
+    figs = figmod.all_figures(results, fig_dir)
+    for name in OPTIONAL_TABLES:
+        t = results.table(name)
+        if t is not None:
+            f = figmod.generic(name, t, fig_dir / f"{name}.png")
+            if f is not None:
+                figs[f.id] = f
+    (cache / "figures").mkdir(parents=True, exist_ok=True)
+    for f in figs.values():
+        shutil.copyfile(f.path, cache / "figures" / f.path.name)
+    manifest.write_text(json.dumps({k: {"title": f.title, "path": f.path.name, "caption": f.caption}
+                                    for k, f in figs.items()}))
+    return figs
+
+
+def _fig(f, number: str = "") -> dict:
+    return {"id": f.id if hasattr(f, "id") else f.path.stem, "title": f.title if hasattr(f, "title") else "",
+            "src": _b64(f.path), "caption": f.caption, "number": number, "file": f"figures/{f.path.name}"}
+
+
+def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> BuildResult:
+    t0 = time.perf_counter()
+    results = Results(results_dir)
+    out = Path(out_dir)
+    fig_dir = out / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    cache = out / ".cache"
+    cache.mkdir(exist_ok=True)
+
+    def log(msg):
+        if verbose:
+            print(f"[{time.perf_counter() - t0:6.2f} s] {msg}", flush=True)
+
+    vtu_files = vtu.export_all(results, out / "vtu")
+    log(f"{len(vtu_files)} VTU files")
+    figs = _cached_figures(results, fig_dir, cache)
+    log(f"{len(figs)} figures")
+    render_key = _fingerprint(results, rendermod)
+    renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
+    log(f"{len(renders)} renders")
+
+    ov = summary.overview(results)
+    head = summary.headline(results)
+    claims = summary.claims(results, head) if not head.empty or results.table("moduli") is not None else []
+    sections: list[Section] = []
+
+    s = Section("summary", "Summary")
+    if not head.empty:
+        s.items.append(("table", summary.headline_table(head)))
+    if claims:
+        s.items.append(("table", summary.claims_table(claims)))
+    sections.append(s)
+
+    s = Section("tables", "Tables 2–6 of the publication, reproduced",
+                "Each table lists this reproduction's values next to the publication's; differences are coloured "
+                "by the thresholds stated in the caption. Quantities are from static equilibria.")
+    for t in (tables.volume_table(results, "table2_compression", "compression", 2),
+              tables.volume_table(results, "table3_tension", "tension", 3)):
+        if t is not None:
+            s.items.append(("table", t))
+    if "fig_e" in figs:
+        s.items.append(("figure", _fig(figs["fig_e"])))
+    for t in (tables.reaction_table(results, "table4_shear", "shear", 4, "deformation", "N", "reaction force F_x"),
+              tables.reaction_table(results, "table5_torsion", "torsion", 5, "angle_deg", "N·m", "reaction torque T_z")):
+        if t is not None:
+            s.items.append(("table", t))
+    if "fig_reactions" in figs:
+        s.items.append(("figure", _fig(figs["fig_reactions"])))
+    for t in (tables.meshes_table(results), tables.bending_table(results)):
+        if t is not None:
+            s.items.append(("table", t))
+    sections.append(s)
+
+    if renders:
+        s = Section("shapes", "Deformed shapes (Figs 3, 4, 7, 9)",
+                    "Rows: hybmss-fd, hybmss, FEM reference; columns: ν = 0, 0.25, 0.499. Off-screen pyvista renders of "
+                    "the stored static equilibria, coloured by displacement magnitude with one colour bar per figure.")
+        for r in renders:
+            n = rendermod.FIGURE_NUMBERS.get(r.experiment, "")
+            s.items.append(("figure", {"id": r.path.stem, "title": f"{r.experiment.capitalize()}, {r.load} (cf. Fig. {n})",
+                                       "src": _b64(r.path), "caption": r.caption, "number": str(n),
+                                       "file": f"figures/{r.path.name}"}))
+        sections.append(s)
+
+    s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)")
+    for fid in ("fig8", "fig10", "fig5", "fig_diff"):
+        if fid in figs:
+            s.items.append(("figure", _fig(figs[fid])))
+    t = tables.differences_table(results)
+    if t is not None:
+        s.items.append(("table", t))
+    if s.items:
+        sections.append(s)
+
+    for name in OPTIONAL_TABLES:
+        t = tables.extra_table(results, name)
+        if t is None:
+            continue
+        titles = {"performance": "Performance against the number of volumes (Figs 11, 12)",
+                  "pareto": "Speed against error (Pareto fronts)", "stability": "Stability"}
+        s = Section(f"study_{name}", titles[name])
+        if name == "performance":
+            p = tables.paper_table("g20_performance")
+            if p is not None:
+                s.intro = ("Publication (single-thread C++, i7-4790K): " + "; ".join(
+                    f"{r['quantity'].replace('_', ' ')} = {r['value']:g}{(' ' + r['unit']) if isinstance(r['unit'], str) else ''}"
+                    for _, r in p.iterrows()) + ".")
+        if f"fig_{name}" in figs:
+            s.items.append(("figure", _fig(figs[f"fig_{name}"])))
+        s.items.append(("table", t))
+        sections.append(s)
+    for name in results.table_names():
+        if name not in KNOWN_TABLES:
+            t = tables.extra_table(results, name)
+            if t is not None:
+                sections.append(Section(f"study_{name}", name.replace("_", " ").capitalize(), items=[("table", t)]))
+
+    s = Section("failures", "Failures and instabilities")
+    s.items.append(("table", tables.failures_table(results)))
+    sections.append(s)
+
+    s = Section("moduli", "Effective moduli and the E-form check")
+    for t in (tables.moduli_table(results), tables.eform_table(results)):
+        if t is not None:
+            s.items.append(("table", t))
+    if s.items:
+        sections.append(s)
+
+    t = tables.runs_table(results, vtu_files)
+    if t is not None:
+        sections.append(Section("runs", "All runs and VTU files",
+                                "Deformed states as VTU (open in ParaView, Warp By Vector on 'displacement'): "
+                                "<code>vtu/&lt;key&gt;.vtu</code> next to this page. This list is not printed.",
+                                [("table", t)], screen_only=True))
+
+    all_tables = {item.id: item for sec in sections for kind, item in sec.items if kind == "table"}
+    html = _render_html(results, ov, sections, len(vtu_files))
+    index = out / "index.html"
+    index.write_text(html, encoding="utf-8")
+    log("index.html")
+    pdf_path, pages, texts, anchors = None, 0, [], []
+    if pdf:
+        from weasyprint import HTML
+
+        doc = HTML(string=html, base_url=str(out)).render()
+        pages = len(doc.pages)
+        texts = [_page_text(p) for p in doc.pages]
+        anchors = [sorted(p.anchors) for p in doc.pages]
+        pdf_path = out / "report.pdf"
+        tmp = out / ".report.pdf.tmp"
+        doc.write_pdf(tmp)
+        tmp.replace(pdf_path)
+        log(f"report.pdf ({pages} pages)")
+    n_figs = sum(1 for sec in sections for kind, _ in sec.items if kind == "figure")
+    return BuildResult(index, pdf_path, pages, time.perf_counter() - t0, n_figs, all_tables, len(vtu_files),
+                       texts, anchors)
+
+
+def _page_text(page) -> str:
+    """Text of the boxes laid out on one weasyprint page (empty if the layout tree is unavailable)."""
+    parts = []
+
+    def walk(box):
+        t = getattr(box, "text", None)
+        if isinstance(t, str):
+            parts.append(t)
+        for c in getattr(box, "children", None) or ():
+            walk(c)
+
+    root = getattr(page, "_page_box", None)
+    if root is not None:
+        walk(root)
+    return " ".join(parts)
+
+
+def _render_html(results: Results, ov: dict, sections: list, n_vtu: int) -> str:
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
+                             autoescape=jinja2.select_autoescape(["html", "j2"]), trim_blocks=True,
+                             lstrip_blocks=True)
+    env.filters["duration"] = _duration
+    css = (TEMPLATES / "report.css").read_text()
+    return env.get_template("report.html.j2").render(
+        title="hybmss: reproduction of the hybrid 3D mass-spring system of Golec et al. [G20]",
+        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        results_dir=str(results.root), ov=ov, sections=sections, css=css, n_vtu=n_vtu,
+        thresholds=summary.thresholds())
+
+
+def _duration(s) -> str:
+    s = float(s)
+    if s < 60:
+        return f"{s:.1f} s"
+    if s < 3600:
+        return f"{s / 60:.1f} min ({s:.0f} s)"
+    return f"{s / 3600:.2f} h ({s:.0f} s)"
