@@ -142,14 +142,18 @@ class Hyperelasticity:
         maxiter: int = 25,
         method: str = "auto",
         min_increment: float = 1e-4,
+        load: np.ndarray | None = None,
     ) -> tuple[Solution, NewtonLog]:
-        """Solve up to load factor 1 in ``steps`` equal increments (halved on failure)."""
+        """Solve up to load factor 1 in ``steps`` equal increments (halved on failure).
+        ``load``: extra dead load vector (n_vector,), e.g. surface tractions, scaled with gravity."""
         if self.mixed and material.lam <= 0:
             raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
         lam, mu = material.lam, material.G
         space = self.space
         n = space.n_vector
         fext = space.body_load(material.rho * np.asarray(gravity, float))
+        if load is not None:
+            fext = fext + load
         D = dirichlet.dofs
         free = np.ones(n, dtype=bool)
         free[D] = False

@@ -99,12 +99,16 @@ class LinearElasticity:
         gravity=(0.0, 0.0, 0.0),
         s: float = 1.0,
         method: str = "auto",
+        load: np.ndarray | None = None,
     ) -> Solution:
-        """Solve at load factor ``s`` (prescribed displacements and gravity scaled by ``s``)."""
+        """Solve at load factor ``s`` (prescribed displacements and gravity scaled by ``s``).
+        ``load``: extra dead load vector (n_vector,), e.g. surface tractions, also scaled by ``s``."""
         stats = SolveStats()
         Klam, Kmu = self.parts
         lam, mu = material.lam, material.G
         f = self.space.body_load(s * material.rho * np.asarray(gravity, float))
+        if load is not None:
+            f = f + s * load
         uD = dirichlet.values(s)
         if not self.mixed:
             K = lam * Klam + mu * Kmu

@@ -104,12 +104,19 @@ def solve(
     info: dict = {"element": element, "law": law, "refine": int(refine), "h": ops.fmesh.h,
                   "n_elements": int(ops.fmesh.mesh.t.shape[1]), "n_dofs": int(space.n_vector)}
     converged, iterations = True, 1
+    traction = None
+    if scene.loads:  # dead surface tractions (Scene.loads)
+        from .loads import load_vector
+
+        traction = load_vector(scene, space)
+        info["surface_load"] = [float(v) for v in traction.reshape(-1, 3).sum(axis=0)]
     if law == "linear":
-        sol = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0), method=method)
+        sol = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0), method=method,
+                        load=traction)
     else:
         try:
             sol, log = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0),
-                                 steps=5 if steps is None else int(steps), method=method)
+                                 steps=5 if steps is None else int(steps), method=method, load=traction)
         except ConvergenceError as exc:
             raise ConvergenceError(f"{scene.name or 'scene'}: {exc}") from None
         iterations = log.iterations

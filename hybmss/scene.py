@@ -130,6 +130,23 @@ class Body:
         lo = np.asarray(self.origin)
         return lo, lo + np.asarray(self.shape) * self.le
 
+    def boundary_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cell faces on the body's surface (no active cell across): ``(cell_ijk, axis, side)``,
+        each (k,) or (k, 3); the face is the ``side`` (0: −, 1: +) face normal to ``axis``."""
+        mask = self.mask
+        pad = np.pad(mask, 1)
+        ijk, axes, sides = [], [], []
+        for axis in range(3):
+            for side in (0, 1):
+                shift = [slice(1, -1)] * 3
+                shift[axis] = slice(2, None) if side else slice(0, -2)
+                found = np.argwhere(mask & ~pad[tuple(shift)])
+                ijk.append(found)
+                axes.append(np.full(len(found), axis))
+                sides.append(np.full(len(found), side))
+        return (np.concatenate(ijk).astype(np.int64), np.concatenate(axes).astype(np.int64),
+                np.concatenate(sides).astype(np.int64))
+
     def to_dict(self) -> dict:
         d = {"shape": list(self.shape), "le": self.le, "origin": list(self.origin)}
         if self.mask_bits is not None:
@@ -365,6 +382,31 @@ class Plate:
             raise ValueError("plate name must be a non-empty string")
 
 
+@dataclass(frozen=True)
+class Load:
+    """A uniform dead traction ``traction`` (Pa: force per unit reference area, fixed direction)
+    on the body's surface faces whose centre lies in ``region``.
+
+    The mass-spring system gets the consistent load of bilinear faces (each selected cell face
+    gives ``traction · le²/4`` to each of its 4 vertices); the FEM integrates ``∫ t · v dA``
+    over the same faces.  The total force is ``traction × selected area``.
+    """
+
+    region: Region
+    traction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        object.__setattr__(self, "traction", _vec3("traction", self.traction))
+
+    def faces(self, body: Body) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The selected surface faces ``(cell_ijk, axis, side)`` of ``body``."""
+        ijk, axis, side = body.boundary_faces()
+        centre = ijk + 0.5
+        centre[np.arange(len(ijk)), axis] += side - 0.5
+        sel = self.region.select(np.asarray(body.origin) + centre * body.le, body)
+        return ijk[sel], axis[sel], side[sel]
+
+
 # --------------------------------------------------------------------------------------------
 # Scene
 # --------------------------------------------------------------------------------------------
@@ -384,9 +426,13 @@ class Scene:
     gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     damping: float = 0.0
     name: str = ""
+    loads: tuple[Load, ...] = ()
+    """Dead surface tractions (:class:`Load`); optional, omitted from :meth:`to_dict` when empty
+    so the digests of scenes without loads do not change."""
 
     def __post_init__(self):
         object.__setattr__(self, "plates", tuple(self.plates))
+        object.__setattr__(self, "loads", tuple(self.loads))
         object.__setattr__(self, "gravity", _vec3("gravity", self.gravity))
         damping = _finite("damping", self.damping)
         if damping < 0:
@@ -404,6 +450,8 @@ class Scene:
         """JSON-ready nested dict (stable key order)."""
         d = dataclasses.asdict(self)
         d["body"] = self.body.to_dict()
+        if not self.loads:
+            del d["loads"]
         return d
 
     @classmethod
@@ -426,6 +474,11 @@ class Scene:
             gravity=tuple(d.get("gravity", (0, 0, 0))),
             damping=d.get("damping", 0.0),
             name=d.get("name", ""),
+            loads=tuple(
+                Load(Region(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in ld["region"].items()}),
+                     tuple(ld["traction"]))
+                for ld in d.get("loads", ())
+            ),
         )
 
     def digest(self) -> str:

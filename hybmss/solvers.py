@@ -105,6 +105,9 @@ def _force_scale(system: System, f_total: np.ndarray) -> float:
         scale = max(scale, float(np.linalg.norm(f_total[p.particles].sum(axis=0))))
     if system.gravity is not None:
         scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
+    dead = system.extras.get("dead_load")
+    if dead is not None:
+        scale = max(scale, float(np.linalg.norm(dead.sum(axis=0))))
     return scale
 
 
@@ -135,6 +138,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
 
     def potential(xx):
         e, f, _ = energy_forces(system, xx)
+        e += dead_load_energy(system, xx)
         if inertia is not None:
             w, xt = inertia
             d = xx - xt
@@ -206,6 +210,13 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             return False, x, f, rnorm, scale
         x, e, f = xt, et, ft
     return False, x, f, rnorm, scale
+
+
+def dead_load_energy(system: System, x: np.ndarray) -> float:
+    """Potential ``−Σ f·x`` of the dead loads of ``Scene.loads`` (their forces reach
+    :func:`energy_forces` through ``system.extras['forces']``, their energy is added here)."""
+    dead = system.extras.get("dead_load")
+    return 0.0 if dead is None else -float(np.sum(dead * x))
 
 
 def _factor(A):
@@ -330,6 +341,8 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         if ds < opts.min_step:
             raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_new))
     e, f, parts = energy_forces(S, x)
+    if "dead_load" in S.extras:
+        parts = dict(parts, loads=dead_load_energy(S, x))
     r = float(np.linalg.norm(f.ravel()[free]))
     info = {
         "load_steps": load_steps,

@@ -131,14 +131,45 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
 
 
 def _variant_extras(scene: Scene, lat: Lattice, consts: Constants) -> dict:
-    """``System.extras`` of a scene: the [B09] correction forces of ``baudet2009``
-    (non-conservative, see :mod:`hybmss.baudet`)."""
+    """``System.extras`` of a scene: ``forces(x)`` sums the dead loads of ``Scene.loads``
+    (``dead_load``, conservative: the static solver adds their potential ``−f·x``) and the [B09]
+    correction forces of ``baudet2009`` (``baudet``, non-conservative, see :mod:`hybmss.baudet`)."""
     extras: dict = {}
+    terms = []
+    if scene.loads:
+        dead = dead_loads(scene, lat)
+        extras["dead_load"] = dead
+        terms.append(lambda x: dead)
     if scene.model.name == "baudet2009":
         from .baudet import Corrections
 
         corr = Corrections.for_system(consts, scene.material, lat)
         extras["baudet"] = corr
         extras["non_conservative"] = True
-        extras["forces"] = corr.forces
+        terms.append(corr.forces)
+    if len(terms) == 1:
+        extras["forces"] = terms[0]
+    elif terms:
+        extras["forces"] = lambda x: terms[0](x) + terms[1](x)
     return extras
+
+
+def dead_loads(scene: Scene, lat: Lattice) -> np.ndarray:
+    """Nodal forces (n, 3) of ``scene.loads``: each selected surface face of a cell gives
+    ``traction · le²/4`` to each of its 4 vertices (consistent load of a bilinear face)."""
+    from .lattice import CORNERS
+
+    f = np.zeros((lat.n_particles, 3))
+    area = scene.body.le**2
+    for load in scene.loads:
+        ijk, axis, side = load.faces(scene.body)
+        for a in range(3):
+            for s_ in (0, 1):
+                sel = (axis == a) & (side == s_)
+                if not sel.any():
+                    continue
+                corners = CORNERS[CORNERS[:, a] == s_]  # the 4 corners of that face
+                g = ijk[sel][:, None, :] + corners[None]
+                nodes = lat.node_id[g[..., 0], g[..., 1], g[..., 2]].ravel()
+                np.add.at(f, nodes, 0.25 * area * np.asarray(load.traction)[None, :])
+    return f
