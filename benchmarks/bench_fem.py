@@ -49,7 +49,8 @@ def cases(quick: bool = False):
     return out
 
 
-def run(quick: bool = False, only=None) -> dict:
+def run(quick: bool = False, only=None, progress=None) -> dict:
+    """Run the cases; ``progress(row)`` is called after each one."""
     from fem_reference import solve
 
     rows = []
@@ -73,6 +74,8 @@ def run(quick: bool = False, only=None) -> dict:
             "volume_change": res.volume_change,
             "top_force_z": top,
         })
+        if progress is not None:
+            progress(rows[-1])
     return {
         "benchmark": "fem",
         "quick": quick,
@@ -82,16 +85,20 @@ def run(quick: bool = False, only=None) -> dict:
     }
 
 
+HEADER = (f"{'case':<24}{'mesh':>9}{'nu':>7}{'dofs':>9}{'solver':>12}{'lin.it':>8}{'newton':>7}"
+          f"{'time s':>9}{'dV/V %':>10}{'F_top N':>13}")
+
+
+def format_row(r: dict) -> str:
+    return (
+        f"{r['case']:<24}{r['mesh']:>9}{r['nu']:>7g}{r['dofs']:>9,}{r['linear_solver']:>12}"
+        f"{r['linear_iterations']:>8}{r['newton_iterations']:>7}{r['time_s']:>9.2f}"
+        f"{100 * r['volume_change']:>10.4f}{r['top_force_z']:>13.6g}"
+    )
+
+
 def format_table(d: dict) -> str:
-    head = f"{'case':<24}{'mesh':>9}{'nu':>7}{'dofs':>9}{'solver':>12}{'lin.it':>8}{'newton':>7}{'time s':>9}{'dV/V %':>10}{'F_top N':>13}"
-    lines = [head]
-    for r in d["rows"]:
-        lines.append(
-            f"{r['case']:<24}{r['mesh']:>9}{r['nu']:>7g}{r['dofs']:>9,}{r['linear_solver']:>12}"
-            f"{r['linear_iterations']:>8}{r['newton_iterations']:>7}{r['time_s']:>9.2f}"
-            f"{100 * r['volume_change']:>10.4f}{r['top_force_z']:>13.6g}"
-        )
-    return "\n".join(lines)
+    return "\n".join([HEADER] + [format_row(r) for r in d["rows"]])
 
 
 def main(argv=None) -> int:
@@ -100,12 +107,13 @@ def main(argv=None) -> int:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--only", nargs="*", default=None, help="case names to run")
     args = p.parse_args(argv)
-    d = run(quick=args.quick, only=args.only)
     if args.json:
+        d = run(quick=args.quick, only=args.only)
         json.dump(d, sys.stdout, default=float)
         sys.stdout.write("\n")
-    else:
-        sys.stdout.write(format_table(d) + "\n")
+        return 0
+    print(HEADER, flush=True)
+    run(quick=args.quick, only=args.only, progress=lambda r: print(format_row(r), flush=True))
     return 0
 
 

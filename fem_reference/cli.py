@@ -2,7 +2,8 @@
 
 ``hybmss fem --scene compression --mesh 10x10x10 --le 0.5 --E 1e4 --nu 0.25 --deformation 0.2
 --element auto --law neo-hookean --refine 1 --json`` prints one JSON object
-(:meth:`Result.summary` plus the scene).  ``--scene-json FILE`` solves any stored Scene
+(:meth:`Result.summary` plus the scene); ``--convergence 1,2,3`` solves on those refinements
+and reports each output's observed order and Richardson error estimate instead.  ``--scene-json FILE`` solves any stored Scene
 (``Scene.to_dict`` format) instead.  The scenes built here are minimal loadings of a box
 (the publication's named scenes live in ``studies``):
 
@@ -104,10 +105,34 @@ def format_result(res) -> str:
     return "\n".join(lines)
 
 
+def _refinements(text: str) -> tuple[int, ...]:
+    try:
+        rs = tuple(int(t) for t in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected refinement factors like 1,2,3, got {text!r}") from None
+    if len(rs) < 2 or min(rs) < 1 or len(set(rs)) != len(rs):
+        raise argparse.ArgumentTypeError(f"expected at least two distinct factors >= 1, got {text!r}")
+    return rs
+
+
 def cmd_fem(args) -> int:
     from .solve import solve
 
     scene = build_scene(args)
+    if args.convergence:
+        from .convergence import convergence
+
+        study = convergence(scene, refinements=args.convergence, element=args.element, law=args.law,
+                            steps=args.steps, method=args.solver)
+        if args.json:
+            out = study.to_dict()
+            out["finest"] = study.results[-1].summary()
+            out["scene"] = scene.to_dict()
+            json.dump(out, sys.stdout, default=float)
+            sys.stdout.write("\n")
+        else:
+            sys.stdout.write(format_result(study.results[-1]) + "\n" + study.table() + "\n")
+        return 0
     res = solve(scene, element=args.element, law=args.law, refine=args.refine, steps=args.steps,
                 method=args.solver)
     if args.json:
@@ -140,6 +165,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     q.add_argument("--law", choices=LAW_CHOICES, default="linear", help="material law (default linear)")
     q.add_argument("--refine", type=_positive_int, default=1, help="split each cell into r^3 elements")
     q.add_argument("--steps", type=_positive_int, default=None, help="load steps (finite strain; default 5)")
+    q.add_argument("--convergence", type=_refinements, default=None, metavar="R1,R2[,R3]",
+                   help="solve on these refinements; report observed order and Richardson errors")
     q.add_argument("--solver", choices=("auto", "direct", "amg"), default="auto", help="linear solver")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_fem)

@@ -173,11 +173,14 @@ def convergence(
     element: str = "auto",
     law: str = "linear",
     expected_order: float | None = None,
+    drop_zero: bool = True,
     **solve_kwargs,
 ) -> ConvergenceStudy:
     """Solve ``scene`` on each refinement and analyze each output.
 
-    ``outputs`` maps names to functions of a :class:`Result` (default: :func:`default_outputs`).
+    ``outputs`` maps names to functions of a :class:`Result` (default: :func:`default_outputs`);
+    with ``drop_zero``, reaction components below 1e-9 of the largest one (zero by symmetry) are
+    left out.
     Extra keyword arguments go to :func:`fem_reference.solve.solve`.
     """
     refinements = tuple(sorted(int(r) for r in refinements))
@@ -187,7 +190,14 @@ def convergence(
     outputs = default_outputs(scene) if outputs is None else outputs
     p_exp = EXPECTED_ORDER[element] if expected_order is None else float(expected_order)
     results = tuple(solve(scene, element=element, law=law, refine=r, **solve_kwargs) for r in refinements)
-    analyzed = {
-        name: analyze(refinements, [fn(res) for res in results], p_exp, name) for name, fn in outputs.items()
-    }
+    values = {name: [fn(res) for res in results] for name, fn in outputs.items()}
+    if drop_zero:
+        # Reaction components that vanish by symmetry are round-off: leave them out.
+        for kind in (".F", ".T"):
+            comp = {k: v for k, v in values.items() if kind in k}
+            ref = max((abs(x) for v in comp.values() for x in v), default=0.0)
+            for k, v in comp.items():
+                if max(abs(x) for x in v) <= 1e-9 * ref:
+                    del values[k]
+    analyzed = {name: analyze(refinements, v, p_exp, name) for name, v in values.items()}
     return ConvergenceStudy(refinements, results, analyzed)

@@ -31,7 +31,7 @@ def test_fem_finite_strain_mixed(capsys):
 @pytest.mark.parametrize(
     "argv",
     [["--nu", "0.5"], ["--mesh", "4x4"], ["--le", "-1"], ["--refine", "0"], ["--element", "hex3"],
-     ["--scene-json", "/nonexistent.json"], ["--E", "-3"]],
+     ["--scene-json", "/nonexistent.json"], ["--E", "-3"], ["--convergence", "1"]],
 )
 def test_bad_arguments_exit_2_one_line(capsys, argv):
     with pytest.raises(SystemExit) as exc:
@@ -51,6 +51,13 @@ def test_scene_json_roundtrip(tmp_path, capsys):
     assert main(["fem", "--scene-json", str(path), "--element", "hex1", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["scene_digest"] == sc.digest()
+
+
+def test_fem_convergence_json(capsys):
+    assert main(["fem", "--mesh", "1x1x2", "--le", "0.5", "--element", "hex1", "--convergence", "1,2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["refinements"] == [1, 2] and "top.Fz" in out["outputs"]
+    assert out["finest"]["solver"] == "fem-hex1-linear"
 
 
 def test_register_adds_fem_subcommand():
