@@ -5,6 +5,7 @@ embedded and not flat, the PDF has the expected pages and text, every table has 
 from __future__ import annotations
 
 import base64
+import functools
 import io
 import itertools
 import json
@@ -46,12 +47,12 @@ def results(tmp_path_factory):
     """A results folder with the real layout, one failed run and a performance table."""
     from studies.runner import run_tasks
     from studies.store import Store
-    from studies.tables import write_tables
+    import studies.tables as studies_tables
 
     root = tmp_path_factory.mktemp("results")
     store = Store(root)
     tasks = _tasks()
-    run_tasks(tasks, store, jobs=2, progress=False)
+    run_tasks(tasks, store, jobs=1, progress=False)
     # a failed run, stored the way the runner stores one
     row = store.row(tasks[0].key())
     row.update(key="f" * 24, status="diverged", message="ExplicitDivergenceError: |v| > 1e6 m/s at step 812",
@@ -59,7 +60,9 @@ def results(tmp_path_factory):
     for k in ("volume_change", "max_displacement", "force_x", "force_y", "force_z"):
         row.pop(k, None)
     store.save(row["key"], row)
-    write_tables(store)
+    with pytest.MonkeyPatch.context() as mp:  # moduli at three ν keep the test short
+        mp.setattr(studies_tables, "moduli_table", functools.partial(studies_tables.moduli_table, nus=NUS))
+        studies_tables.write_tables(store)
     store.write_table("performance", pd.DataFrame({
         "variant": ["hybmss-fd", "hybmss", "hybmss-fd", "hybmss"], "volumes": [1000, 1000, 8000, 8000],
         "time_1000_steps_s": [0.1, 0.2, 0.8, 1.7]}))
@@ -128,8 +131,9 @@ def test_html_parses_and_images_are_embedded_and_not_blank(report):
     for src in page.imgs:
         assert src.startswith("data:image/png;base64,"), src[:40]
         img = Image.open(io.BytesIO(base64.b64decode(src.split(",", 1)[1]))).convert("RGB")
-        a = np.asarray(img, dtype=float)
-        assert len(np.unique(a.reshape(-1, 3), axis=0)) > 8
+        a = np.asarray(img)[::3, ::3].astype(np.int64)
+        colours = np.unique(a[..., 0] * 65536 + a[..., 1] * 256 + a[..., 2])
+        assert len(colours) > 8
         assert a.std() > 5.0
     assert not any(src.startswith(("http", "file:", "/")) for src in page.imgs)
 
