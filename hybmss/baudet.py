@@ -71,9 +71,13 @@ What :func:`solve_equilibrium` guarantees: a configuration where the total force
 corrections, gravity, loads) on every free degree of freedom is below ``rtol`` times the
 largest plate reaction or applied load, reached by continuation from rest over load steps.  It
 does not guarantee stability (without an energy there is no minimum to certify; a dynamic run
-could leave this state) nor uniqueness.  Zero-force (hourglass) modes of the lattice without
-face diagonals are handled by a Levenberg–Marquardt shift, as in the static solver: they keep
-their initial (zero) amplitude.
+could leave this state) nor uniqueness.  Without face diagonals the lattice has zero-stiffness
+(hourglass) modes, so the Jacobian is singular and the plain Newton step can be useless along
+them; the step is then retried with a Levenberg–Marquardt shift ``μ·mean(diag J)·I``
+(μ = 1e-8 … 1), which only damps it: convergence is still judged on the unshifted residual.
+Where such modes are loaded at second order (a clamped 4×1×1 bar under gravity), the equilibria
+form a family and different load paths can end at different members (all with zero residual):
+the displacement there is not determined by the model to better than that spread.
 """
 
 from __future__ import annotations
@@ -263,38 +267,37 @@ def _newton(system, x, free, s, rtol, max_iter, stats):
         # Jacobian of −f: spring Hessian (symmetric) minus the correction Jacobian (not symmetric)
         J = (hessian(system, x) - correction_jacobian(x, corr)).tocsr()[free][:, free].tocsc()
         diag = float(np.abs(J.diagonal()).mean())
-        dx, mu = None, 0.0
-        for _ in range(8):
-            A = J if mu == 0.0 else J + sp.identity(J.shape[0], format="csc") * (mu * diag)
+        I = sp.identity(J.shape[0], format="csc")
+        accepted = False
+        # Newton step first; where zero-stiffness (hourglass) modes make it useless, the
+        # Levenberg–Marquardt shift μ·mean(diag J)·I shortens it towards a damped step.
+        for mu in (0.0, 1e-8, 1e-6, 1e-4, 1e-2, 1.0):
             try:
                 with np.errstate(all="ignore"):
-                    cand = spla.splu(A).solve(r)
-                ok = bool(np.all(np.isfinite(cand)))
-            except RuntimeError:
-                ok = False
-            if ok:
-                dx = cand
+                    dx = spla.splu(J if mu == 0.0 else J + I * (mu * diag)).solve(r)
+            except RuntimeError:  # exactly singular
+                continue
+            if not np.all(np.isfinite(dx)):
+                continue
+            step = np.zeros(x.size)
+            step[free] = dx
+            step = step.reshape(x.shape)
+            alpha = 1.0
+            for _ in range(12 if mu == 1.0 else 4):  # backtracking on the residual norm
+                xt = x + alpha * step
+                if np.all(cell_volumes(xt, system.lattice.cells) > 0.0):
+                    _, ft = total_forces(system, xt, s)
+                    rt = float(np.linalg.norm(ft.ravel()[free]))
+                    if rt <= (1.0 - 1e-4 * alpha) * rnorm:
+                        accepted = True
+                        break
+                alpha *= 0.5
+            if accepted:
+                stats["regularized"] += int(mu > 0.0)
                 break
-            mu = 1e-10 if mu == 0.0 else mu * 100.0
-        if dx is None:
-            return False, x, f, rnorm
-        stats["iterations"] += 1
-        stats["regularized"] += int(mu > 0.0)
-        step = np.zeros(x.size)
-        step[free] = dx
-        step = step.reshape(x.shape)
-        alpha, accepted = 1.0, False
-        for _ in range(12):  # backtracking on the residual norm (there is no energy)
-            xt = x + alpha * step
-            if np.all(cell_volumes(xt, system.lattice.cells) > 0.0):
-                _, ft = total_forces(system, xt, s)
-                rt = float(np.linalg.norm(ft.ravel()[free]))
-                if rt <= (1.0 - 1e-4 * alpha) * rnorm:
-                    accepted = True
-                    break
-            alpha *= 0.5
         if not accepted:
             return False, x, f, rnorm
+        stats["iterations"] += 1
         x, f = xt, ft
     return False, x, f, rnorm
 

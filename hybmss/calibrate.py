@@ -20,8 +20,15 @@ the publication's tables were produced.
 calibrated to reproduce E (G = 2E/5), i.e. the E-form, which is exact for it.
 
 ``baudet2009`` ([B09]): edges ``kx = E le (4ν+1)/(8(1+ν))`` and inner diagonals
-``kd = 3 E le/(8(1+ν))``; its lateral correction forces are described in
-:mod:`hybmss.baudet` when that variant is built.
+``kd = 3 E le/(8(1+ν))``, both *per cell*: [B09] derives them on a single cube, whose 12 edges
+and 4 inner diagonals belong to it alone.  Checked against that derivation: with the cube
+stretched by ε along x and ν ε laterally, the x-face carries ``4 kx le ε + (4/3) kd le (1−2ν) ε
+= E le² ε`` (E right), and the inner diagonals give ``C_44 = 4 kd/(3 le) = G`` (edges carry no
+shear).  A lattice keeps every cell's own share, so an edge shared by 4 cells gets 4 kx: the
+edge family constant is ``ke = 4 kx`` (each cell gives ke/4 = kx, SPEC §1) and ``kc = kd``
+(an inner diagonal belongs to one cell); then any homogeneous deformation of a body costs the
+sum of the single cubes.  No face diagonals, κ = 0; the lateral correction forces (not an
+energy) are in :mod:`hybmss.baudet`.
 """
 
 from __future__ import annotations

@@ -127,7 +127,9 @@ STUDIES = {
 }
 
 
-EXTRA_STUDIES: dict[str, str] = {}
+EXTRA_STUDIES: dict[str, str] = {
+    "baudet2009": "studies.baudet:run",  # [B09]'s cantilever and L-shape, baudet2009 vs hybmss; moduli
+}
 """Studies with their own driver, run after the task lists above: name -> "module:function",
 where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool) -> None``
 and writes its own tables into ``store`` (e.g. performance, speed against error, stability)."""
