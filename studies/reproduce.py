@@ -129,6 +129,9 @@ STUDIES = {
 
 EXTRA_STUDIES: dict[str, str] = {
     "baudet2009": "studies.baudet:run",  # [B09]'s cantilever and L-shape, baudet2009 vs hybmss; moduli
+    "performance": "studies.performance:run",  # [G20] Figs 11-12: explicit kernel time per step
+    "pareto": "studies.pareto:run",  # speed against error vs a converged FEM reference; error budgets
+    "stability": "studies.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input
 }
 """Studies with their own driver, run after the task lists above: name -> "module:function",
 where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool) -> None``
