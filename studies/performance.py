@@ -109,7 +109,8 @@ def beam_dt(meshes) -> float:
 
 
 # ------------------------------------------------------------------------------ timing
-def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS) -> list[dict]:
+def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS,
+              min_span: float = MIN_SPAN) -> list[dict]:
     """Best-of-``repeats`` wall time of ``steps`` steps for every variant and thread count on
     one mesh (variants timed round-robin)."""
     from hybmss.explicit import simulate_explicit, stencil
@@ -130,7 +131,7 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
             t_est = max(t_est, simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
                                                  compute_dt_crit=False, check_every=steps).wall_time_s)
         # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
-        n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(MIN_SPAN / max(t_est, 1e-6)))))
+        n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(min_span / max(t_est, 1e-6)))))
         for _ in range(n_rep):
             for v in VARIANTS:
                 scene, S = systems[v]
@@ -213,21 +214,23 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
-                    threads=THREADS, progress: bool = False) -> tuple[pd.DataFrame, dict]:
+                    threads=THREADS, progress: bool = False, min_span: float = MIN_SPAN,
+                    bandwidth_MB: int | None = None) -> tuple[pd.DataFrame, dict]:
     """Time every mesh; returns (table, bandwidth)."""
     cubes = ((4, 4, 4), (6, 6, 6)) if quick else CUBES
     beams = ((2, 2, 12), (3, 3, 18)) if quick else BEAMS
     steps = steps or (200 if quick else 1000)
     repeats = repeats or (2 if quick else 3)
-    bw = measure_bandwidth(64 * 2**20 if quick else 256 * 2**20, trials=3 if quick else 5)
+    n_bytes = (bandwidth_MB or (64 if quick else 256)) * 2**20
+    bw = measure_bandwidth(n_bytes, trials=3 if quick else 5)
     dt_b = beam_dt(beams)
     rows = []
     jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
     for kind, mesh, dt in jobs:
         if progress:
             print(f"performance: {kind} {'x'.join(map(str, mesh))}", flush=True)
-        rows += time_mesh(kind, mesh, dt, steps, repeats, threads)
-    bw2 = measure_bandwidth(64 * 2**20 if quick else 256 * 2**20, trials=3 if quick else 5)
+        rows += time_mesh(kind, mesh, dt, steps, repeats, threads, min_span)
+    bw2 = measure_bandwidth(n_bytes, trials=3 if quick else 5)
     bandwidth = {k: max(bw[k], bw2[k]) for k in bw}
     return _derive(pd.DataFrame(rows), bandwidth), bandwidth
 

@@ -1,0 +1,111 @@
+"""Quick versions of the performance, speed-against-error and stability studies: their
+qualitative facts on tiny meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studies import pareto, performance, stability
+from studies.runner import SolverSpec, Task, run_tasks
+from studies.scenes import SceneSpec
+from studies.store import Store
+
+
+@pytest.fixture(scope="module")
+def dt_rows():
+    return stability.dt_table(quick=True, nus=(0.25, 0.45, 0.49, 0.499, 0.4999), variants=("hybmss",),
+                              steps=2000)
+
+
+def test_dt_crit_shrinks_as_nu_tends_to_half(dt_rows):
+    dc = dt_rows.sort_values("nu")["dt_crit"].to_numpy()
+    assert np.all(np.diff(dc) < 0)
+    assert dc[-1] < 0.2 * dc[0]
+
+
+def test_bisected_dt_is_close_to_the_eigenvalue_estimate(dt_rows):
+    ratio = dt_rows["ratio"].to_numpy()
+    assert np.all((ratio >= 0.5) & (ratio <= 1.05)), dt_rows[["nu", "dt_crit", "dt_stable", "ratio"]]
+
+
+def test_divergence_is_a_row_not_an_exception(tmp_path):
+    spec = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.499)
+    task = Task(spec, SolverSpec("explicit", dt=0.5, steps=200, ramp_time=1.0), "test")
+    (row,) = run_tasks([task], Store(tmp_path), jobs=1, progress=False)
+    assert row["status"] == "diverged"
+    assert "dt_crit" in row["message"] and "exceeds" in row["message"]
+
+
+def test_pareto_table_covers_every_experiment(tmp_path):
+    tables = pareto.run(Store(tmp_path), quick=True, jobs=2, progress=False)
+    df = tables["pareto"]
+    for exp in pareto.EXPERIMENTS:
+        sub = df[(df["experiment"] == exp) & np.isfinite(df["error_u"])]
+        assert len(sub) > 0, exp
+        assert sub["pareto"].any(), exp
+    refs = tables["pareto_references"]
+    assert (refs["reference_status"] == "ok").all()
+    assert np.all(np.isfinite(refs["reference_error_estimate"]))
+    # a refinement of the MSS brings it closer to the converged reference
+    st = df[(df["method"] == "hybmss static") & (df["experiment"] == "compression")].sort_values("factor")
+    assert st["error_u"].iloc[-1] < st["error_u"].iloc[0]
+    budget = tables["budget"]
+    assert set(budget["budget"]) == set(pareto.BUDGETS)
+
+
+def test_sample_refuses_points_off_the_lattice():
+    X = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    u = np.array([[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    assert pareto.sample(X, u, X[::-1])[0, 0] == 2.0
+    with pytest.raises(ValueError):
+        pareto.sample(X, u, np.array([[0.5, 0.0, 0.0]]))
+
+
+def test_limit_stretch_at_nu_zero_is_reported_with_its_cause():
+    from hybmss.solvers import StaticSolveError, solve_static
+
+    scene = SceneSpec.default("tension", mesh=(1, 1, 6), nu=0.0, deformation=1.0).build()
+    with pytest.raises(StaticSolveError) as err:
+        solve_static(scene)
+    p = stability.parse_failure(str(err.value))
+    assert 0.05 < p["s_last"] < p["s_fail"] < 0.5
+    assert "kappa" in str(err.value) or "positive definite" in str(err.value)
+
+
+def test_jittered_lattice_is_at_rest_and_solvable():
+    from hybmss.forces import energy_forces
+    from hybmss.solvers import solve_static
+
+    scene = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.3).build()
+    S = stability.jittered_system(scene, 0.1, seed=1)
+    from hybmss.lattice import Lattice
+
+    regular = Lattice.from_body(scene.body).X
+    shift = np.abs(S.X - regular)
+    assert 0 < shift.max() <= 0.1 * scene.body.le + 1e-12
+    _, f, _ = energy_forces(S, S.X)
+    assert np.abs(f).max() < 1e-9 * scene.material.E * scene.body.le**2
+    res = solve_static(scene, system=S)
+    assert res.converged and np.all(res.cell_volumes > 0)
+
+
+def test_irregular_scenes_build():
+    from hybmss.system import build
+
+    for name, (scene, builder, _) in stability.irregular_scenes(quick=True, nu=0.3).items():
+        S = builder(scene) if builder is not None else build(scene)
+        assert S.n > 0 and (~S.fixed).any(), name
+
+
+def test_performance_quick_table():
+    df, bw = performance.run_performance(quick=True, steps=20, repeats=1, threads=(1,), min_span=0.0,
+                                         bandwidth_MB=16)
+    assert bw["ceiling"] > 0
+    assert len(df) == 4 * len(performance.VARIANTS)
+    quarter = df[(df["variant"] == "hybmss") & (df["nu"] == 0.25)]
+    assert not quarter["volume_term"].any()  # κ = 0: the volume term is not built
+    other = df[(df["variant"] == "hybmss") & (df["nu"] != 0.25)]
+    assert other["volume_term"].all()
+    assert (df["bytes_per_step"] > 0).all() and np.isfinite(df["fraction_of_bandwidth"]).all()
+    assert set(performance.summary(df).columns) >= {"cf_over_fd", "hybmss_over_fd", "hybmss_quarter_over_cf"}
