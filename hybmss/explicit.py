@@ -342,7 +342,10 @@ def _divergence(system, x, particle, step, dt, limit, dt_c, check_every):
             dt_c = dt_crit(system)
         except Exception:  # the message must still be raised
             dt_c = float("nan")
-    if dt > dt_c:
+    if math.isnan(dt_c):
+        cause = (f"unknown (dt_crit could not be computed); check dt={dt:g} s against the explicit "
+                 "stability limit 2/√λmax(M⁻¹K)")
+    elif dt > dt_c:
         cause = f"time step dt={dt:g} s exceeds the explicit stability limit dt_crit≈{dt_c:.4g} s"
     else:
         cause = (

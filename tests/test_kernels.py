@@ -131,3 +131,19 @@ def test_numba_kernel_refuses_variant_forces():
         simulate_explicit(scene, steps=1, system=system, kernel="numba", compute_dt_crit=False)
     r = simulate_explicit(scene, steps=1, system=system, kernel="numpy", compute_dt_crit=False)
     assert np.all(np.isfinite(r.u))
+
+
+def test_bench_rows_and_table():
+    from hybmss.bench import format_bench, run_bench
+
+    d = run_bench(steps=20, numpy_steps=2, repeats=1, threads=(1,))
+    assert d["static"] == []
+    rows = d["explicit"]
+    assert {(r["model"], r["nu"]) for r in rows} == {
+        ("hybmss-fd", 0.499), ("hybmss-cf", 0.499), ("hybmss", 0.499), ("hybmss", 0.25)}
+    for r in rows:
+        assert {"model", "nu", "mesh", "kernel", "threads", "steps", "wall_time_s"} <= set(r)
+        assert r["mesh"] == "10x10x10" and r["wall_time_s"] > 0
+        assert r["steps"] == (20 if r["kernel"] == "numba" else 2)
+    text = format_bench(d)
+    assert "hybmss-cf/hybmss-fd" in text and "ns/spr/step" in text
