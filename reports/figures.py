@@ -397,10 +397,10 @@ def generic(name: str, df: pd.DataFrame, path: Path) -> Figure | None:
                     continue
                 kw = dict(color=palette.color(str(gname)), marker=palette.marker(str(gname)), label=str(gname))
                 if is_pareto:
-                    ax.plot(g[x], g[y], ls="none", alpha=0.5, **kw)
+                    ax.plot(g[x], g[y], ls="none", alpha=0.35, color=kw["color"], marker=kw["marker"])
                     front = g.sort_values([x, y])
                     front = front[front[y] <= front[y].cummin()]
-                    ax.plot(front[x], front[y], ls="-", color=kw["color"], lw=1.2)
+                    ax.step(front[x], front[y], where="post", lw=1.2, **kw)
                 else:
                     ax.plot(g[x], g[y], ls="-", lw=1.1, **kw)
             for col, setter in ((x, ax.set_xscale), (y, ax.set_yscale)):
@@ -423,19 +423,14 @@ def generic(name: str, df: pd.DataFrame, path: Path) -> Figure | None:
 
 def _unit_label(col: str) -> str:
     c = col.lower()
-    if c.endswith("_s") or c in ("time", "wall_time", "seconds"):
-        return f"{col} (s)"
-    if c.endswith("_ms"):
-        return f"{col} (ms)"
-    if c.endswith("_pct"):
-        return f"{col} (%)"
-    if c.endswith("_m"):
-        return f"{col} (m)"
-    if c in ("nu",):
+    for suffix, unit in (("_pct", "%"), ("_ms", "ms"), ("_s", "s"), ("_m", "m")):
+        if c.endswith(suffix):
+            return f"{col[: -len(suffix)].replace('_', ' ')} ({unit})"
+    if c == "nu":
         return "ν"
-    if "rel" in c or c in ("volumes", "cells", "vertices", "particles", "steps"):
-        return f"{col} (–)"
-    return col
+    if "rel" in c or c in ("volumes", "cells", "vertices", "particles", "steps", "n_cells", "n_volumes"):
+        return f"{col.replace('_', ' ')} (–)"
+    return col.replace("_", " ")
 
 
 def all_figures(results: Results, out_dir: Path) -> dict[str, Figure]:

@@ -47,8 +47,10 @@ def fmt(v, digits: int = 4, unit: str = "") -> str:
         v = float(v)
         if v == 0:
             return f"0{unit}"
-        if abs(v) >= 1e5 or abs(v) < 1e-3:
+        if abs(v) >= 1e7 or abs(v) < 1e-3:
             return f"{v:.{digits - 1}e}{unit}"
+        if abs(v) >= 10 ** digits:
+            return f"{v:.0f}{unit}"
         return f"{v:.{digits}g}{unit}"
     return f"{v}{unit}"
 
