@@ -77,7 +77,10 @@ them; the step is then retried with a Levenberg–Marquardt shift ``μ·mean(dia
 (μ = 1e-8 … 1), which only damps it: convergence is still judged on the unshifted residual.
 Where such modes are loaded at second order (a clamped 4×1×1 bar under gravity), the equilibria
 form a family and different load paths can end at different members (all with zero residual):
-the displacement there is not determined by the model to better than that spread.
+the displacement there is not determined by the model to better than that spread.  For that
+bar, damped explicit dynamics (NumPy kernel) settles on the state this solver returns (to
+1e-14 m, with 1 or 8 load steps); an undamped-Newton variant of the solver had stopped on
+another zero-residual state 5 % away.
 """
 
 from __future__ import annotations

@@ -368,6 +368,11 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
     opts = options or ImplicitOptions()
     t0 = time.perf_counter()
     S = system if system is not None else build(scene)
+    if S.extras.get("non_conservative"):
+        raise StaticSolveError(
+            f"implicit Euler minimizes an incremental potential and model {scene.model.name!r} has "
+            "non-conservative forces (no energy): use simulate_explicit(kernel='numpy') or solve_static"
+        )
     free = ~S.fixed.ravel()
     dt, c = opts.dt, scene.damping
     w = S.mass * (1.0 + c * dt) / dt**2

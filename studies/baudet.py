@@ -135,7 +135,8 @@ def moduli_table(quick: bool = False, progress: bool = False):
             mat = Material(1e4, nu)
             m = measure_moduli(Model(model), mat)
             rows.append({"model": model, "nu": nu, "E_eff_over_E": m["E_eff"] / mat.E, "nu_eff": m["nu_eff"],
-                         "G_eff_over_G": m["G_eff"] / mat.G,
+                         "G_eff_over_G": m["G_eff"] / mat.G, "E_rel_err": f"{m['E_eff'] / mat.E - 1:+.1e}",
+                         "nu_err": f"{m['nu_eff'] - nu:+.1e}", "G_rel_err": f"{m['G_eff'] / mat.G - 1:+.1e}",
                          "G_from": "plate reactions" if model == "baudet2009" else "energy"})
             if progress:
                 print(f"moduli {model:>10} nu={nu:<5}: E/E0 {rows[-1]['E_eff_over_E']:.6f} "

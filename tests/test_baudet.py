@@ -145,3 +145,11 @@ def test_explicit_numpy_kernel_runs_the_corrections():
     st = solve_static(scene)
     ex = simulate_explicit(scene, dt=2e-3, steps=3000, kernel="numpy", ramp_time=0.5)
     assert np.abs(ex.u - st.u).max() < 1e-3 * np.abs(st.u).max()
+
+
+def test_implicit_euler_refuses_non_conservative_forces():
+    from hybmss.solvers import StaticSolveError, simulate_implicit
+
+    scene = uniaxial_scene(Model("baudet2009"), Material(1e4, 0.3))
+    with pytest.raises(StaticSolveError, match="non-conservative"):
+        simulate_implicit(scene)
