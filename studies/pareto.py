@@ -8,14 +8,14 @@ For each experiment (compression, tension, shear, torsion, bending) and configur
   Euler to rest (dt = 0.25 s, at most 40 steps = 10 s, plates ramped over 1 s, c = 2 s⁻¹) and the
   publication's explicit protocol (dt = 1 ms × 10,000 steps, c = 2 s⁻¹, ramp 1 s), at the base
   resolution and its refinements (cube 5³, 10³; beam 2×2×12, 4×4×24, 8×8×48, where the finest
-  has no explicit run of hybmss-cf, as in the reproduction study); implicit only at the base
-  resolution (Newton per step makes it the most expensive);
+  has no explicit run of hybmss-cf, as in the reproduction study); implicit for hybmss at the
+  base resolution only (a Newton solve per step makes it the most expensive solver);
 - the FEM itself: Hex1 at every resolution (cube also 15³), Hex2 and mixed u–p at the
   resolutions coarser than the reference's (cube 5³; beam 2×2×12 and 4×4×24), with the
   reference's law.
 
-Quick mode (tests): cube 2³ → 4³, beam 1×1×6 → 2×2×12, ν = ¼, 5 %, 1°, E = 10 MPa, linear law,
-implicit for hybmss only.
+Quick mode (tests): cube 2³ → 4³, beam 1×1×6 → 2×2×12, ν = ¼, 5 %, 1°, E = 10 MPa, linear law.
+``run(..., experiments=..., nus=...)`` restricts the configurations (the bending ones keep ν = ¼).
 
 **Reference.**  The finest FEM that fits the time budget: Hex2 (mixed u–p Hex2×Hex1 for
 ν ≥ 0.45, ``element='auto'``) on the cube 10³ / the beam 8×8×48, with the law of
@@ -68,12 +68,12 @@ def bases(quick: bool) -> dict:
     return {"cube": ((5, 5, 5), (1, 2), (1, 2, 3), 2), "beam": ((2, 2, 12), (1, 2, 4), (1, 2, 4), 4)}
 
 
-def configs(quick: bool) -> list[SceneSpec]:
+def configs(quick: bool, experiments=EXPERIMENTS, nus=None) -> list[SceneSpec]:
     """Base-mesh scene specs (model hybmss) of every configuration."""
     b = bases(quick)
-    nus = (0.25,) if quick else NUS
+    nus = tuple(nus) if nus is not None else ((0.25,) if quick else NUS)
     out = []
-    for exp in EXPERIMENTS:
+    for exp in experiments:
         mesh = b["beam" if exp in ("tension", "bending") else "cube"][0]
         if exp == "bending":
             for E in ((1e7,) if quick else (1e7, 2e6)):
@@ -122,7 +122,7 @@ def tasks_for(spec: SceneSpec, quick: bool) -> list[tuple[dict, Task]]:
 
     def add(role, factor, s, solver, method):
         meta = {"config": cfg, "experiment": spec.experiment, "role": role, "factor": factor,
-                "method": method, "mesh": "x".join(map(str, s.mesh))}
+                "method": method, "mesh": "x".join(map(str, s.mesh)), "base": spec}
         out.append((meta, Task(s, solver, "pareto")))
 
     ref_el = _ref_element(spec)
@@ -137,20 +137,22 @@ def tasks_for(spec: SceneSpec, quick: bool) -> list[tuple[dict, Task]]:
             add("candidate", f, sm, STATIC, f"{model} static")
             if f < finest or model != "hybmss-cf" or quick:
                 add("candidate", f, sm.replace(damping=DAMPING), PROTOCOL, f"{model} explicit")
-            if f == 1 and (model == "hybmss" or not quick):
+            if f == 1 and model == "hybmss":
                 add("candidate", f, sm.replace(damping=DAMPING), IMPLICIT, f"{model} implicit")
     for f in sorted(set(fem_factors) | set(mss_factors)):
         s = _scaled(spec, f)
         for el in ("hex1", "hex2", "mixed"):
             if (el == "hex1" and f not in fem_factors) or (el != "hex1" and f >= ref_f):
                 continue
+            if el == "mixed" and spec.nu <= 0.0:  # the u–p form needs λ > 0
+                continue
             name = el if spec.experiment == "bending" else _fem_element_name(el, spec.nu)
             add("candidate", f, s, SolverSpec("fem", element=name, law=law), f"fem-{el}-{law}")
     return out
 
 
-def all_tasks(quick: bool = False) -> list[tuple[dict, Task]]:
-    return [p for spec in configs(quick) for p in tasks_for(spec, quick)]
+def all_tasks(quick: bool = False, experiments=EXPERIMENTS, nus=None) -> list[tuple[dict, Task]]:
+    return [p for spec in configs(quick, experiments, nus) for p in tasks_for(spec, quick)]
 
 
 # ------------------------------------------------------------------------------ metrics
@@ -199,7 +201,7 @@ def scalar_error(spec: SceneSpec, q: float, q_ref: float) -> float:
 
 def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Tidy table of candidates with errors, and the reference table (one row per config)."""
-    specs = {config_label(s): s for s in configs(quick)}
+    specs = {m["config"]: m["base"] for m, _ in pairs}
     groups: dict[str, list] = {}
     for (meta, task), row in zip(pairs, rows):
         groups.setdefault(meta["config"], []).append((meta, task, row))
@@ -225,7 +227,7 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
         for meta, task, row in items:
             if meta["role"] != "candidate":
                 continue
-            rec = {**meta, "nu": spec.nu, "load": cfg.split(" ", 2)[2], "solver": task.solver.label,
+            rec = {**{k: v for k, v in meta.items() if k != "base"}, "nu": spec.nu, "load": cfg.split(" ", 2)[2], "solver": task.solver.label,
                    "variant": task.scene.model if task.solver.kind != "fem" else "fem",
                    "status": row["status"], "time_s": row.get("wall_time_s", np.nan),
                    "elapsed_s": row.get("elapsed_s", np.nan), "message": row.get("message", ""),
@@ -293,10 +295,11 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True) -> dict:
+def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
+        experiments=EXPERIMENTS, nus=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``pareto``, ``pareto_front``,
     ``pareto_references`` and ``budget``."""
-    pairs = all_tasks(quick)
+    pairs = all_tasks(quick, experiments, nus)
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto")
     df, refs = pareto_frame(store, pairs, rows, quick)
     tables = {"pareto": df, "pareto_front": df[df["pareto"]].sort_values(["config", "time_s"]),
