@@ -23,8 +23,15 @@ from . import summary, tables, vtu
 from .data import Results
 
 TEMPLATES = Path(__file__).parent / "templates"
-#: study tables that get their own section when present (table + a plot if the columns allow)
-OPTIONAL_TABLES = ("performance", "pareto", "stability")
+#: sections of the optional studies: (id, title, tables shown when present, tables plotted)
+STUDY_SECTIONS = (
+    ("performance", "Performance against the number of volumes (Figs 11, 12)",
+     ("performance_summary", "performance", "bandwidth"), ("performance",)),
+    ("pareto", "Speed against error (Pareto fronts)", ("pareto_front", "budget", "pareto_references", "pareto"),
+     ("pareto",)),
+    ("stability", "Stability", ("dt_stability", "stability", "limit_stretch", "damping_steps"), ("dt_stability",)),
+)
+OPTIONAL_TABLES = tuple(t for _, _, names, _ in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", *OPTIONAL_TABLES}
 
@@ -84,12 +91,16 @@ def _cached_figures(results: Results, fig_dir: Path, cache: Path) -> dict:
                 out[fid] = figmod.Figure(fid, f["title"], dst, f["caption"])
             return out
     figs = figmod.all_figures(results, fig_dir)
-    for name in OPTIONAL_TABLES:
+    for name, plot in figmod.STUDY_PLOTS.items():
         t = results.table(name)
         if t is not None:
-            f = figmod.generic(name, t, fig_dir / f"{name}.png")
+            try:
+                f = plot(t, fig_dir / f"{name}.png")
+            except (KeyError, ValueError, TypeError) as exc:  # a table of unexpected shape: table only
+                print(f"warning: no plot of tables/{name}.csv ({type(exc).__name__}: {exc})")
+                f = None
             if f is not None:
-                figs[f.id] = f
+                figs[f"study_{name}"] = f
     (cache / "figures").mkdir(parents=True, exist_ok=True)
     for f in figs.values():
         shutil.copyfile(f.path, cache / "figures" / f.path.name)
@@ -149,8 +160,9 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
               tables.reaction_table(results, "table5_torsion", "torsion", 5, "angle_deg", "N·m", "reaction torque T_z")):
         if t is not None:
             s.items.append(("table", t))
-    if "fig_reactions" in figs:
-        s.items.append(("figure", _fig(figs["fig_reactions"])))
+    for fid in ("fig_reactions", "fig_torsion_sweep"):
+        if fid in figs:
+            s.items.append(("figure", _fig(figs[fid])))
     for t in (tables.meshes_table(results), tables.bending_table(results)):
         if t is not None:
             s.items.append(("table", t))
@@ -177,28 +189,34 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     if s.items:
         sections.append(s)
 
-    for name in OPTIONAL_TABLES:
-        t = tables.extra_table(results, name)
-        if t is None:
+    present = set(results.table_names())
+    for sid, title, names, plotted in STUDY_SECTIONS:
+        if not present & set(names):
             continue
-        titles = {"performance": "Performance against the number of volumes (Figs 11, 12)",
-                  "pareto": "Speed against error (Pareto fronts)", "stability": "Stability"}
-        s = Section(f"study_{name}", titles[name])
-        if name == "performance":
+        s = Section(f"study_{sid}", title)
+        if sid == "performance":
             p = tables.paper_table("g20_performance")
             if p is not None:
-                s.intro = ("Publication (single-thread C++, i7-4790K): " + "; ".join(
+                s.intro = ("Publication (single-thread C++, i7-4790K at 4 GHz): " + "; ".join(
                     f"{r['quantity'].replace('_', ' ')} = {r['value']:g}{(' ' + r['unit']) if isinstance(r['unit'], str) else ''}"
                     for _, r in p.iterrows()) + ".")
-        if f"fig_{name}" in figs:
-            s.items.append(("figure", _fig(figs[f"fig_{name}"])))
-        s.items.append(("table", t))
-        sections.append(s)
-    for name in results.table_names():
-        if name not in KNOWN_TABLES:
+        for name in plotted:
+            if f"study_{name}" in figs:
+                s.items.append(("figure", _fig(figs[f"study_{name}"])))
+        for name in names:
             t = tables.extra_table(results, name)
             if t is not None:
-                sections.append(Section(f"study_{name}", name.replace("_", " ").capitalize(), items=[("table", t)]))
+                s.items.append(("table", t))
+        sections.append(s)
+    others = [n for n in results.table_names() if n not in KNOWN_TABLES]
+    if others:
+        s = Section("study_other", "Other study tables",
+                    "Tables written by further studies, shown as stored (units in the column names).")
+        for name in others:
+            t = tables.extra_table(results, name)
+            if t is not None:
+                s.items.append(("table", t))
+        sections.append(s)
 
     s = Section("failures", "Failures and instabilities")
     s.items.append(("table", tables.failures_table(results)))

@@ -131,7 +131,7 @@ class Results:
 
     # ----------------------------------------------------------------- lookup
     def find(self, experiment: str, *, nu=None, mesh=None, deformation=None, angle_deg=None, E=None,
-             method=None, law=None, fem=None, ok_only=True) -> pd.DataFrame:
+             method=None, law=None, fem=None, study=None, ok_only=True) -> pd.DataFrame:
         """Rows matching the given scene parameters (floats compared with a tolerance)."""
         df = self.ok() if ok_only else self.rows
         if df.empty:
@@ -149,6 +149,8 @@ class Results:
             m &= df["solver_law"] == law
         if fem is not None:
             m &= df["is_fem"] == bool(fem)
+        if study is not None and "study" in df:
+            m &= df["study"] == study
         return df[m]
 
     def reference(self, experiment: str, **scene) -> pd.Series | None:
@@ -160,11 +162,13 @@ class Results:
         return None if sub.empty else sub.iloc[0]
 
     def primary_mesh(self, experiment: str) -> str | None:
-        """The finest mesh of an experiment in the results (the one the figures show)."""
+        """The finest mesh of an experiment's own study in the results (the one the figures show)."""
         sub = self.ok()
         if sub.empty:
             return None
         sub = sub[sub["scene_experiment"] == experiment]
+        if "study" in sub and (sub["study"] == experiment).any():
+            sub = sub[sub["study"] == experiment]
         if sub.empty:
             return None
         meshes = sorted(sub["scene_mesh"].unique(), key=lambda s: int(np.prod([int(v) for v in s.split("x")])))

@@ -138,7 +138,9 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
     mesh = results.primary_mesh(experiment)
     if mesh is None:
         return None
-    df = results.find(experiment, mesh=mesh)
+    df = results.find(experiment, mesh=mesh, study=experiment)
+    if df.empty:
+        df = results.find(experiment, mesh=mesh)
     if experiment == "torsion":
         loads = [{"angle_deg": v} for v in sorted(df["scene_angle_deg"].astype(float).unique())]
         axis, a, b, names = 2, 0, 1, ("x (m)", "y (m)")
@@ -358,6 +360,35 @@ def differences(results: Results, path: Path) -> Figure | None:
                   "dashed: large load; E = 10⁴ Pa.")
 
 
+def torsion_sweep(results: Results, path: Path) -> Figure | None:
+    """Torque against angle at ν = 1/4 (study ``torsion-sweep`` with the table's angles)."""
+    df = results.ok()
+    if df.empty or "study" not in df or not (df["study"] == "torsion-sweep").any():
+        return None
+    sweep = df[df["study"] == "torsion-sweep"]
+    mesh = sweep["scene_mesh"].iloc[0]
+    nu = float(sweep["scene_nu"].iloc[0])
+    sub = df[(df["scene_experiment"] == "torsion") & (df["scene_mesh"] == mesh) & np.isclose(df["scene_nu"], nu)]
+    with palette.style() as plt:
+        fig, ax = plt.subplots(figsize=(4.6, 3.0))
+        for m in sorted(sub["method"].unique(), key=lambda m: (m.startswith("fem"), m)):
+            s = sub[sub["method"] == m].sort_values("scene_angle_deg")
+            if m.startswith("fem") and m.endswith("linear"):
+                s = s[s["scene_angle_deg"] <= 10.0]  # small-strain FEM only where it is a reference
+            if s.empty:
+                continue
+            ax.plot(s["scene_angle_deg"], s["torque_z"], color=palette.color(m), marker=palette.marker(m),
+                    ls=palette.linestyle(m), label=m.replace(" static", ""))
+        ax.set_xlabel("rotation of the top plate θ (°)")
+        ax.set_ylabel("reaction torque $T_z$ (N·m)")
+        ax.legend(frameon=False, fontsize=7.5)
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("fig_torsion_sweep", f"Torsion: torque against angle (ν = {nu:g})", Path(path),
+                  f"Torsion of the 5 m cube, mesh {mesh}, E = {sub['scene_E'].iloc[0]:g} Pa, ν = {nu:g}, static "
+                  "equilibria: top-plate torque T_z (N·m) against the rotation θ (°). Linear FEM shown up to 10° only.")
+
+
 # ----------------------------------------------------------------------------- optional studies
 _X_PREF = ("volumes", "n_volumes", "cells", "n_cells", "particles", "n_particles", "vertices", "nu", "dt",
            "angle_deg", "steps")
@@ -433,6 +464,137 @@ def _unit_label(col: str) -> str:
     return col.replace("_", " ")
 
 
+def performance(df: pd.DataFrame, path: Path) -> Figure | None:
+    """[G20] Figs 11, 12: time per explicit step against the number of volumes, per variant and ν."""
+    tcol = next((c for c in ("best_s", "median_s", "wall_time_s", "time_s") if c in df), None)
+    if tcol is None or "volumes" not in df or "variant" not in df:
+        return generic("performance", df, path)
+    df = df.copy()
+    steps = df["steps"] if "steps" in df else 1000
+    df["per_step_ms"] = 1e3 * df[tcol] / steps
+    scenes = list(df["scene"].unique()) if "scene" in df else [None]
+    threads = sorted(df["threads"].unique()) if "threads" in df else [None]
+    with palette.style() as plt:
+        fig, axes = plt.subplots(1, len(scenes), figsize=(3.5 * len(scenes) + 0.4, 2.9), squeeze=False)
+        for ax, scene in zip(axes[0], scenes):
+            sub = df if scene is None else df[df["scene"] == scene]
+            keys = ["variant"] + (["nu"] if "nu" in sub else [])
+            for key, g in sub.groupby(keys):
+                key = key if isinstance(key, tuple) else (key,)
+                var = str(key[0])
+                lab = var + (f", ν = {key[1]:g}" if len(key) > 1 else "")
+                for th, ls in zip(threads, ("-", "--", ":", "-.")):
+                    gg = g if th is None else g[g["threads"] == th]
+                    gg = gg.sort_values("volumes")
+                    if gg.empty:
+                        continue
+                    quarter = len(key) > 1 and abs(key[1] - 0.25) < 1e-9
+                    ax.plot(gg["volumes"], gg["per_step_ms"], color=palette.color(var), ls=ls,
+                            marker="o" if quarter else palette.marker(var), mfc="white" if quarter else None,
+                            label=lab + (f", {th} thread{'s' if th != 1 else ''}" if th is not None and len(threads) > 1 else ""))
+            if "paper_per_10k_steps_s" in sub:
+                p = sub.dropna(subset=["paper_per_10k_steps_s"]).drop_duplicates("paper_per_10k_steps_s")
+                for _, r in p.iterrows():
+                    ax.plot(r["volumes"], 1e3 * r["paper_per_10k_steps_s"] / 1e4, ls="none", marker="*", ms=9,
+                            color=palette.COLORS["paper"], label="[G20] (C++, 1 thread)")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel("number of volumes (cells)")
+            ax.set_ylabel("time per step (ms)")
+            if scene is not None:
+                ax.set_title(str(scene))
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                if l not in labels:
+                    handles.append(h)
+                    labels.append(l)
+        fig.legend(handles, labels, loc="upper center", ncol=3, frameon=False, bbox_to_anchor=(0.5, 0.0), fontsize=7)
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("fig_performance", "Time per explicit step against the number of volumes (Figs 11, 12)", Path(path),
+                  f"From tables/performance.csv: {tcol} of the timed runs divided by the step count, in ms per step "
+                  "(numba stencil kernel; solid 1 thread, dashed 2 threads). Hollow circles: hybmss at ν = 1/4 "
+                  "(κ = 0, no volume term). Stars: the publication's time per step (10,000 steps of the 10³ cube).")
+
+
+def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
+    """Speed against error: every candidate (time, nodal error) per configuration, front as a step line."""
+    if not {"time_s", "error_u"} <= set(df.columns):
+        return generic("pareto", df, path)
+    df = df.dropna(subset=["time_s", "error_u"])
+    if "role" in df:
+        df = df[df["role"] == "candidate"] if (df["role"] == "candidate").any() else df
+    df = df[(df["time_s"] > 0) & (df["error_u"] > 0)]
+    if df.empty:
+        return None
+    configs = list(dict.fromkeys(df["config"])) if "config" in df else [None]
+    shown = configs[:12]
+    ncol = min(4, len(shown))
+    nrow = int(np.ceil(len(shown) / ncol))
+    with palette.style() as plt:
+        fig, axes = plt.subplots(nrow, ncol, figsize=(2.1 * ncol + 0.5, 2.05 * nrow + 0.5), squeeze=False)
+        for ax in axes.flat[len(shown):]:
+            ax.set_visible(False)
+        for ax, cfg in zip(axes.flat, shown):
+            sub = df if cfg is None else df[df["config"] == cfg]
+            for var, g in sub.groupby("variant" if "variant" in sub else (lambda i: "all")):
+                fam = "fem-linear" if str(var) == "fem" else str(var)
+                ax.plot(g["time_s"], g["error_u"], ls="none", color=palette.color(fam), marker=palette.marker(fam),
+                        alpha=0.8, label=str(var))
+            front = sub[sub["pareto"].astype(bool)] if "pareto" in sub else sub
+            front = front.sort_values("time_s")
+            front = front[front["error_u"] <= front["error_u"].cummin()]
+            ax.step(front["time_s"], front["error_u"], where="post", color="k", lw=0.9, label="Pareto front")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_title(str(cfg) if cfg is not None else "", fontsize=7.5)
+            ax.tick_params(labelsize=6.5)
+        for r in range(nrow):
+            axes[r, 0].set_ylabel("nodal error (rel. L2)")
+        for c in range(ncol):
+            axes[-1, c].set_xlabel("wall time (s)")
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                if l not in labels:
+                    handles.append(h)
+                    labels.append(l)
+        fig.legend(handles, labels, loc="upper center", ncol=5, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    more = f" (first {len(shown)} of {len(configs)} configurations; all in the table)" if len(configs) > len(shown) else ""
+    return Figure("fig_pareto", "Speed against error: Pareto fronts", Path(path),
+                  "From tables/pareto.csv: wall time (s) and relative L2 nodal error against the converged reference "
+                  f"of every candidate (MSS solvers and FEM meshes), one panel per configuration{more}; black step "
+                  "line: the non-dominated candidates.")
+
+
+def dt_stability(df: pd.DataFrame, path: Path) -> Figure | None:
+    if not {"nu", "variant", "dt_crit"} <= set(df.columns):
+        return generic("dt_stability", df, path)
+    with palette.style() as plt:
+        fig, ax = plt.subplots(figsize=(4.8, 3.0))
+        for var, g in df.groupby("variant"):
+            g = g.sort_values("nu")
+            ax.plot(g["nu"], g["dt_crit"], color=palette.color(var), marker=palette.marker(var), label=f"{var}: dt_crit")
+            if "dt_stable" in g:
+                ax.plot(g["nu"], g["dt_stable"], color=palette.color(var), ls="none", marker="_", ms=12, mew=2,
+                        label=f"{var}: largest stable dt")
+        ax.set_yscale("log")
+        ax.set_xlabel("ν")
+        ax.set_ylabel("time step (s)")
+        ax.legend(frameon=False, fontsize=6.5, ncol=1, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("fig_dt_stability", "Explicit stability limit against ν", Path(path),
+                  "From tables/dt_stability.csv: dt_crit = 2/√λmax(M⁻¹K) (s, lines) and the largest dt that runs the "
+                  "compression scene without divergence, found by bisection (s, bars), per variant.")
+
+
+STUDY_PLOTS = {"performance": performance, "pareto": pareto, "dt_stability": dt_stability}
+
+
 def all_figures(results: Results, out_dir: Path) -> dict[str, Figure]:
     out_dir = Path(out_dir)
     figs = {}
@@ -441,6 +603,9 @@ def all_figures(results: Results, out_dir: Path) -> dict[str, Figure]:
         f = fn(results, out_dir / fname)
         if f is not None:
             figs[f.id] = f
+    f = torsion_sweep(results, out_dir / "torsion_sweep.png")
+    if f is not None:
+        figs[f.id] = f
     for exp, fname in (("shear", "fig8_shear_sections.png"), ("torsion", "fig10_torsion_sections.png")):
         f = cross_sections(results, exp, out_dir / fname)
         if f is not None:

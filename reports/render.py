@@ -126,7 +126,9 @@ def _select(results: Results, experiment: str, mesh: str, nu: float, load: dict,
 
 
 def _loads(results: Results, experiment: str, mesh: str) -> list[dict]:
-    sub = results.find(experiment, mesh=mesh)
+    sub = results.find(experiment, mesh=mesh, study=experiment)
+    if sub.empty:
+        sub = results.find(experiment, mesh=mesh)
     if experiment == "torsion":
         vals = sorted(sub["scene_angle_deg"].astype(float).unique())
         return [{"angle_deg": v} for v in vals]

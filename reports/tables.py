@@ -30,6 +30,8 @@ class Table:
     rows: list = field(default_factory=list)  # list of list of (text, css class)
     screen_only: bool = False
     links: dict = field(default_factory=dict)  # (row, col) -> href
+    row_classes: dict = field(default_factory=dict)  # row -> css class
+    css: str = ""
 
     @property
     def n_rows(self) -> int:
@@ -347,10 +349,28 @@ def runs_table(results: Results, vtu_files: dict) -> Table | None:
     return tab
 
 
+#: rows of a study table printed in the PDF (all rows stay in the HTML)
+PRINT_ROWS = 40
+
+
 def extra_table(results: Results, name: str) -> Table | None:
     t = results.table(name)
     if t is None:
         return None
-    title = name.replace("_", " ").capitalize()
-    return frame_table(t, f"table_{name}", title, f"tables/{name}.csv as stored by the study (units in the column "
-                                                  f"names: _s seconds, _m metres, _pct percent).")
+    title = f"tables/{name}.csv"
+
+    def cls(r, c):
+        if c == "status":
+            return "good" if str(r[c]) in ("ok", "converged") else "fail"
+        if c == "pareto" and str(r[c]) == "True":
+            return "good"
+        return ""
+
+    cap = (f"Table {name} as stored by the study: {len(t)} rows; units in the column names (_s seconds, _ms "
+           f"milliseconds, _us microseconds, _m metres, _mm millimetres, _pct percent).")
+    if len(t) > PRINT_ROWS:
+        cap += f" The PDF prints the first {PRINT_ROWS} rows; the HTML page and the CSV hold all {len(t)}."
+    tab = frame_table(t, f"table_{name}", title, cap, classes=cls)
+    tab.css = "generic"
+    tab.row_classes = {i: "screen-only" for i in range(PRINT_ROWS, len(t))}
+    return tab
