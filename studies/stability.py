@@ -25,7 +25,9 @@ Six parts, each a table in the results store:
 (e) ``stability`` (part e): irregular input — a lattice whose particles are jittered by 10 % of
     le at rest (uniform in each component, seeded; particles on the plates keep their z so the
     plates still select them), an L-shaped voxel body, a single cell, a one-cell-thick wall;
-    5 % compression (the single cell: top sliding down, free sideways).  The jittered lattice
+    5 % compression (the single cell: top sliding down, free sideways); cube 4³, L 4×3×4 minus a
+    quadrant, wall 6×1×6.  The explicit protocol runs the jittered lattice on the NumPy twin (the
+    stencil kernel needs regular rest lengths), for hybmss only.  The jittered lattice
     is built with :func:`jittered_system` from the public :func:`hybmss.system.build`
     (``lattice=`` argument): rest lengths and rest volumes are those of the jittered positions,
     so the jittered body is at rest; its FEM reference is the regular body (the continuum the
@@ -284,7 +286,7 @@ def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str = "hybmss
 
     mat = Material(1e4, nu, 1000.0)
     mdl = Model(model)
-    n = 3 if quick else 6
+    n = 3 if quick else 4
     out = {}
     cube = SceneSpec.default("compression", mesh=(n, n, n), nu=nu, model=model).build()
     out["jittered 10% le"] = (cube, lambda sc: jittered_system(sc, 0.1, seed=0), cube)
@@ -331,6 +333,8 @@ def irregular_table(quick: bool = False) -> pd.DataFrame:
                 fem, fem_status, _ = fem_cache[name]
                 S = builder(scene) if builder is not None else None
                 for solver in ("mss-static", "mss-explicit"):
+                    if solver == "mss-explicit" and builder is not None and model != "hybmss":
+                        continue  # the jittered lattice runs on the (slow) NumPy twin: hybmss only
                     t0 = time.perf_counter()
                     row = {"part": "e", "case": name, "mesh": "x".join(map(str, scene.body.shape)), "nu": nu,
                            "variant": model, "solver": solver, "fem": fem.solver if fem else "",
