@@ -42,7 +42,15 @@ from .space import Space
 
 
 class ConvergenceError(RuntimeError):
-    """Newton failed even after the smallest allowed load increment."""
+    """Newton failed even after the smallest allowed load increment.
+
+    ``solution`` holds the last converged state, at load factor ``load_factor``."""
+
+    def __init__(self, message, solution=None, log=None, load_factor: float = 0.0):
+        super().__init__(message)
+        self.solution = solution
+        self.log = log
+        self.load_factor = load_factor
 
 
 @dataclass
@@ -179,8 +187,11 @@ class Hyperelasticity:
             ds *= 0.5
             if ds < min_increment:
                 log.converged = False
+                st = self._evaluate(U, p, s_done, fext, material, tangent=False)
+                partial = Solution(U.reshape(-1, 3), p, st["Ru"], space.integrate(st["psi"]), stats)
                 raise ConvergenceError(
-                    f"Newton did not converge at load factor {s:.4g} (increment below {min_increment:g})"
+                    f"Newton did not converge at load factor {s:.4g} (increment below {min_increment:g})",
+                    partial, log, s_done,
                 )
         st = self._evaluate(U, p, 1.0, fext, material, tangent=False)
         r = st["Ru"]

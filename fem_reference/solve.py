@@ -65,6 +65,7 @@ def solve(
     steps: int | None = None,
     method: str = "auto",
     operators=None,
+    strict: bool = True,
 ) -> Result:
     """FEM reference solution of ``scene``.
 
@@ -78,6 +79,9 @@ def solve(
     method : linear solver, ``'auto'`` (direct for small systems, AMG-preconditioned Krylov
         above), ``'direct'`` or ``'amg'``.
     operators : operators from :func:`operators` to reuse (must match body, element, law, refine).
+    strict : if Newton fails, raise :class:`~fem_reference.hyperelastic.ConvergenceError`;
+        with ``strict=False`` return the last converged state with ``converged=False`` and
+        ``info['load_factor']`` < 1 (its reactions and gravity are those of that load factor).
     """
     t0 = time.perf_counter()
     if law not in LAW_CHOICES:
@@ -114,11 +118,16 @@ def solve(
         sol = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0), method=method,
                         load=traction)
     else:
+        load_factor = 1.0
         try:
             sol, log = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0),
                                  steps=5 if steps is None else int(steps), method=method, load=traction)
         except ConvergenceError as exc:
-            raise ConvergenceError(f"{scene.name or 'scene'}: {exc}") from None
+            if strict or exc.solution is None:
+                raise ConvergenceError(f"{scene.name or 'scene'}: {exc}", exc.solution, exc.log,
+                                       exc.load_factor) from None
+            sol, log, load_factor, converged = exc.solution, exc.log, exc.load_factor, False
+        info["load_factor"] = load_factor
         iterations = log.iterations
         info["newton"] = {"steps": len(log.steps), "rejected_steps": log.rejected_steps,
                           "final_residuals": [float(r) for _, _, r in log.steps]}
@@ -144,12 +153,16 @@ def solve(
     info["volume_mss_formula"] = float(cellv.sum())
     info["min_J"] = float(J.min())
     info["inverted_points"] = int(np.count_nonzero(J <= 0))
-    body_load = mat.rho * np.asarray(scene.gravity) * V0 if scene.has_gravity else np.zeros(3)
+    s_load = info.get("load_factor", 1.0)
+    body_load = s_load * mat.rho * np.asarray(scene.gravity) * V0 if scene.has_gravity else np.zeros(3)
     info["body_load"] = [float(b) for b in body_load]
-    fext = space.body_load(mat.rho * np.asarray(scene.gravity)) if scene.has_gravity else None
+    fext = space.body_load(s_load * mat.rho * np.asarray(scene.gravity)) if scene.has_gravity else None
     reactions = dirichlet.reactions(sol.r, U, x_p)
     energy = {"strain": float(sol.energy),
               "gravity": float(-(fext @ U.reshape(-1))) if fext is not None else 0.0}
+    if traction is not None:
+        energy["surface_load"] = float(-s_load * (traction @ U.reshape(-1)))
+        info["surface_load"] = [s_load * v for v in info["surface_load"]]
     return Result(
         solver=f"fem-{element}-{law}",
         scene_digest=scene.digest(),

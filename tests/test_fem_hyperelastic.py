@@ -169,3 +169,19 @@ def test_nearly_incompressible_compression_keeps_volume():
     assert abs(res.volume_change) < 5e-3
     assert abs(res.info["integral_lnJ"]) / sc.body.volume < 5e-3
     assert res.info["min_J"] > 0 and res.converged
+
+
+def test_newton_failure_is_reported():
+    """A body far too soft for its weight (ρ g H ≫ E) collapses: SVK has no barrier against
+    J → 0, so Newton fails; strict mode raises, otherwise the last converged state is returned."""
+    from fem_reference.hyperelastic import ConvergenceError
+
+    body = Body.box(1, 1, 2, 0.5)
+    sc = Scene(body, Material(1e3, 0.3, 1000.0), plates=(Plate("bottom", Region("z-")),),
+               gravity=(0.0, 0.0, -100.0))
+    with pytest.raises(ConvergenceError, match="load factor"):
+        solve(sc, element="hex1", law="svk", steps=2)
+    res = solve(sc, element="hex1", law="svk", steps=2, strict=False)
+    assert not res.converged and 0 < res.info["load_factor"] < 1
+    total = sum(np.asarray(r.force) for r in res.reactions.values()) + np.asarray(res.info["body_load"])
+    assert np.abs(total).max() <= 1e-8 * np.abs(res.info["body_load"]).max()
