@@ -31,6 +31,8 @@ STUDY_SECTIONS = (
      ("pareto",)),
     ("stability", "Stability", ("dt_stability", "stability", "limit_stretch", "damping_steps"), ("dt_stability",)),
 )
+#: full tables not printed when the summary next to them exists (the HTML keeps them)
+SCREEN_ONLY_WITH = {"pareto": "pareto_front", "performance": "performance_summary"}
 OPTIONAL_TABLES = tuple(t for _, _, names, _ in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", *OPTIONAL_TABLES}
@@ -206,6 +208,9 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         for name in names:
             t = tables.extra_table(results, name)
             if t is not None:
+                if SCREEN_ONLY_WITH.get(name) in present:
+                    t.screen_only = True
+                    t.caption += f" Not printed (see {SCREEN_ONLY_WITH[name]} above); shown in the HTML page."
                 s.items.append(("table", t))
         sections.append(s)
     others = [n for n in results.table_names() if n not in KNOWN_TABLES]

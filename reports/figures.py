@@ -528,6 +528,8 @@ def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
     df = df[(df["time_s"] > 0) & (df["error_u"] > 0)]
     if df.empty:
         return None
+    from matplotlib.ticker import NullFormatter
+
     configs = list(dict.fromkeys(df["config"])) if "config" in df else [None]
     shown = configs[:12]
     ncol = min(4, len(shown))
@@ -550,10 +552,11 @@ def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
             ax.set_yscale("log")
             ax.set_title(str(cfg) if cfg is not None else "", fontsize=7.5)
             ax.tick_params(labelsize=6.5)
+            ax.yaxis.set_minor_formatter(NullFormatter())
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xlabel("wall time (s)", fontsize=7.5)
         for r in range(nrow):
             axes[r, 0].set_ylabel("nodal error (rel. L2)")
-        for c in range(ncol):
-            axes[-1, c].set_xlabel("wall time (s)")
         handles, labels = [], []
         for ax in axes.flat:
             for h, l in zip(*ax.get_legend_handles_labels()):

@@ -350,7 +350,7 @@ def runs_table(results: Results, vtu_files: dict) -> Table | None:
 
 
 #: rows of a study table printed in the PDF (all rows stay in the HTML)
-PRINT_ROWS = 40
+PRINT_ROWS = 30
 
 
 def extra_table(results: Results, name: str) -> Table | None:
