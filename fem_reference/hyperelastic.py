@@ -171,12 +171,13 @@ class Hyperelasticity:
         stats = SolveStats()
         log = NewtonLog()
         C = self.pressure_mass / lam if self.mixed else None
+        amg_cache: dict = {}  # AMG hierarchy reused across Newton iterations (same free dofs)
 
         s_done, ds = 0.0, 1.0 / max(1, int(steps))
         while s_done < 1.0 - 1e-14:
             s = min(1.0, s_done + ds)
             ok, U_new, p_new, its, res = self._step(
-                U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C
+                U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C, amg_cache
             )
             log.iterations += its
             if ok:
@@ -198,7 +199,8 @@ class Hyperelasticity:
         energy = space.integrate(st["psi"])
         return Solution(U.reshape(-1, 3), p, r, energy, stats), log
 
-    def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C):
+    def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
+              amg_cache=None):
         mu = material.G
         D = dirichlet.dofs
         target = dirichlet.values(s)
@@ -215,7 +217,8 @@ class Hyperelasticity:
                                       self.nullspace, 1.0 / mu + 1.0 / material.lam,
                                       method=method, stats=stats)
             else:
-                du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, stats=stats)
+                du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, stats=stats,
+                               cache=amg_cache)
                 dp = None
             first = np.any(dD != 0.0)
             res0 = self._norm(st, free, mu)

@@ -91,10 +91,14 @@ def solve_spd(
     method: str = "auto",
     rtol: float = 1e-11,
     stats: SolveStats | None = None,
+    cache: dict | None = None,
 ) -> np.ndarray:
     """Solve ``K u = f`` on the free dofs with ``u[D] = uD``; returns the full ``u``.
 
-    ``nullspace`` (n, 6) are the rigid-body modes (used by AMG only).
+    ``nullspace`` (n, 6) are the rigid-body modes (used by AMG only).  ``cache`` (a dict kept by
+    the caller, e.g. across Newton iterations with the same prescribed dofs) keeps the AMG
+    hierarchy of an earlier matrix as the preconditioner; it is rebuilt when CG needs more than
+    twice the iterations it needed when built.
     """
     n = K.shape[0]
     free = np.ones(n, dtype=bool)
@@ -111,13 +115,22 @@ def solve_spd(
         x = lu.solve(b)
         its = 1
     else:
-        M = _amg(A, np.ascontiguousarray(nullspace[free]))
+        reuse = cache is not None and cache.get("n") == A.shape[0] and "M" in cache
+        M = cache["M"] if reuse else _amg(A, np.ascontiguousarray(nullspace[free]))
         count = [0]
         x, info = spla.cg(A, b, M=M, rtol=rtol, atol=0.0, maxiter=5000,
                           callback=lambda xk: count.__setitem__(0, count[0] + 1))
+        if info != 0 and reuse:  # a stale preconditioner: rebuild and retry once
+            cache.clear()
+            return solve_spd(K, f, D, uD, nullspace, method, rtol, stats, cache)
         if info != 0:
             raise RuntimeError(f"AMG-preconditioned CG did not converge ({count[0]} iterations)")
         its = count[0]
+        if cache is not None:
+            if not reuse:
+                cache.update(n=A.shape[0], M=M, its0=max(its, 1))
+            elif its > 2 * cache["its0"]:
+                cache.clear()
     if stats is not None:
         stats.add(kind, its)
     u[free] = x
