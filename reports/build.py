@@ -56,6 +56,7 @@ class BuildResult:
     figures: int
     tables: dict
     vtu: int
+    warnings: list = field(default_factory=list)
     page_text: list = field(default_factory=list)  # text laid out on each PDF page
     page_anchors: list = field(default_factory=list)  # element ids on each PDF page
 
@@ -77,7 +78,7 @@ def _fingerprint(results: Results, *modules) -> str:
     return h.hexdigest()[:20]
 
 
-def _cached_figures(results: Results, fig_dir: Path, cache: Path) -> dict:
+def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list) -> dict:
     """matplotlib figures, reused when neither the results nor the drawing code changed."""
     from . import palette
 
@@ -92,17 +93,20 @@ def _cached_figures(results: Results, fig_dir: Path, cache: Path) -> dict:
                 shutil.copyfile(cache / "figures" / dst.name, dst)
                 out[fid] = figmod.Figure(fid, f["title"], dst, f["caption"])
             return out
-    figs = figmod.all_figures(results, fig_dir)
+    n_warn = len(warnings)
+    figs = figmod.all_figures(results, fig_dir, warnings)
     for name, plot in figmod.STUDY_PLOTS.items():
         t = results.table(name)
         if t is not None:
             try:
                 f = plot(t, fig_dir / f"{name}.png")
-            except (KeyError, ValueError, TypeError) as exc:  # a table of unexpected shape: table only
-                print(f"warning: no plot of tables/{name}.csv ({type(exc).__name__}: {exc})")
+            except Exception as exc:  # noqa: BLE001 - a table of unexpected shape: table only
+                warnings.append(f"no plot of tables/{name}.csv: {type(exc).__name__}: {exc}")
                 f = None
             if f is not None:
                 figs[f"study_{name}"] = f
+    if len(warnings) > n_warn:  # do not cache a partial set
+        return figs
     (cache / "figures").mkdir(parents=True, exist_ok=True)
     for f in figs.values():
         shutil.copyfile(f.path, cache / "figures" / f.path.name)
@@ -129,13 +133,20 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         if verbose:
             print(f"[{time.perf_counter() - t0:6.2f} s] {msg}", flush=True)
 
+    warnings: list[str] = []
     vtu_files = vtu.export_all(results, out / "vtu")
     log(f"{len(vtu_files)} VTU files")
-    figs = _cached_figures(results, fig_dir, cache)
+    figs = _cached_figures(results, fig_dir, cache, warnings)
     log(f"{len(figs)} figures")
     render_key = _fingerprint(results, rendermod)
-    renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
+    try:
+        renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
+    except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
+        warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
+        renders = []
     log(f"{len(renders)} renders")
+    for w in warnings:
+        print(f"warning: {w}", flush=True)
 
     ov = summary.overview(results)
     head = summary.headline(results)
@@ -242,7 +253,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                                 [("table", t)], screen_only=True))
 
     all_tables = {item.id: item for sec in sections for kind, item in sec.items if kind == "table"}
-    html = _render_html(results, ov, sections, len(vtu_files))
+    html = _render_html(results, ov, sections, len(vtu_files), warnings)
     index = out / "index.html"
     index.write_text(html, encoding="utf-8")
     log("index.html")
@@ -261,7 +272,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         log(f"report.pdf ({pages} pages)")
     n_figs = sum(1 for sec in sections for kind, _ in sec.items if kind == "figure")
     return BuildResult(index, pdf_path, pages, time.perf_counter() - t0, n_figs, all_tables, len(vtu_files),
-                       texts, anchors)
+                       warnings, texts, anchors)
 
 
 def _page_text(page) -> str:
@@ -281,7 +292,7 @@ def _page_text(page) -> str:
     return " ".join(parts)
 
 
-def _render_html(results: Results, ov: dict, sections: list, n_vtu: int) -> str:
+def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warnings: list) -> str:
     import jinja2
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
@@ -292,7 +303,7 @@ def _render_html(results: Results, ov: dict, sections: list, n_vtu: int) -> str:
     return env.get_template("report.html.j2").render(
         title="hybmss: reproduction of the hybrid 3D mass-spring system of Golec et al. [G20]",
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        results_dir=str(results.root), ov=ov, sections=sections, css=css, n_vtu=n_vtu,
+        results_dir=str(results.root), ov=ov, sections=sections, css=css, n_vtu=n_vtu, warnings=warnings,
         thresholds=summary.thresholds())
 
 

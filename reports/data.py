@@ -171,8 +171,16 @@ class Results:
             sub = sub[sub["study"] == experiment]
         if sub.empty:
             return None
-        meshes = sorted(sub["scene_mesh"].unique(), key=lambda s: int(np.prod([int(v) for v in s.split("x")])))
+        meshes = sorted(sub["scene_mesh"].astype(str).unique(), key=mesh_size)
         return meshes[-1]
+
+
+def mesh_size(mesh: str) -> int:
+    """Number of cells of a mesh label ``"NXxNYxNZ"`` (0 if it is not one)."""
+    try:
+        return int(np.prod([int(v) for v in str(mesh).split("x")]))
+    except ValueError:
+        return 0
 
 
 def paper_table(name: str) -> pd.DataFrame | None:

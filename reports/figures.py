@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from . import palette
-from .data import Results, paper_table, reference_law
+from .data import Results, mesh_size, paper_table, reference_law
 
 BEAM_WIDTH = 0.4  # m, [G20] §6 (the tension and bending beam is 0.4 × 0.4 × 2.4 m)
 NUS = (0.0, 0.25, 0.499)
@@ -63,7 +63,7 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
     df = results.find("bending")
     if df.empty:
         return None
-    meshes = sorted(df["scene_mesh"].unique(), key=lambda s: int(np.prod([int(v) for v in s.split("x")])))
+    meshes = sorted(df["scene_mesh"].astype(str).unique(), key=mesh_size)
     Es = sorted(df["scene_E"].astype(float).unique(), reverse=True)
     methods = [m for m in ("hybmss static", "hybmss-fd static", "hybmss-cf static") if m in set(df["method"])]
     methods += sorted(m for m in df["method"].unique() if m.startswith("fem"))
@@ -598,19 +598,25 @@ def dt_stability(df: pd.DataFrame, path: Path) -> Figure | None:
 STUDY_PLOTS = {"performance": performance, "pareto": pareto, "dt_stability": dt_stability}
 
 
-def all_figures(results: Results, out_dir: Path) -> dict[str, Figure]:
+def all_figures(results: Results, out_dir: Path, warnings: list | None = None) -> dict[str, Figure]:
+    """Every figure the results allow; a figure that fails is reported in ``warnings``, not raised."""
     out_dir = Path(out_dir)
     figs = {}
-    for fn, fname in ((volume_change, "volume_change.png"), (reactions, "reactions.png"),
-                      (differences, "differences.png"), (beam_deflection, "fig5_beam.png")):
-        f = fn(results, out_dir / fname)
-        if f is not None:
-            figs[f.id] = f
-    f = torsion_sweep(results, out_dir / "torsion_sweep.png")
-    if f is not None:
-        figs[f.id] = f
-    for exp, fname in (("shear", "fig8_shear_sections.png"), ("torsion", "fig10_torsion_sections.png")):
-        f = cross_sections(results, exp, out_dir / fname)
+    jobs = [(volume_change, (results, out_dir / "volume_change.png")),
+            (reactions, (results, out_dir / "reactions.png")),
+            (torsion_sweep, (results, out_dir / "torsion_sweep.png")),
+            (differences, (results, out_dir / "differences.png")),
+            (beam_deflection, (results, out_dir / "fig5_beam.png")),
+            (cross_sections, (results, "shear", out_dir / "fig8_shear_sections.png")),
+            (cross_sections, (results, "torsion", out_dir / "fig10_torsion_sections.png"))]
+    for fn, args in jobs:
+        try:
+            f = fn(*args)
+        except Exception as exc:  # noqa: BLE001 - one broken figure must not hide the others
+            if warnings is None:
+                raise
+            warnings.append(f"figure {Path(args[-1]).name} not drawn: {type(exc).__name__}: {exc}")
+            continue
         if f is not None:
             figs[f.id] = f
     return figs

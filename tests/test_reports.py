@@ -126,6 +126,7 @@ def test_html_parses_and_images_are_embedded_and_not_blank(report):
     from PIL import Image
 
     res, out = report
+    assert res.warnings == []
     page = _parse(res.html)
     assert len(page.imgs) == res.figures >= 10  # 5 matplotlib figures, 4 render grids, performance
     for src in page.imgs:
