@@ -61,16 +61,23 @@ BUDGETS = (0.01, 0.05, 0.10)
 ORDER_ASSUMED = 2.0
 
 
-def bases(quick: bool) -> dict:
-    """Per body kind: base mesh, MSS resolution factors, Hex1 factors, reference factor."""
-    if quick:
-        return {"cube": ((2, 2, 2), (1, 2), (1, 2), 2), "beam": ((1, 1, 6), (1, 2), (1, 2), 2)}
-    return {"cube": ((5, 5, 5), (1, 2), (1, 2, 3), 2), "beam": ((2, 2, 12), (1, 2, 4), (1, 2, 4), 4)}
+LEVELS = {
+    "quick": {"cube": ((2, 2, 2), (1, 2), (1, 2), 2), "beam": ((1, 1, 6), (1, 2), (1, 2), 2)},
+    "medium": {"cube": ((3, 3, 3), (1, 2), (1, 2, 3), 2), "beam": ((1, 1, 6), (1, 2, 4), (1, 2, 4), 4)},
+    "full": {"cube": ((5, 5, 5), (1, 2), (1, 2, 3), 2), "beam": ((2, 2, 12), (1, 2, 4), (1, 2, 4), 4)},
+}
+"""Per level and body kind: base mesh, MSS resolution factors, Hex1 factors, reference factor.
+``full`` is the study of ``make reproduce-paper``; ``medium`` the same design on coarser bases
+(cube 3³ → reference 6³, beam 1×1×6 → reference 4×4×24) for a loaded or small machine."""
 
 
-def configs(quick: bool, experiments=EXPERIMENTS, nus=None) -> list[SceneSpec]:
+def bases(quick: bool, level: str | None = None) -> dict:
+    return LEVELS[level or ("quick" if quick else "full")]
+
+
+def configs(quick: bool, experiments=EXPERIMENTS, nus=None, level: str | None = None) -> list[SceneSpec]:
     """Base-mesh scene specs (model hybmss) of every configuration."""
-    b = bases(quick)
+    b = bases(quick, level)
     nus = tuple(nus) if nus is not None else ((0.25,) if quick else NUS)
     out = []
     for exp in experiments:
@@ -112,10 +119,10 @@ def _ref_element(spec: SceneSpec) -> str:
     return "hex2" if spec.experiment == "bending" else "auto"
 
 
-def tasks_for(spec: SceneSpec, quick: bool) -> list[tuple[dict, Task]]:
+def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tuple[dict, Task]]:
     """(meta, task) pairs of one configuration: reference, its coarse partner, candidates."""
     kind = "beam" if spec.is_beam else "cube"
-    _, mss_factors, fem_factors, ref_f = bases(quick)[kind]
+    _, mss_factors, fem_factors, ref_f = bases(quick, level)[kind]
     law = "linear" if quick else default_law(spec)
     cfg = config_label(spec)
     out = []
@@ -151,8 +158,9 @@ def tasks_for(spec: SceneSpec, quick: bool) -> list[tuple[dict, Task]]:
     return out
 
 
-def all_tasks(quick: bool = False, experiments=EXPERIMENTS, nus=None) -> list[tuple[dict, Task]]:
-    return [p for spec in configs(quick, experiments, nus) for p in tasks_for(spec, quick)]
+def all_tasks(quick: bool = False, experiments=EXPERIMENTS, nus=None, level: str | None = None
+              ) -> list[tuple[dict, Task]]:
+    return [p for spec in configs(quick, experiments, nus, level) for p in tasks_for(spec, quick, level)]
 
 
 # ------------------------------------------------------------------------------ metrics
@@ -296,10 +304,10 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
 
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
-        experiments=EXPERIMENTS, nus=None) -> dict:
+        experiments=EXPERIMENTS, nus=None, level: str | None = None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``pareto``, ``pareto_front``,
     ``pareto_references`` and ``budget``."""
-    pairs = all_tasks(quick, experiments, nus)
+    pairs = all_tasks(quick, experiments, nus, level)
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto")
     df, refs = pareto_frame(store, pairs, rows, quick)
     tables = {"pareto": df, "pareto_front": df[df["pareto"]].sort_values(["config", "time_s"]),
