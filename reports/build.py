@@ -253,22 +253,35 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                                 [("table", t)], screen_only=True))
 
     all_tables = {item.id: item for sec in sections for kind, item in sec.items if kind == "table"}
-    html = _render_html(results, ov, sections, len(vtu_files), warnings)
+    generated = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    html = _render_html(results, ov, sections, len(vtu_files), warnings, generated)
     index = out / "index.html"
     index.write_text(html, encoding="utf-8")
     log("index.html")
     pdf_path, pages, texts, anchors = None, 0, [], []
     if pdf:
-        from weasyprint import HTML
-
-        doc = HTML(string=html, base_url=str(out)).render()
-        pages = len(doc.pages)
-        texts = [_page_text(p) for p in doc.pages]
-        anchors = [sorted(p.anchors) for p in doc.pages]
         pdf_path = out / "report.pdf"
-        tmp = out / ".report.pdf.tmp"
-        doc.write_pdf(tmp)
-        tmp.replace(pdf_path)
+        # the PDF depends on the HTML only; the build time stamp aside, an unchanged page reuses it
+        key = hashlib.sha256(html.replace(generated, "").encode()).hexdigest()[:20]
+        cached_pdf, cached_meta = cache / f"report-{key}.pdf", cache / f"report-{key}.json"
+        if cached_pdf.exists() and cached_meta.exists():
+            meta = json.loads(cached_meta.read_text())
+            pages, texts, anchors = meta["pages"], meta["text"], meta["anchors"]
+            shutil.copyfile(cached_pdf, pdf_path)
+        else:
+            from weasyprint import HTML
+
+            doc = HTML(string=html, base_url=str(out)).render()
+            pages = len(doc.pages)
+            texts = [_page_text(p) for p in doc.pages]
+            anchors = [sorted(p.anchors) for p in doc.pages]
+            tmp = out / ".report.pdf.tmp"
+            doc.write_pdf(tmp)
+            tmp.replace(pdf_path)
+            for old in cache.glob("report-*"):
+                old.unlink()
+            shutil.copyfile(pdf_path, cached_pdf)
+            cached_meta.write_text(json.dumps({"pages": pages, "text": texts, "anchors": anchors}))
         log(f"report.pdf ({pages} pages)")
     n_figs = sum(1 for sec in sections for kind, _ in sec.items if kind == "figure")
     return BuildResult(index, pdf_path, pages, time.perf_counter() - t0, n_figs, all_tables, len(vtu_files),
@@ -292,7 +305,7 @@ def _page_text(page) -> str:
     return " ".join(parts)
 
 
-def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warnings: list) -> str:
+def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warnings: list, generated: str) -> str:
     import jinja2
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
@@ -302,7 +315,7 @@ def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warning
     css = (TEMPLATES / "report.css").read_text()
     return env.get_template("report.html.j2").render(
         title="hybmss: reproduction of the hybrid 3D mass-spring system of Golec et al. [G20]",
-        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        generated=generated,
         results_dir=str(results.root), ov=ov, sections=sections, css=css, n_vtu=n_vtu, warnings=warnings,
         thresholds=summary.thresholds())
 
