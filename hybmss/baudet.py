@@ -255,6 +255,8 @@ def _newton(system, x, free, s, rtol, max_iter, stats):
 
     corr = system.extras["baudet"]
     floor = _force_floor(system)
+    if np.any(cell_volumes(x, system.lattice.cells) <= 0.0):
+        return False, x, None, np.inf  # an inverted start (e.g. a plate moved through a layer)
     _, f = total_forces(system, x, s)
     rnorm = np.inf
     for it in range(max_iter + 1):
@@ -305,14 +307,40 @@ def _newton(system, x, free, s, rtol, max_iter, stats):
     return False, x, f, rnorm
 
 
+def _predictor(system, x, target, free, s):
+    """First-order guess for a load step: prescribed dofs to ``target``, free dofs by the linear
+    response ``δ_f = J_ff⁻¹ (f_f − J_fc δ_c)`` (J shifted by 1e-8·mean diag against hourglass
+    modes).  ``None`` if it fails."""
+    from .forces import hessian
+
+    J = (hessian(system, x) - correction_jacobian(x, system.extras["baudet"])).tocsr()
+    delta = (target - x).ravel().copy()
+    delta[free] = 0.0
+    _, f = total_forces(system, x, s)
+    rhs = f.ravel()[free] - (J @ delta)[free]
+    Jff = J[free][:, free].tocsc()
+    shift = sp.identity(Jff.shape[0], format="csc") * (1e-8 * float(np.abs(Jff.diagonal()).mean()))
+    try:
+        with np.errstate(all="ignore"):
+            d_f = spla.splu(Jff + shift).solve(rhs)
+    except RuntimeError:
+        return None
+    if not np.all(np.isfinite(d_f)):
+        return None
+    delta[free] = d_f
+    return x + delta.reshape(x.shape)
+
+
 def solve_equilibrium(scene, options: EquilibriumOptions | None = None, system=None):
     """Static equilibrium of a ``baudet2009`` scene (solver name ``mss-static``).
 
     Newton's method on the force residual with the exact Jacobian (spring Hessian plus the
     complex-step Jacobian of the corrections, not symmetric), a backtracking line search on the
     residual norm and load steps ``s ∈ (0, 1]`` that scale the plates' motion, gravity and
-    loads together (halved on failure).  See the module docstring for what the result
+    loads together (halved on failure), each started from the linear (tangent) predictor; a
+    state with an inverted cell is never accepted (an inverted lattice can have zero forces).  See the module docstring for what the result
     guarantees: zero net force, not stability."""
+    from .forces import cell_volumes
     from .solvers import _force_floor, _result
     from .system import build
 
@@ -328,8 +356,10 @@ def solve_equilibrium(scene, options: EquilibriumOptions | None = None, system=N
     load_steps = 0
     while s < 1.0 - 1e-14:
         s_new = min(1.0, s + ds)
-        guess = x.copy()
         target = S.prescribed(s_new)
+        guess = _predictor(S, x, target, free, s_new)
+        if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
+            guess = x.copy()
         guess[S.fixed] = target[S.fixed]
         ok, x_new, f, rnorm = _newton(S, guess, free, s_new, opts.rtol, opts.max_iter, stats)
         if ok:

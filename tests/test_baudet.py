@@ -153,3 +153,24 @@ def test_implicit_euler_refuses_non_conservative_forces():
     scene = uniaxial_scene(Model("baudet2009"), Material(1e4, 0.3))
     with pytest.raises(StaticSolveError, match="non-conservative"):
         simulate_implicit(scene)
+
+
+def test_equilibrium_never_accepts_an_inverted_lattice():
+    """A plate moved through a whole layer in one step leaves the lattice inverted with every
+    spring at rest (zero force): the solver must not return that state."""
+    scene = Scene(Body.box(2, 2, 4, 1.0), Material(1e4, 0.45), Model("baudet2009"),
+                  plates=(Plate("bottom", Region("z-"), Motion("clamped")),
+                          Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -1.2)))))
+    r = solve_static(scene)
+    assert r.info["inverted_cells"] == 0
+    assert r.reactions["top"].force[2] < 0  # the plate pushes down on a compressed body
+    assert 0.0 < abs(r.volume_change) < 0.3
+
+
+def test_study_driver_writes_its_tables(tmp_path):
+    from studies.baudet import run
+    from studies.store import Store
+
+    run(Store(tmp_path), quick=True, progress=False)
+    for name in ("baudet_moduli", "baudet_cantilever", "baudet_lshape", "baudet_volume"):
+        assert (tmp_path / "tables" / f"{name}.csv").exists()
