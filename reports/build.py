@@ -252,6 +252,12 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                                 "<code>vtu/&lt;key&gt;.vtu</code> next to this page. This list is not printed.",
                                 [("table", t)], screen_only=True))
 
+    k = 0
+    for sec in sections:
+        for kind, item in sec.items:
+            if kind == "figure":
+                k += 1
+                item["label"] = f"Figure {k}"
     all_tables = {item.id: item for sec in sections for kind, item in sec.items if kind == "table"}
     generated = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     html = _render_html(results, ov, sections, len(vtu_files), warnings, generated)

@@ -227,3 +227,26 @@ def test_cli_reports_missing_results(tmp_path, capsys):
 
     assert main(["build", "--results", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 2
     assert "no results" in capsys.readouterr().err
+
+
+def test_cell_volume_change_of_a_stretched_lattice():
+    from reports.vtu import averaged_edge_volumes, relative_volume_change
+
+    g = np.arange(3, dtype=float)
+    X = np.array([[x, y, z] for z in g for y in g for x in g])  # particle i + 3j + 9k
+    cells = np.array([[i + 3 * j + 9 * k + di + 3 * dj + 9 * dk for dk in (0, 1) for dj in (0, 1) for di in (0, 1)]
+                      for k in range(2) for j in range(2) for i in range(2)])
+    assert averaged_edge_volumes(X, cells) == pytest.approx(np.ones(8))
+    u = X * np.array([0.1, 0.0, -0.2])
+    assert relative_volume_change({"X": X, "u": u, "cells": cells}) == pytest.approx(np.full(8, 1.1 * 0.8 - 1))
+
+
+@pytest.mark.parametrize("method, family", [
+    ("hybmss static", "hybmss"), ("hybmss-fd explicit", "hybmss-fd"), ("hybmss (E-form) static", "hybmss (E-form)"),
+    ("fem-auto-neo-hookean", "fem-neo-hookean"), ("fem-hex2-linear", "fem-linear"), ("paper hybmss", "paper"),
+    ("Euler-Bernoulli", "Euler-Bernoulli")])
+def test_one_colour_per_model(method, family):
+    from reports import palette
+
+    assert palette.family(method) == family
+    assert palette.color(method) == palette.COLORS[family]
