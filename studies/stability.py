@@ -366,8 +366,8 @@ def irregular_table(quick: bool = False) -> pd.DataFrame:
 
 
 # ------------------------------------------------------------------------------ (f) damping
-def damping_tasks(quick: bool = False) -> list[tuple[tuple, Task]]:
-    mesh = (3, 3, 3) if quick else (10, 10, 10)
+def damping_tasks(quick: bool = False, mesh=None) -> list[tuple[tuple, Task]]:
+    mesh = tuple(mesh) if mesh is not None else ((3, 3, 3) if quick else (10, 10, 10))
     grid = (1000, 2000, 4000) if quick else DAMPING_GRID
     out = []
     for nu in NU_EXTREME:
@@ -414,27 +414,33 @@ def damping_table(store: Store, tasks, rows, tol: float = DAMPING_TOL) -> pd.Dat
 
 
 # ------------------------------------------------------------------------------ driver
-def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True) -> dict:
-    """Study driver (``EXTRA_STUDIES``): writes ``dt_stability``, ``stability``,
-    ``limit_stretch`` and ``damping_steps``."""
+def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
+        parts: str = "adfce", damping_mesh=None) -> dict:
+    """Study driver (``EXTRA_STUDIES``): writes ``dt_stability`` (a), ``limit_stretch`` (d),
+    ``damping_steps`` (f) and ``stability`` (b, c, e), each as soon as its part is done.
+    ``parts`` selects and orders the parts; ``damping_mesh`` replaces the 10³ cube of (f)."""
     tables = {}
-    tables["dt_stability"] = dt_table(quick)
-    store.write_table("dt_stability", tables["dt_stability"])
-
-    ext = extreme_tasks(quick)
-    rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress, desc="stability extreme")
-    extreme = extreme_table(store, ext, rows)
-    irregular = irregular_table(quick)
-    tables["stability"] = pd.concat([extreme, irregular], ignore_index=True)
-    store.write_table("stability", tables["stability"])
-
-    lim = limit_tasks(quick)
-    rows = run_tasks([t for _, t in lim], store, jobs=jobs, progress=progress, desc="stability limit")
-    tables["limit_stretch"] = limit_table(store, lim, rows)
-    store.write_table("limit_stretch", tables["limit_stretch"])
-
-    dmp = damping_tasks(quick)
-    rows = run_tasks([t for _, t in dmp], store, jobs=jobs, progress=progress, desc="stability damping")
-    tables["damping_steps"] = damping_table(store, dmp, rows)
-    store.write_table("damping_steps", tables["damping_steps"])
+    for part in parts:
+        if part == "a":
+            tables["dt_stability"] = dt_table(quick)
+            store.write_table("dt_stability", tables["dt_stability"])
+        elif part == "d":
+            lim = limit_tasks(quick)
+            rows = run_tasks([t for _, t in lim], store, jobs=jobs, progress=progress, desc="stability limit")
+            tables["limit_stretch"] = limit_table(store, lim, rows)
+            store.write_table("limit_stretch", tables["limit_stretch"])
+        elif part == "f":
+            dmp = damping_tasks(quick, damping_mesh)
+            rows = run_tasks([t for _, t in dmp], store, jobs=jobs, progress=progress, desc="stability damping")
+            tables["damping_steps"] = damping_table(store, dmp, rows)
+            store.write_table("damping_steps", tables["damping_steps"])
+        elif part == "c":
+            ext = extreme_tasks(quick)
+            rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress, desc="stability extreme")
+            tables["stability"] = extreme_table(store, ext, rows)
+            store.write_table("stability", tables["stability"])
+        elif part == "e":
+            irregular = irregular_table(quick)
+            tables["stability"] = pd.concat([tables.get("stability", pd.DataFrame()), irregular], ignore_index=True)
+            store.write_table("stability", tables["stability"])
     return tables
