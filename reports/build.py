@@ -236,6 +236,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
 
     s = Section("failures", "Failures and instabilities")
     s.items.append(("table", tables.failures_table(results)))
+    t = tables.explicit_table(results)
+    if t is not None:
+        s.title = "Explicit protocol, failures and instabilities"
+        s.items.insert(0, ("table", t))
     sections.append(s)
 
     s = Section("moduli", "Effective moduli and the E-form check")

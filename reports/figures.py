@@ -321,6 +321,7 @@ def differences(results: Results, path: Path) -> Figure | None:
     exps = [e for e in ("compression", "tension", "shear", "torsion") if e in set(t["experiment"])]
     if not exps:
         return None
+    t = t[t["method"].str.endswith("static")]  # explicit runs: see the explicit-protocol table
     with palette.style() as plt:
         fig, axes = plt.subplots(1, len(exps), figsize=(1.85 * len(exps) + 0.5, 2.6), squeeze=False, sharey=True)
         for ax, exp in zip(axes[0], exps):
