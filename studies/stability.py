@@ -152,13 +152,14 @@ def _cube(quick: bool):
     return (3, 3, 3) if quick else (6, 6, 6)
 
 
-def extreme_tasks(quick: bool = False) -> list[tuple[str, Task]]:
+def extreme_tasks(quick: bool = False, mesh=None) -> list[tuple[str, Task]]:
+    mesh = tuple(mesh) if mesh is not None else _cube(quick)
     out = []
     cases = EXTREME_CASES[:3] if quick else EXTREME_CASES
     nus = (0.0, 0.499) if quick else NU_EXTREME
     for exp, kw in cases:
         for nu in nus:
-            base = SceneSpec.default(exp, mesh=_cube(quick), nu=nu, **kw)
+            base = SceneSpec.default(exp, mesh=mesh, nu=nu, **kw)
             for model in VARIANTS:
                 s = base.replace(model=model)
                 out.append(("c", Task(s, STATIC, "stability")))
@@ -415,10 +416,11 @@ def damping_table(store: Store, tasks, rows, tol: float = DAMPING_TOL) -> pd.Dat
 
 # ------------------------------------------------------------------------------ driver
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
-        parts: str = "adfce", damping_mesh=None) -> dict:
+        parts: str = "adfce", damping_mesh=None, extreme_mesh=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``dt_stability`` (a), ``limit_stretch`` (d),
     ``damping_steps`` (f) and ``stability`` (b, c, e), each as soon as its part is done.
-    ``parts`` selects and orders the parts; ``damping_mesh`` replaces the 10³ cube of (f)."""
+    ``parts`` selects and orders the parts; ``damping_mesh`` replaces the 10³ cube of (f),
+    ``extreme_mesh`` the 6³ cube of (b, c)."""
     tables = {}
     for part in parts:
         if part == "a":
@@ -435,7 +437,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
             tables["damping_steps"] = damping_table(store, dmp, rows)
             store.write_table("damping_steps", tables["damping_steps"])
         elif part == "c":
-            ext = extreme_tasks(quick)
+            ext = extreme_tasks(quick, extreme_mesh)
             rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress, desc="stability extreme")
             tables["stability"] = extreme_table(store, ext, rows)
             store.write_table("stability", tables["stability"])
