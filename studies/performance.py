@@ -215,15 +215,15 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 
 def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
                     threads=THREADS, progress: bool = False, min_span: float = MIN_SPAN,
-                    bandwidth_MB: int | None = None) -> tuple[pd.DataFrame, dict]:
-    """Time every mesh; returns (table, bandwidth)."""
-    cubes = ((4, 4, 4), (6, 6, 6)) if quick else CUBES
-    beams = ((2, 2, 12), (3, 3, 18)) if quick else BEAMS
+                    bandwidth_MB: int | None = None, cubes=None, beams=None) -> tuple[pd.DataFrame, dict]:
+    """Time every mesh (``cubes``/``beams`` replace the default lists); returns (table, bandwidth)."""
+    cubes = tuple(cubes) if cubes is not None else (((4, 4, 4), (6, 6, 6)) if quick else CUBES)
+    beams = tuple(beams) if beams is not None else (((2, 2, 12), (3, 3, 18)) if quick else BEAMS)
     steps = steps or (200 if quick else 1000)
     repeats = repeats or (2 if quick else 3)
     n_bytes = (bandwidth_MB or (64 if quick else 256)) * 2**20
     bw = measure_bandwidth(n_bytes, trials=3 if quick else 5)
-    dt_b = beam_dt(beams)
+    dt_b = beam_dt(beams) if beams else CUBE_DT
     rows = []
     jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
     for kind, mesh, dt in jobs:
