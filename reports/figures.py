@@ -230,7 +230,7 @@ def volume_change(results: Results, path: Path) -> Figure | None:
     with palette.style() as plt:
         ncol = min(4, len(panels))
         nrow = int(np.ceil(len(panels) / ncol))
-        fig, axes = plt.subplots(nrow, ncol, figsize=(1.85 * ncol + 0.4, 2.5 * nrow + 0.4), squeeze=False)
+        fig, axes = plt.subplots(nrow, ncol, figsize=(max(4.6, 1.85 * ncol + 0.4), 2.5 * nrow + 0.4), squeeze=False)
         for ax in axes.flat[len(panels):]:
             ax.set_visible(False)
         for ax, (exp, mesh, d, t) in zip(axes.flat, panels):
@@ -323,7 +323,8 @@ def differences(results: Results, path: Path) -> Figure | None:
         return None
     t = t[t["method"].str.endswith("static")]  # explicit runs: see the explicit-protocol table
     with palette.style() as plt:
-        fig, axes = plt.subplots(1, len(exps), figsize=(1.85 * len(exps) + 0.5, 2.6), squeeze=False, sharey=True)
+        fig, axes = plt.subplots(1, len(exps), figsize=(max(4.6, 1.85 * len(exps) + 0.5), 2.6), squeeze=False,
+                                 sharey=True)
         for ax, exp in zip(axes[0], exps):
             sub = t[t["experiment"] == exp].copy()
             mesh = results.primary_mesh(exp)
