@@ -254,3 +254,18 @@ def test_one_colour_per_model(method, family):
 
     assert palette.family(method) == family
     assert palette.color(method) == palette.COLORS[family]
+
+
+def test_the_command_reads_results_only(report, results):
+    """``python -m reports build`` in a fresh interpreter: no solver module is imported."""
+    import subprocess
+    import sys
+
+    res, out = report
+    code = ("import sys; from reports.__main__ import main; rc = main(['build', '--results', sys.argv[1], '--out', "
+            "sys.argv[2], '--no-pdf', '--quiet']); "
+            "bad = [m for m in sys.modules if m.split('.')[0] in ('hybmss', 'fem_reference', 'skfem', 'numba')]; "
+            "print('SOLVERS', bad); sys.exit(rc)")
+    p = subprocess.run([sys.executable, "-c", code, str(results), str(out)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "SOLVERS []" in p.stdout
