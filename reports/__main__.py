@@ -13,10 +13,16 @@ def main(argv=None) -> int:
     b.add_argument("--results", default="artifacts/results", help="results folder (runs/, tables/)")
     b.add_argument("--out", default="artifacts/report", help="output folder")
     b.add_argument("--no-pdf", action="store_true", help="HTML only")
+    b.add_argument("--fresh", action="store_true", help="redraw every figure and render (drop <out>/.cache)")
     b.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
+    import shutil
+    from pathlib import Path
+
     from .build import build
 
+    if args.fresh:
+        shutil.rmtree(Path(args.out) / ".cache", ignore_errors=True)
     try:
         res = build(args.results, args.out, pdf=not args.no_pdf, verbose=not args.quiet)
     except FileNotFoundError as exc:
