@@ -92,7 +92,8 @@ def cmd_moduli(args) -> int:
     m = measure_moduli(model, mat, strain=args.strain)
     G = mat.G
     table = "\n".join([
-        f"model {model.name} (A = {model.A:g}{', E-form' if model.e_form else ''}), E = {mat.E:g} Pa, nu = {mat.nu:g}",
+        f"model {model.name}{'' if model.name == 'baudet2009' else f' (A = {model.A:g})'}"
+        f"{', E-form' if model.e_form else ''}, E = {mat.E:g} Pa, nu = {mat.nu:g}",
         f"  E_eff  = {m['E_eff']:.6g} Pa   (input {mat.E:g}, rel. error {m['E_eff'] / mat.E - 1:+.2e})",
         f"  nu_eff = {m['nu_eff']:.6g}      (input {mat.nu:g}, error {m['nu_eff'] - mat.nu:+.2e})",
         f"  G_eff  = {m['G_eff']:.6g} Pa   (E/(2(1+nu)) = {G:.6g}, rel. error {m['G_eff'] / G - 1:+.2e})",

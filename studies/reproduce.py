@@ -20,7 +20,7 @@ from .store import Store
 
 NUS = (0.0, 0.25, 0.499)
 DEFORMATIONS = (0.05, 0.20)
-MSS_MODELS = ("hybmss", "hybmss-fd", "hybmss-cf")
+MSS_MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009")
 EXPLICIT_DAMPING = 2.0
 TORSION_TABLE_ANGLES = (1.0, 45.0)
 TORSION_SWEEP = (2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 90.0)

@@ -163,7 +163,7 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
     from hybmss.solvers import StaticSolveError
 
     variants = [("hybmss", Model("hybmss")), ("hybmss-fd", Model("hybmss-fd")), ("hybmss-cf", Model("hybmss-cf")),
-                ("hybmss (E-form)", Model("hybmss", e_form=True))]
+                ("hybmss (E-form)", Model("hybmss", e_form=True)), ("baudet2009", Model("baudet2009"))]
     rows = []
     for nu in nus:
         mat = Material(1e4, nu)
