@@ -39,7 +39,7 @@ def compression_scene(model: str, nu: float, mesh=MESH, le: float = LE, d: float
     )
 
 
-def _run(cfg, repeats_done):
+def _run(cfg):
     scene, system, kernel, th, n, dc = cfg
     r = simulate_explicit(scene, dt=DT, steps=n, kernel=kernel, threads=th, system=system,
                           dt_crit_value=dc)
@@ -79,9 +79,9 @@ def run_bench(steps: int = 10_000, kernels=("numba", "numpy"), quick: bool = Fal
                 configs.append((scene, system, kernel, int(th), int(n), dc))
                 meta.append((model, nu, int(len(system.spring_k))))
     best = [(float("inf"), float("inf"))] * len(configs)
-    for rep in range(repeats):
+    for _ in range(repeats):
         for i, cfg in enumerate(configs):
-            wall, cpu = _run(cfg, rep)
+            wall, cpu = _run(cfg)
             if wall < best[i][0]:
                 best[i] = (wall, cpu)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
