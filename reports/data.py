@@ -76,6 +76,14 @@ class Results:
         df = self.rows
         return df[df["status"] == "ok"] if not df.empty else df
 
+    def is_publication_run(self, key: str) -> bool:
+        """True if the run belongs to one of the publication's studies (not a sweep or stress test)."""
+        df = self.rows
+        if df.empty or "study" not in df:
+            return True
+        s = df.loc[df["key"] == key, "study"]
+        return s.empty or str(s.iloc[0]) in EXPERIMENT_ORDER
+
     def row(self, key: str) -> pd.Series:
         return self.rows.set_index("key").loc[key]
 

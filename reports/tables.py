@@ -299,7 +299,7 @@ def differences_table(results: Results) -> Table | None:
             return grade(r[c], (5.0, 15.0))
         return ""
 
-    return frame_table(t, "table_diff", "Nodal displacement difference MSS vs FEM",
+    tab = frame_table(t, "table_diff", "Nodal displacement difference MSS vs FEM",
                        "Every MSS static equilibrium against its FEM reference on the same grid (linear at ≤ 5 % / "
                        "≤ 5°, Neo-Hookean above), E = 10⁴ Pa: mean, max and middle-layer (z = H/2) mean of "
                        "|u_MSS − u_FEM| in mm; relative L2 ‖u_MSS − u_FEM‖/‖u_FEM‖ in % (green ≤ 5 %, amber ≤ 15 %); "
@@ -309,6 +309,12 @@ def differences_table(results: Results) -> Table | None:
                         "reference": "FEM reference", "mean_mm": "mean (mm)", "max_mm": "max (mm)",
                         "mid_layer_mean_mm": "mid layer (mm)", "rel_l2_pct": "rel. L2 (%)",
                         "spread_pct": "NH–SVK spread (%)"}, cls)
+    other = [i for i, k in enumerate(t["mss_key"]) if not results.is_publication_run(k)]
+    if other:
+        tab.row_classes = {i: "screen-only" for i in other}
+        tab.caption += (f" {len(other)} rows of runs from other studies (sweeps, stress tests) are in the HTML page "
+                        "only.")
+    return tab
 
 
 def failures_table(results: Results) -> Table:
@@ -412,12 +418,16 @@ def explicit_table(results: Results) -> Table | None:
             (fmt(info.get("max_speed", np.nan), 3), ""),
             ("" if ok else " ".join(str(r["message"]).split())[:220], ""),
         ])
+    other = [i for i, k in enumerate(ex.sort_values(["study", "label"])["key"]) if not results.is_publication_run(k)]
+    note = (f" {len(other)} explicit runs of other studies (stability) are listed in the HTML page only."
+            if other else "")
     return Table("table_explicit", "Explicit protocol against the static equilibrium",
                  "The publication's protocol: semi-implicit Euler, dt = 1 ms, 10,000 steps (10 s), plates ramped over "
                  "1 s, mass-proportional damping c (s⁻¹, not stated in [G20]); read at the end. Compared with the "
                  "static equilibrium of the same scene: e (%) of both, their difference (pp; green ≤ 0.1, amber ≤ 1) "
                  "and the relative L2 difference of the nodal displacements (%; green ≤ 1, amber ≤ 5). dt_crit (s) "
                  "at rest, largest particle speed at the end (m/s). A large difference means 10 s do not reach "
-                 "equilibrium.",
+                 "equilibrium." + note,
                  ["run", "dt (s)", "steps", "c (1/s)", "dt_crit (s)", "status", "e explicit (%)", "e static (%)",
-                  "Δe (pp)", "‖Δu‖ rel. L2 (%)", "max speed (m/s)", "message"], rows, css="explicit")
+                  "Δe (pp)", "‖Δu‖ rel. L2 (%)", "max speed (m/s)", "message"], rows, css="explicit",
+                 row_classes={i: "screen-only" for i in other})
