@@ -189,7 +189,8 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             n = rendermod.FIGURE_NUMBERS.get(r.experiment, "")
             s.items.append(("figure", {"id": r.path.stem, "title": f"{r.experiment.capitalize()}, {r.load} (cf. Fig. {n})",
                                        "src": _b64(r.path), "caption": r.caption, "number": str(n),
-                                       "file": f"figures/{r.path.name}"}))
+                                       "file": f"figures/{r.path.name}",
+                                       "css": "half" if r.experiment in ("tension", "bending") else ""}))
         sections.append(s)
 
     s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)")
