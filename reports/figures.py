@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from . import palette
-from .data import Results, mesh_size, paper_table, reference_law
+from .data import Results, mesh_size, reference_law
 
 BEAM_WIDTH = 0.4  # m, [G20] §6 (the tension and bending beam is 0.4 × 0.4 × 2.4 m)
 NUS = (0.0, 0.25, 0.499)

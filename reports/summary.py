@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .data import EXPERIMENT_ORDER, Results, paper_table, reference_law
+from .data import EXPERIMENT_ORDER, Results, paper_table
 from .tables import Table, fmt, grade
 
 E_MODULI_TOL = 1e-3
@@ -286,7 +286,8 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
             ma, mb = 100 * a[common].mean(), 100 * b[common].mean()
             out.append(Claim("hybmss (with face diagonals, A = 1) is closer to FEM than hybmss-fd",
                              "mean relative L2 nodal difference to FEM lower for hybmss, and lower in most scenes",
-                             REPRODUCED if ma < mb and wins > len(common) / 2 else (PARTLY if ma < mb or wins > len(common) / 2 else NOT),
+                             REPRODUCED if ma < mb and wins > len(common) / 2 else
+                             (PARTLY if ma < mb or wins > len(common) / 2 else NOT),
                              f"mean rel. L2: hybmss {ma:.3g} %, hybmss-fd {mb:.3g} %; hybmss closer in {wins} of "
                              f"{len(common)} scenes"))
 

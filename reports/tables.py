@@ -83,7 +83,8 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
     methods = _method_cols(t)
     paper_cols = [c for c in ("paper hybmss", "paper hybmss-fd", "paper FEM (LS-Dyna)") if c in t]
     cols = ["mesh", "ν", "d (%)"] + [f"{_short(m)}" for m in methods] + [c.replace("paper", "[G20]") for c in paper_cols]
-    cols += ["Δ hybmss − [G20] (pp)", "Δ hybmss-fd − [G20] (pp)", "Δ FEM ref − [G20] FEM (pp)", "Δ hybmss − FEM ref (pp)"]
+    cols += ["Δ hybmss − [G20] (pp)", "Δ hybmss-fd − [G20] (pp)", "Δ FEM ref − [G20] FEM (pp)",
+             "Δ hybmss − FEM ref (pp)"]
     rows = []
     for _, r in t.iterrows():
         law = reference_law(experiment, r["d"])

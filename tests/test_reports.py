@@ -8,7 +8,6 @@ import base64
 import functools
 import io
 import itertools
-import json
 import re
 import zlib
 from html.parser import HTMLParser
@@ -155,7 +154,8 @@ def test_every_table_has_its_rows(report, results):
               "table4": len(csv["table4_shear"]), "table5": len(csv["table5_torsion"]),
               "table_bending": len(csv["bending"]), "table_diff": len(csv["differences"]),
               "table_moduli": len(csv["moduli"]), "table_eform": len(csv["eform_check"]),
-              "table6": 8, "table_failures": 1, "table_performance": 4, "table_explicit": 2,  # the short run and the stored divergence
+              "table6": 8, "table_failures": 1, "table_performance": 4,
+              "table_explicit": 2,  # the short run and the stored divergence
               "table_runs": len(list((results / "runs").glob("*.json"))),
               # compression, tension, shear, torsion at 3 ν and one load each, bending at 2 E
               "table_headline": 4 * 3 + 2}
