@@ -9,7 +9,7 @@ the NumPy twin, which runs fewer steps (its row says how many; ``s_per_10k_steps
 JIT compilation is excluded (a short warm-up run first); each figure is the best of
 ``repeats`` runs, since other processes on the machine only ever add time.  ``ns_per_spring_step``
 divides by the model's merged springs (the count of ``hybmss info``'s ``springs.total``).
-The ``static`` list is filled by the static solver's benchmark.
+The ``static`` list times the static Newton solve of the same cube (:func:`static_bench`).
 """
 
 from __future__ import annotations
@@ -102,7 +102,35 @@ def run_bench(steps: int = 10_000, kernels=("numba", "numpy"), quick: bool = Fal
             "dt_crit_s": dc,
             "load_avg": load,
         })
-    return {"explicit": rows, "static": []}
+    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats)}
+
+
+STATIC_CASES = (("hybmss", 0.25, 0.05), ("hybmss", 0.499, 0.05), ("hybmss-fd", 0.3, 0.05), ("hybmss", 0.25, 0.20))
+
+
+def static_bench(quick: bool = False, repeats: int | None = None) -> list[dict]:
+    """Wall time of the static Newton solve of the compression cube (best of ``repeats``, after a
+    warm-up of the sparsity pattern cache)."""
+    import time
+
+    from .solvers import solve_static
+
+    reps = repeats or (1 if quick else 3)
+    cases = STATIC_CASES[:1] if quick else STATIC_CASES
+    rows = []
+    for model, nu, d in cases:
+        scene = compression_scene(model, nu, d=d)
+        system = build(scene)
+        solve_static(scene, system=system)  # warm-up
+        best, res = float("inf"), None
+        for _ in range(reps):
+            t0 = time.perf_counter()
+            res = solve_static(scene, system=system)
+            best = min(best, time.perf_counter() - t0)
+        rows.append({"scene": f"compression d={100 * d:g}% {model} nu={nu:g}", "mesh": "x".join(map(str, MESH)),
+                     "wall_time_s": best, "newton_iterations": res.iterations,
+                     "load_steps": res.info["load_steps"]})
+    return rows
 
 
 def _ratio(rows, kernel, threads, num, den):
@@ -164,5 +192,6 @@ def format_bench(d: dict) -> str:
     if static:
         out += ["", "static solves"]
         for r in static:
-            out.append(f"  {r.get('scene', '')} {r.get('mesh', '')}: {r['wall_time_s']:.3f} s")
+            out.append(f"  {r.get('scene', '')} {r.get('mesh', '')}: {r['wall_time_s']:.3f} s"
+                       f"  ({r.get('newton_iterations', '?')} Newton iterations, {r.get('load_steps', '?')} load steps)")
     return "\n".join(out)

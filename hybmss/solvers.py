@@ -127,10 +127,15 @@ class _NewtonStats:
 
 
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
-            inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True):
+            inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True,
+            lu=None):
     """Minimize Π (+ inertia term) over the free dofs starting from ``x`` (modified in place).
 
     ``inertia = (w, x_tilde)`` adds ``½ Σ w_a |x_a − x̃_a|²`` (w per particle).
+    ``lu``: a factorization of a nearby Hessian (the predictor's).  A factorization is reused for
+    the next step (a chord step) as long as it reduced the residual at least 5-fold and gives a
+    descent direction; otherwise the exact Hessian at the current point is factorized.  The
+    converged state does not depend on this (the residual test uses the exact forces).
     Returns (converged, x, f_total, residual_norm, scale).
     """
     n = system.n
@@ -164,24 +169,35 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
         best, stalled = (rnorm, 0) if rnorm < 0.5 * best else (best, stalled + 1)
         if stalled >= 6:
             break
-        H = hessian(system, x)
-        if inertia is not None:
-            H = H + sp.diags(np.repeat(inertia[0], 3))
-        Hff = H[free][:, free].tocsc()
         dx = None
+        if lu is not None:
+            with np.errstate(all="ignore"):
+                cand = lu.solve(r)
+            if np.all(np.isfinite(cand)) and float(r @ cand) > 0.0:
+                dx = cand
+            else:
+                lu = None
+        fresh = dx is None
         mu = 0.0
-        diag_mean = float(np.abs(Hff.diagonal()).mean())
-        for attempt in range(8):
+        if fresh:
+            H = hessian(system, x)
+            if inertia is not None:
+                H = H + sp.diags(np.repeat(inertia[0], 3))
+            Hff = H[free][:, free].tocsc()
+            diag_mean = float(np.abs(Hff.diagonal()).mean())
+        for attempt in range(8 if fresh else 0):
             A = Hff if mu == 0.0 else (Hff + sp.identity(Hff.shape[0], format="csc") * (mu * diag_mean))
             try:
                 with np.errstate(all="ignore"):
-                    cand = _factor(A).solve(r)
+                    lu = _factor(A)
+                    cand = lu.solve(r)
                 ok = np.all(np.isfinite(cand)) and float(r @ cand) > 0.0
             except RuntimeError:  # exactly singular
-                ok = False
+                ok, lu = False, None
             if ok:
                 dx = cand
                 break
+            lu = None
             mu = 1e-10 if mu == 0.0 else mu * 100.0
         if dx is None:
             return False, x, f, rnorm, scale
@@ -207,7 +223,12 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             alpha *= 0.5
             stats.line_search_cuts += 1
         if not accepted:
+            if not fresh:  # the chord direction failed: retry with the exact Hessian
+                lu = None
+                continue
             return False, x, f, rnorm, scale
+        if alpha < 1.0 or rt > 0.2 * rnorm:
+            lu = None  # slow contraction: refactorize at the new point
         x, e, f = xt, et, ft
     return False, x, f, rnorm, scale
 
@@ -227,7 +248,8 @@ def _factor(A):
 
 def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray):
     """First-order guess for a new load step: move the prescribed dofs to ``target`` and the free
-    dofs by the linear response ``δ_f = H_ff⁻¹ (f_f − H_fc δ_c)``.  Returns None if it fails."""
+    dofs by the linear response ``δ_f = H_ff⁻¹ (f_f − H_fc δ_c)``.  Returns ``(guess, lu)`` (the
+    factorization of H_ff at ``x``, reusable by Newton), or ``(None, None)`` if it fails."""
     H = hessian(system, x).tocsr()
     delta = (target - x).ravel().copy()
     delta[free] = 0.0
@@ -235,13 +257,14 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
     rhs = f.ravel()[free] - (H @ delta)[free]
     try:
         with np.errstate(all="ignore"):
-            d_f = _factor(H[free][:, free].tocsc()).solve(rhs)
+            lu = _factor(H[free][:, free].tocsc())
+            d_f = lu.solve(rhs)
     except RuntimeError:
-        return None
+        return None, None
     if not np.all(np.isfinite(d_f)):
-        return None
+        return None, None
     delta[free] = d_f
-    return x + delta.reshape(x.shape)
+    return x + delta.reshape(x.shape), lu
 
 
 def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
@@ -324,14 +347,14 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     while s < 1.0 - 1e-14:
         s_new = min(1.0, s + ds)
         target = S.prescribed(s_new)
-        guess = _tangent_predictor(S, x, target, free)
+        guess, lu = _tangent_predictor(S, x, target, free)
         if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
-            guess = x.copy()
+            guess, lu = x.copy(), None
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
                 guess += (x - x_prev) * ((s_new - s) / (s - s_prev))
         guess[S.fixed] = target[S.fixed]
         ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, None, stats,
-                                             opts.line_search)
+                                             opts.line_search, lu=lu)
         if ok:
             load_steps += 1
             x_prev, s_prev, x, s = x, s, x_new, s_new
