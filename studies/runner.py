@@ -79,7 +79,8 @@ class Task:
 
     def key(self) -> str:
         payload = json.dumps({"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
-                              "code": code_version()}, sort_keys=True)
+                              "code": code_version("fem" if self.solver.kind == "fem" else "mss")},
+                             sort_keys=True)
         return hashlib.sha256(payload.encode()).hexdigest()[:24]
 
 

@@ -57,16 +57,25 @@ def dumps(obj) -> str:
     return json.dumps(obj, default=_json_default, sort_keys=True, indent=1)
 
 
-@lru_cache(maxsize=1)
-def code_version() -> str:
-    """Hash of the solver sources (``hybmss`` and ``fem_reference``): a change to a solver
-    changes the keys of the runs it could affect."""
+SOLVER_SOURCES = {
+    # the MSS depends on all of hybmss; the FEM on its package and hybmss's scene, lattice
+    # (particle positions, averaged-edge volumes) and result types
+    "mss": ("hybmss/**/*.py",),
+    "fem": ("fem_reference/**/*.py", "hybmss/scene.py", "hybmss/lattice.py", "hybmss/result.py"),
+}
+
+
+@lru_cache(maxsize=4)
+def code_version(side: str = "all") -> str:
+    """Hash of the sources a solver side depends on (``"mss"``, ``"fem"``, or ``"all"``): a change
+    to a solver changes the keys of exactly the runs it could affect."""
     h = hashlib.sha256()
     root = Path(__file__).resolve().parent.parent
-    for pkg in ("hybmss", "fem_reference"):
-        for f in sorted((root / pkg).rglob("*.py")):
-            h.update(f.relative_to(root).as_posix().encode())
-            h.update(f.read_bytes())
+    patterns = SOLVER_SOURCES[side] if side in SOLVER_SOURCES else sum(SOLVER_SOURCES.values(), ())
+    files = sorted({f for pat in patterns for f in root.glob(pat)})
+    for f in files:
+        h.update(f.relative_to(root).as_posix().encode())
+        h.update(f.read_bytes())
     return h.hexdigest()[:16]
 
 
