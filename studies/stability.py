@@ -415,10 +415,20 @@ def damping_table(store: Store, tasks, rows, tol: float = DAMPING_TOL) -> pd.Dat
 
 
 # ------------------------------------------------------------------------------ driver
+def _combined(store: Store) -> pd.DataFrame:
+    """``stability``: the extreme (b, c) and irregular (e) tables, whichever exist."""
+    parts = [pd.read_csv(store.root / "tables" / f"{n}.csv") for n in ("stability_extreme", "stability_irregular")
+             if (store.root / "tables" / f"{n}.csv").exists()]
+    df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
+    store.write_table("stability", df)
+    return df
+
+
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
         parts: str = "adfce", damping_mesh=None, extreme_mesh=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``dt_stability`` (a), ``limit_stretch`` (d),
-    ``damping_steps`` (f) and ``stability`` (b, c, e), each as soon as its part is done.
+    ``damping_steps`` (f), ``stability_extreme`` (b, c) and ``stability_irregular`` (e), each as
+    soon as its part is done, and ``stability``, the last two together.
     ``parts`` selects and orders the parts; ``damping_mesh`` replaces the 10³ cube of (f),
     ``extreme_mesh`` the 6³ cube of (b, c)."""
     tables = {}
@@ -439,10 +449,11 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
         elif part == "c":
             ext = extreme_tasks(quick, extreme_mesh)
             rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress, desc="stability extreme")
-            tables["stability"] = extreme_table(store, ext, rows)
-            store.write_table("stability", tables["stability"])
+            tables["stability_extreme"] = extreme_table(store, ext, rows)
+            store.write_table("stability_extreme", tables["stability_extreme"])
+            tables["stability"] = _combined(store)
         elif part == "e":
-            irregular = irregular_table(quick)
-            tables["stability"] = pd.concat([tables.get("stability", pd.DataFrame()), irregular], ignore_index=True)
-            store.write_table("stability", tables["stability"])
+            tables["stability_irregular"] = irregular_table(quick)
+            store.write_table("stability_irregular", tables["stability_irregular"])
+            tables["stability"] = _combined(store)
     return tables
