@@ -15,8 +15,13 @@ gives ``R_u = ∫ (P₀ + p G) : ∇v − s ∫ ρ g · v`` and ``R_p = ∫ (g �
 system ``[[∫∇v:(A₀ + p H):∇δu, Bᵀ], [B, −M_p/λ]]`` with ``B = ∫ q G : ∇δu``.
 
 Load stepping: the plates' displacements (exact rigid rotations for ``rotate``) and the body load
-are scaled by s = s₁ < s₂ < … < 1.  The first Newton iteration of a step imposes the new plate
-displacements as an inhomogeneous Dirichlet increment (a linearized predictor).  A trial update
+are scaled by s = s₁ < s₂ < … < 1.  The first step starts from the undeformed state and its first
+Newton iteration imposes the plate displacements as an inhomogeneous Dirichlet increment (a
+linearized predictor); later steps start from the secant extrapolation of the last two converged
+states (plates set to their exact values), unless that inverts an element.  An increment that
+converged in at most :data:`GROW_ITERATIONS` iterations doubles the next one.  Linear systems
+inside Newton are solved inexactly when iterative (relative tolerance ``0.1 ‖R‖/‖f‖`` within
+[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]).  A trial update
 is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
 point) or fails to lower the residual norm; if a step does not converge the load increment is
 halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
@@ -39,6 +44,14 @@ from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd
 from .linear import FORMULATIONS, Solution
 from .mesh import FemMesh
 from .space import Space
+
+
+GROW_ITERATIONS = 4
+"""A load step that converges in at most this many Newton iterations doubles the next increment."""
+LINEAR_RTOL_MAX = 1e-3
+"""Loosest relative tolerance of an iterative linear solve inside Newton."""
+LINEAR_RTOL_MIN = 1e-11
+"""Tightest one (the tolerance of a stand-alone linear solve)."""
 
 
 class ConvergenceError(RuntimeError):
@@ -112,8 +125,8 @@ class Hyperelasticity:
         J = np.linalg.det(F)
         if not np.all(J > 0):
             return None
-        W0, P0, A0 = deviatoric(self.law, F, mu)
-        g, G, H = volumetric(self.law, F)
+        W0, P0, A0 = deviatoric(self.law, F, mu, tangent)
+        g, G, H = volumetric(self.law, F, tangent)
         out = {"minJ": float(J.min())}
         if self.mixed:
             pq = self.pspace.value(p)
@@ -151,9 +164,13 @@ class Hyperelasticity:
         method: str = "auto",
         min_increment: float = 1e-4,
         load: np.ndarray | None = None,
+        adaptive: bool = True,
     ) -> tuple[Solution, NewtonLog]:
-        """Solve up to load factor 1 in ``steps`` equal increments (halved on failure).
-        ``load``: extra dead load vector (n_vector,), e.g. surface tractions, scaled with gravity."""
+        """Solve up to load factor 1, first increment ``1/steps`` (halved on failure, doubled after
+        a fast step).
+        ``load``: extra dead load vector (n_vector,), e.g. surface tractions, scaled with gravity.
+        ``adaptive=False``: equal increments from the linearized predictor only (no secant
+        predictor, no growth), and linear solves to the tightest tolerance."""
         if self.mixed and material.lam <= 0:
             raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
         lam, mu = material.lam, material.G
@@ -174,15 +191,24 @@ class Hyperelasticity:
         amg_cache: dict = {}  # AMG hierarchy reused across Newton iterations (same free dofs)
 
         s_done, ds = 0.0, 1.0 / max(1, int(steps))
+        prev = None  # (s, U, p) of the previous converged step, for the secant predictor
         while s_done < 1.0 - 1e-14:
             s = min(1.0, s_done + ds)
+            guess = None
+            if adaptive and prev is not None and s_done > prev[0]:
+                r = (s - s_done) / (s_done - prev[0])
+                guess = (U + r * (U - prev[1]), None if p is None else p + r * (p - prev[2]))
             ok, U_new, p_new, its, res = self._step(
-                U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C, amg_cache
+                U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C, amg_cache,
+                guess, adaptive,
             )
             log.iterations += its
             if ok:
+                prev = (s_done, U, p)
                 U, p, s_done = U_new, p_new, s
                 log.steps.append((s, its, res))
+                if adaptive and its <= GROW_ITERATIONS:
+                    ds *= 2.0
                 continue
             log.rejected_steps += 1
             ds *= 0.5
@@ -200,28 +226,44 @@ class Hyperelasticity:
         return Solution(U.reshape(-1, 3), p, r, energy, stats), log
 
     def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
-              amg_cache=None):
+              amg_cache=None, guess=None, inexact=True):
         mu = material.G
         D = dirichlet.dofs
         target = dirichlet.values(s)
-        U = U.copy()
-        p = None if p is None else p.copy()
-        st = self._evaluate(U, p, s, fext, material, tangent=True)
+        st = None
+        if guess is not None:  # secant predictor: start from the extrapolated state
+            Ug = guess[0].copy()
+            Ug[D] = target
+            pg = None if guess[1] is None else guess[1].copy()
+            st = self._evaluate(Ug, pg, s, fext, material, tangent=True)
+            if st is not None:
+                U, p = Ug, pg
+        if st is None:  # linearized predictor: impose the new plate displacements in Newton
+            U = U.copy()
+            p = None if p is None else p.copy()
+            st = self._evaluate(U, p, s, fext, material, tangent=True)
         if st is None:
             return False, U, p, 0, np.inf
         res = np.inf
         for it in range(1, maxiter + 1):
             dD = target - U[D]
+            res0 = self._norm(st, free, mu)
+            ref0 = max(np.linalg.norm(st["fint"]), s * np.linalg.norm(fext))
+            # Inexact Newton: solve the linear system only as accurately as the current residual
+            # warrants (forcing term η ≤ 0.1 ‖R‖/‖f‖ keeps the convergence quadratic; convergence
+            # is tested on the true residual).
+            eta = float(np.clip(0.1 * res0 / max(ref0, 1e-300), LINEAR_RTOL_MIN, LINEAR_RTOL_MAX))
+            if not inexact:
+                eta = LINEAR_RTOL_MIN
             if self.mixed:
                 du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
                                       self.nullspace, 1.0 / mu + 1.0 / material.lam,
                                       method=method, stats=stats)
             else:
-                du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, stats=stats,
-                               cache=amg_cache)
+                du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
+                               stats=stats, cache=amg_cache)
                 dp = None
             first = np.any(dD != 0.0)
-            res0 = self._norm(st, free, mu)
             alpha, new = 1.0, None
             while alpha >= 1.0 / 64:
                 Ut = U + alpha * du

@@ -33,8 +33,8 @@ _I = np.eye(3)
 _II = np.einsum("ik,jl->ijkl", _I, _I)  # δ_ik δ_JL
 
 
-def deviatoric(law: str, F: np.ndarray, mu: float):
-    """``(W₀, P₀, A₀)`` of ``law`` at ``F[..., 3, 3]``."""
+def deviatoric(law: str, F: np.ndarray, mu: float, tangent: bool = True):
+    """``(W₀, P₀, A₀)`` of ``law`` at ``F[..., 3, 3]`` (``A₀`` is ``None`` without ``tangent``)."""
     if law == "neo-hookean":
         J = np.linalg.det(F)
         Finv = np.linalg.inv(F)
@@ -42,6 +42,8 @@ def deviatoric(law: str, F: np.ndarray, mu: float):
         I1 = np.einsum("...iJ,...iJ->...", F, F)
         W0 = 0.5 * mu * (I1 - 3.0) - mu * np.log(J)
         P0 = mu * (F - FinvT)
+        if not tangent:
+            return W0, P0, None
         A0 = mu * _II + mu * np.einsum("...Li,...Jk->...iJkL", Finv, Finv)
         return W0, P0, A0
     if law == "svk":
@@ -49,6 +51,8 @@ def deviatoric(law: str, F: np.ndarray, mu: float):
         E = 0.5 * (C - _I)
         W0 = mu * np.einsum("...IJ,...IJ->...", E, E)
         P0 = 2.0 * mu * np.einsum("...iI,...IJ->...iJ", F, E)
+        if not tangent:
+            return W0, P0, None
         FFt = np.einsum("...iI,...kI->...ik", F, F)
         A0 = (
             2.0 * mu * np.einsum("ik,...JL->...iJkL", _I, E)
@@ -59,18 +63,23 @@ def deviatoric(law: str, F: np.ndarray, mu: float):
     raise ValueError(f"law must be one of {', '.join(LAWS)}; got {law!r}")
 
 
-def volumetric(law: str, F: np.ndarray):
-    """``(g, G, H)``: the volumetric measure of ``law`` and its first two derivatives."""
+def volumetric(law: str, F: np.ndarray, tangent: bool = True):
+    """``(g, G, H)``: the volumetric measure of ``law`` and its first two derivatives
+    (``H`` is ``None`` without ``tangent``)."""
     if law == "neo-hookean":
         J = np.linalg.det(F)
         Finv = np.linalg.inv(F)
         g = np.log(J)
         G = np.swapaxes(Finv, -1, -2)
+        if not tangent:
+            return g, G, None
         H = -np.einsum("...Li,...Jk->...iJkL", Finv, Finv)
         return g, G, H
     if law == "svk":
         g = 0.5 * (np.einsum("...iJ,...iJ->...", F, F) - 3.0)
         G = F.copy()
+        if not tangent:
+            return g, G, None
         H = np.broadcast_to(_II, F.shape[:-2] + (3, 3, 3, 3))
         return g, G, H
     raise ValueError(f"law must be one of {', '.join(LAWS)}; got {law!r}")
@@ -78,13 +87,13 @@ def volumetric(law: str, F: np.ndarray):
 
 def energy_density(law: str, F: np.ndarray, lam: float, mu: float) -> np.ndarray:
     """``ψ(F)`` of the displacement formulation."""
-    W0, _, _ = deviatoric(law, F, mu)
-    g, _, _ = volumetric(law, F)
+    W0, _, _ = deviatoric(law, F, mu, tangent=False)
+    g, _, _ = volumetric(law, F, tangent=False)
     return W0 + 0.5 * lam * g**2
 
 
 def first_piola(law: str, F: np.ndarray, lam: float, mu: float) -> np.ndarray:
     """``P = ∂ψ/∂F``."""
-    _, P0, _ = deviatoric(law, F, mu)
-    g, G, _ = volumetric(law, F)
+    _, P0, _ = deviatoric(law, F, mu, tangent=False)
+    g, G, _ = volumetric(law, F, tangent=False)
     return P0 + lam * g[..., None, None] * G

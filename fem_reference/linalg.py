@@ -98,7 +98,7 @@ def solve_spd(
     ``nullspace`` (n, 6) are the rigid-body modes (used by AMG only).  ``cache`` (a dict kept by
     the caller, e.g. across Newton iterations with the same prescribed dofs) keeps the AMG
     hierarchy of an earlier matrix as the preconditioner; it is rebuilt when CG needs more than
-    twice the iterations it needed when built.
+    twice the iterations per decade of residual reduction it needed when built.
     """
     n = K.shape[0]
     free = np.ones(n, dtype=bool)
@@ -127,9 +127,10 @@ def solve_spd(
             raise RuntimeError(f"AMG-preconditioned CG did not converge ({count[0]} iterations)")
         its = count[0]
         if cache is not None:
+            rate = max(its, 1) / max(1.0, -np.log10(rtol))  # iterations per decade
             if not reuse:
-                cache.update(n=A.shape[0], M=M, its0=max(its, 1))
-            elif its > 2 * cache["its0"]:
+                cache.update(n=A.shape[0], M=M, rate0=rate)
+            elif rate > 2 * cache["rate0"]:
                 cache.clear()
     if stats is not None:
         stats.add(kind, its)

@@ -128,6 +128,63 @@ class Space:
         return float(np.sum(f * self.dx))
 
     # ---------------------------------------------------------------- assembly
+    def _pattern(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSR pattern ``(indptr, indices, position)`` of a vector-space matrix whose entries
+        (in C order of the broadcast ``rows``, ``cols`` arrays of vector dofs) add to
+        ``data[position]``."""
+        n = self.n_vector
+        key = (rows.astype(np.int64) * n + cols).ravel()
+        uniq, position = np.unique(key, return_inverse=True)
+        r = uniq // n
+        indptr = np.searchsorted(r, np.arange(n + 1)).astype(np.int64)
+        indices = (uniq - r * n).astype(np.int32)
+        return indptr, indices, position.astype(np.intp).ravel()
+
+    @cached_property
+    def _vector_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pattern of element blocks ``Ke[e, a, b]`` (dofs ``vedofs[a, e]``, ``vedofs[b, e]``).
+
+        Built once per space, so a tangent is assembled with one ``np.bincount`` over the element
+        blocks instead of a COO → CSR conversion (sort and duplicate summation) per call.
+        """
+        r = self.vedofs.T
+        return self._pattern(r[:, :, None], r[:, None, :])
+
+    @cached_property
+    def _uniform_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pattern of element blocks ordered ``K[n, m, e, i, k]`` (vector dofs ``3 s + c`` of
+        scalar dofs ``s = edofs[n, e]``, ``edofs[m, e]``, components ``i``, ``k``)."""
+        V = (3 * self.edofs[:, :, None] + np.arange(3)).astype(np.int64)  # (nn, ne, 3)
+        return self._pattern(V[:, None, :, :, None], V[None, :, :, None, :])
+
+    @cached_property
+    def uniform_dN(self) -> np.ndarray | None:
+        """(nn, 3, nq) basis gradients shared by every element, or ``None`` when the elements
+        differ (the voxel meshes are uniform grids of equal cubes: every element is a translate
+        of the first)."""
+        dN = self.dN
+        d0 = dN[:, :, :1, :]
+        if np.allclose(dN, d0, rtol=1e-12, atol=1e-12 * float(np.abs(d0).max())):
+            return np.ascontiguousarray(d0[:, :, 0, :])
+        return None
+
+    @cached_property
+    def _uniform_B(self) -> np.ndarray:
+        """``B[(n, m), (q, J, L)] = ∂_J N_n ∂_L N_m`` at the quadrature points (uniform meshes)."""
+        d = self.uniform_dN
+        nn, _, nq = d.shape
+        return np.ascontiguousarray(np.einsum("nJq,mLq->nmqJL", d, d).reshape(nn * nn, nq * 9))
+
+    def scatter_blocks(self, Ke: np.ndarray, pattern=None) -> sp.csr_matrix:
+        """Sparse vector-space matrix from element blocks ``Ke[e, a, b]`` (vector dofs ``vedofs``),
+        or ordered as ``pattern`` (one of the cached patterns) says."""
+        indptr, indices, position = self._vector_pattern if pattern is None else pattern
+        data = np.bincount(position, weights=np.ascontiguousarray(Ke).ravel(), minlength=len(indices))
+        n = self.n_vector
+        K = sp.csr_matrix((data, indices, indptr), shape=(n, n))
+        K.has_sorted_indices = True
+        return K
+
     def _scatter(self, Ke: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape) -> sp.csr_matrix:
         """Sparse matrix from element blocks ``Ke[a, b, e]`` with dofs ``rows[a, e]``, ``cols[b, e]``."""
         I = np.broadcast_to(rows[:, None, :], Ke.shape).ravel()
@@ -163,9 +220,22 @@ class Space:
     def tangent(self, A: np.ndarray) -> sp.csr_matrix:
         """``∫ ∇v : A : ∇du dx`` for a field ``A[e, q, i, J, k, L]`` (vector space).
 
-        Element block ``K[(n,i),(m,k)] = Σ_q dx Σ_JL ∂_J N_n A_iJkL ∂_L N_m``, computed as two
-        batched matrix products per block of elements.
+        Element block ``K[(n,i),(m,k)] = Σ_q dx Σ_JL ∂_J N_n A_iJkL ∂_L N_m``.  On a uniform
+        mesh (:attr:`uniform_dN`) this is one matrix product of the constant
+        ``B[(n,m), (q,J,L)]`` with the weighted field ``A[(q,J,L), (e,i,k)]`` for all elements;
+        otherwise two batched matrix products per block of elements (:meth:`tangent_general`).
         """
+        if self.uniform_dN is None:
+            return self.tangent_general(A)
+        dx = self.dx
+        ne, nq = dx.shape
+        Aw = np.empty((nq, 3, 3, ne, 3, 3))  # (q, J, L, e, i, k)
+        np.multiply(A.transpose(1, 3, 5, 0, 2, 4), dx.T[:, None, None, :, None, None], out=Aw)
+        K = self._uniform_B @ Aw.reshape(nq * 9, ne * 9)  # ((n,m), (e,i,k))
+        return self.scatter_blocks(K, self._uniform_pattern)
+
+    def tangent_general(self, A: np.ndarray) -> sp.csr_matrix:
+        """:meth:`tangent` for any mesh (element geometry taken per element)."""
         dNq, dx = self.dNq, self.dx
         ne, nq, nn, _ = dNq.shape
         Ke = np.empty((ne, 3 * nn, 3 * nn))
@@ -179,15 +249,13 @@ class Space:
             W = dNq[sl].transpose(0, 1, 3, 2).reshape(b, 1, 3 * nq, nn)  # (e, (q,L), m)
             K = np.matmul(T, W)  # (e, k, (n,i), m)
             Ke[sl] = K.reshape(b, 3, 3 * nn, nn).transpose(0, 2, 3, 1).reshape(b, 3 * nn, 3 * nn)
-        r = self.vedofs
-        return self._scatter(np.moveaxis(Ke, 0, -1), r, r, (self.n_vector, self.n_vector))
+        return self.scatter_blocks(Ke)
 
     def vector_load(self, P: np.ndarray) -> np.ndarray:
         """``∫ P : ∇v dx`` for a field ``P[i, J, e, q]`` (e.g. the first Piola stress)."""
         fe = np.einsum("nJeq,iJeq,eq->nie", self.dN, P, self.dx, optimize=True)
-        out = np.zeros(self.n_vector)
-        np.add.at(out, self.vedofs.ravel(), fe.reshape(-1, fe.shape[-1]).ravel())
-        return out
+        return np.bincount(self.vedofs.ravel(), weights=fe.reshape(-1, fe.shape[-1]).ravel(),
+                           minlength=self.n_vector)
 
     def body_load(self, b: np.ndarray) -> np.ndarray:
         """``∫ b · v dx`` for a constant body force density ``b`` (3,)."""
