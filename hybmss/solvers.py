@@ -14,7 +14,7 @@ over the free degrees of freedom, with a sparse direct solve and a backtracking 
 **Zero-energy modes.**  Without face diagonals (``hybmss-fd``) the cubic lattice has hourglass
 modes, so the constrained Hessian can be singular even with clamped plates.  When the
 factorization fails or the Newton direction is not a descent direction, the solver adds a
-Levenberg–Marquardt shift ``μ·mean(diag H)·I`` (μ from 1e-10, ×100 until it works).  The shift
+Levenberg–Marquardt shift ``μ·mean(diag H)·I`` (μ from 1e-6, ×100 until it works).  The shift
 only damps the step; convergence is still judged on the unshifted force residual, so the result is
 an exact equilibrium in which the zero-energy modes keep their initial (zero) amplitude.  Each
 result records in ``info['regularized_steps']`` how often this happened.
@@ -52,6 +52,9 @@ class StaticOptions:
     min_step: float = 1.0 / 4096
     max_step: float = 1.0
     line_search: bool = True
+    check_stability: bool = True
+    """Check the smallest eigenvalue of the constrained Hessian at the solution and leave saddles."""
+    max_escapes: int = 5
 
 
 @dataclass(frozen=True)
@@ -153,7 +156,8 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
 
     e, f = potential(x)
     floor = _force_floor(system)
-    best, stalled = np.inf, 0
+    best, e_best, stalled = np.inf, np.inf, 0
+    mu_last = 0.0
     for it in range(max_iter + 1):
         r = f.ravel()[free]
         rnorm = float(np.linalg.norm(r))
@@ -165,8 +169,11 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             return True, x, f, rnorm, scale
         if it == max_iter:
             break
-        # give up early when the residual has not improved for 6 iterations (unstable state)
-        best, stalled = (rnorm, 0) if rnorm < 0.5 * best else (best, stalled + 1)
+        # give up early when for 6 iterations neither the residual has halved nor the energy
+        # dropped by more than 1e-8 of the potential's scale (no progress toward a minimum)
+        progress = rnorm < 0.5 * best or e < e_best - 1e-8 * max(abs(e_best), floor * system.scene.body.le)
+        best, e_best = min(best, rnorm), min(e_best, e)
+        stalled = 0 if progress else stalled + 1
         if stalled >= 6:
             break
         dx = None
@@ -178,14 +185,15 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             else:
                 lu = None
         fresh = dx is None
-        mu = 0.0
+        # the shift starts from a tenth of the last one that worked (0 after an unshifted step)
+        mu = 0.0 if mu_last < 1e-6 else mu_last / 10.0
         if fresh:
             H = hessian(system, x)
             if inertia is not None:
                 H = H + sp.diags(np.repeat(inertia[0], 3))
             Hff = H[free][:, free].tocsc()
             diag_mean = float(np.abs(Hff.diagonal()).mean())
-        for attempt in range(8 if fresh else 0):
+        for attempt in range(5 if fresh else 0):
             A = Hff if mu == 0.0 else (Hff + sp.identity(Hff.shape[0], format="csc") * (mu * diag_mean))
             try:
                 with np.errstate(all="ignore"):
@@ -198,9 +206,11 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                 dx = cand
                 break
             lu = None
-            mu = 1e-10 if mu == 0.0 else mu * 100.0
+            mu = 1e-6 if mu == 0.0 else mu * 100.0
         if dx is None:
             return False, x, f, rnorm, scale
+        if fresh:
+            mu_last = mu
         if mu > 0.0:
             stats.regularized += 1
         stats.iterations += 1
@@ -267,18 +277,62 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
     return x + delta.reshape(x.shape), lu
 
 
-def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
-    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m)."""
+def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray]:
+    """Smallest eigenvalue (N/m) of the constrained Hessian at ``x`` and its eigenvector
+    (over the free dofs)."""
     free = ~system.fixed.ravel()
     Hff = hessian(system, x)[free][:, free]
-    if Hff.shape[0] <= 200:
-        return float(np.linalg.eigvalsh(Hff.toarray())[0])
+    if Hff.shape[0] <= 600:
+        w, v = np.linalg.eigh(Hff.toarray())
+        return float(w[0]), v[:, 0]
     try:
-        vals = spla.eigsh(Hff.tocsc(), k=1, sigma=-1e-3 * abs(Hff.diagonal()).max(), which="LM",
-                          return_eigenvectors=False)
-        return float(vals[0])
+        shift = -1e-3 * abs(Hff.diagonal()).max()
+        vals, vecs = spla.eigsh(Hff.tocsc(), k=1, sigma=shift, which="LM")
+        return float(vals[0]), vecs[:, 0]
     except Exception:  # pragma: no cover - fall back to a dense solve
-        return float(np.linalg.eigvalsh(Hff.toarray())[0])
+        w, v = np.linalg.eigh(Hff.toarray())
+        return float(w[0]), v[:, 0]
+
+
+def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
+    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m)."""
+    return smallest_eigenpair(system, x)[0]
+
+
+def _stability(S: System, x: np.ndarray, free: np.ndarray):
+    """``(stable, lam, vec)`` at ``x``.  The inertia of the constrained Hessian comes for free
+    from its symmetric LU (no pivoting: the pivots are the D of LDLᵀ, Sylvester's law); only when
+    a pivot is negative is the smallest eigenpair computed."""
+    Hff = hessian(S, x)[free][:, free].tocsc()
+    tol = 1e-9 * float(np.abs(Hff.diagonal()).mean())
+    try:
+        with np.errstate(all="ignore"):
+            pivots = _factor(Hff).U.diagonal()
+        if np.all(np.isfinite(pivots)) and pivots.min() > tol:
+            return True, float("nan"), None
+    except RuntimeError:  # singular: zero-energy modes, decide from the eigenvalue
+        pass
+    lam, vec = smallest_eigenpair(S, x)
+    return lam >= -tol, lam, vec
+
+
+def _escape_saddle(S: System, x: np.ndarray, free: np.ndarray, vec: np.ndarray):
+    """The point of lowest energy along the unstable eigenvector ``vec`` (both signs, amplitudes
+    from 1e-3 to 3 le for the largest particle displacement); None if none is lower."""
+    e0 = energy_forces(S, x)[0] + dead_load_energy(S, x)
+    step = np.zeros(x.size)
+    step[free] = vec / np.abs(vec).max()
+    step = step.reshape(x.shape)
+    best, best_e = None, e0
+    for amp in (1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0, 3.0):
+        for sign in (1.0, -1.0):
+            xt = x + sign * amp * S.scene.body.le * step
+            if np.any(cell_volumes(xt, S.lattice.cells) <= 0.0):
+                continue
+            et = energy_forces(S, xt)[0] + dead_load_energy(S, xt)
+            if et < best_e:
+                best, best_e = xt, et
+    return best
 
 
 def _result(system: System, solver: str, x: np.ndarray, f_total: np.ndarray, parts: dict,
@@ -363,11 +417,35 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         ds *= 0.5
         if ds < opts.min_step:
             raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_new))
+    # Stability of the equilibrium found: Newton converges to any stationary point, so check the
+    # smallest eigenvalue of the constrained Hessian and, at a saddle (e.g. the buckled zero-energy
+    # modes of hybmss-fd under compression), descend along the unstable mode and solve again.
+    escapes, lam, stable, warning = 0, None, True, ""
+    if opts.check_stability:
+        for escapes in range(opts.max_escapes + 1):
+            stable, lam, vec = _stability(S, x, free)
+            if stable or escapes == opts.max_escapes:
+                break
+            xt = _escape_saddle(S, x, free, vec)
+            if xt is None:
+                break
+            ok, x_new, f, rnorm, scale = _newton(S, xt, free, opts.rtol, 5 * opts.max_iter, None, stats,
+                                                 opts.line_search)
+            if not ok:
+                warning = (f"the equilibrium found is a saddle (smallest eigenvalue {lam:.4g} N/m: buckling or "
+                           "zero-energy modes); descending along the unstable mode did not reach another "
+                           "equilibrium, so the symmetric stationary state is returned")
+                break
+            x = x_new
     e, f, parts = energy_forces(S, x)
     if "dead_load" in S.extras:
         parts = dict(parts, loads=dead_load_energy(S, x))
     r = float(np.linalg.norm(f.ravel()[free]))
     info = {
+        "min_eigenvalue": lam if lam is not None else float("nan"),
+        "saddle_escapes": int(escapes) if lam is not None else 0,
+        "stable": bool(stable),
+        "warning": warning,
         "load_steps": load_steps,
         "regularized_steps": stats.regularized,
         "line_search_cuts": stats.line_search_cuts,

@@ -100,3 +100,26 @@ def test_damped_explicit_dynamics_settles_to_the_static_equilibrium():
     r = simulate_explicit(sc, dt=dt, steps=steps, ramp_time=2.0)
     assert np.abs(r.u - ref.u).max() <= 1e-4 * 3.0
     assert r.info.get("inverted_cells", 0) == 0
+
+
+def test_buckled_column_leaves_the_symmetric_saddle():
+    """A clamped–clamped column of 2×2×24 cells compressed by 5 %, twice its Euler strain
+    ε_c = π²/3 (a/L)²: the straight state is a saddle; the solver detects it (negative eigenvalue
+    of the constrained Hessian), descends along the unstable mode and returns the buckled
+    equilibrium, which has lower energy and a lateral amplitude close to the elastica estimate
+    A = √(4 L (Δ − ε_c L))/π of the first clamped–clamped mode."""
+    from hybmss.solvers import StaticOptions
+
+    a, L, d = 0.2, 2.4, 0.05
+    sc = Scene(Body.box(2, 2, 24, 0.1), Material(1e4, 0.3), Model("hybmss"),
+               plates=(Plate("bottom", Region("z-")),
+                       Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -d * L)))))
+    straight = solve_static(sc, StaticOptions(check_stability=False))
+    buckled = solve_static(sc)
+    assert buckled.info["stable"] and buckled.info["saddle_escapes"] >= 1
+    assert sum(buckled.energy.values()) < sum(straight.energy.values())
+    eps_c = np.pi**2 / 3 * (a / L) ** 2
+    A = np.sqrt(4 * L * (d * L - eps_c * L)) / np.pi
+    amplitude = np.abs(buckled.u[:, :2]).max()
+    assert np.abs(straight.u[:, :2]).max() < 0.02 * A
+    assert 0.6 * A < amplitude < 1.3 * A
