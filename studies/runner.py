@@ -124,10 +124,11 @@ def measure(spec: SceneSpec, result) -> dict:
         row["tip_deflection"] = tip_deflection(result.X, result.u)
         row["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
     for k in ("inverted_cells", "kappa", "dt_crit", "load_steps", "volume_avg_edges", "volume_lnJ",
-              "newton_iterations", "steps"):
+              "newton_iterations", "steps", "stable", "saddle_escapes", "min_eigenvalue"):
         if k in result.info:
             v = result.info[k]
-            row[k] = float(v) if isinstance(v, (int, float, np.floating, np.integer)) else v
+            row[k] = v if isinstance(v, bool) else (
+                float(v) if isinstance(v, (int, float, np.floating, np.integer)) else v)
     return row
 
 
@@ -175,7 +176,7 @@ def run_task(task: Task, store_root: str) -> dict:
         res = solve(task)
         row.update(measure(task.scene, res))
         row["status"] = "ok" if res.converged else "not-converged"
-        row["message"] = ""
+        row["message"] = str(res.info.get("warning", "") or "")
         from hybmss.lattice import Lattice
 
         arrays = {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
