@@ -26,31 +26,9 @@ import json
 import math
 import sys
 
+from hybmss.cli import OneLineParser, mesh_arg, positive_int
+
 SCENES = ("compression", "tension", "shear", "torsion", "bending")
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _mesh(text: str):
-    from hybmss.scene import parse_mesh
-
-    try:
-        return parse_mesh(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
 
 
 def build_scene(args):
@@ -152,7 +130,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     q = subparsers.add_parser("fem", help="FEM reference (scikit-fem) of a simple scene")
     q.add_argument("--scene", choices=SCENES, default="compression", help="loading (default compression)")
     q.add_argument("--scene-json", default=None, metavar="FILE", help="solve a stored Scene (JSON) instead")
-    q.add_argument("--mesh", type=_mesh, default=(10, 10, 10), help="NXxNYxNZ cells (default 10x10x10)")
+    q.add_argument("--mesh", type=mesh_arg, default=(10, 10, 10), help="NXxNYxNZ cells (default 10x10x10)")
     q.add_argument("--le", type=float, default=0.5, help="cell edge, m (default 0.5)")
     q.add_argument("--E", type=float, default=10_000.0, help="Young's modulus, Pa (default 1e4)")
     q.add_argument("--nu", type=float, default=0.25, help="Poisson ratio in (-1, 0.5) (default 0.25)")
@@ -163,8 +141,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     q.add_argument("--element", choices=ELEMENT_CHOICES, default="auto",
                    help="hex1, hex2, mixed (Hex2 x Hex1 u-p) or auto (mixed for nu >= 0.45; default)")
     q.add_argument("--law", choices=LAW_CHOICES, default="linear", help="material law (default linear)")
-    q.add_argument("--refine", type=_positive_int, default=1, help="split each cell into r^3 elements")
-    q.add_argument("--steps", type=_positive_int, default=None, help="load steps (finite strain; default 5)")
+    q.add_argument("--refine", type=positive_int, default=1, help="split each cell into r^3 elements")
+    q.add_argument("--steps", type=positive_int, default=None, help="load steps (finite strain; default 5)")
     q.add_argument("--convergence", type=_refinements, default=None, metavar="R1,R2[,R3]",
                    help="solve on these refinements; report observed order and Richardson errors")
     q.add_argument("--solver", choices=("auto", "direct", "amg"), default="auto", help="linear solver")
@@ -178,8 +156,8 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] != "fem":
         argv = ["fem"] + argv
-    p = _Parser(prog="hybmss")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = OneLineParser(prog="hybmss")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     register(sub)
     args = p.parse_args(argv)
     try:

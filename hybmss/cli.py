@@ -20,7 +20,9 @@ class CliError(Exception):
     """A bad argument: reported on one line, exit status 2."""
 
 
-class _Parser(argparse.ArgumentParser):
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line with exit status 2."""
+
     def error(self, message):  # one line, exit 2
         self.exit(2, f"{self.prog}: error: {message}\n")
 
@@ -111,8 +113,8 @@ def cmd_bench(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="hybmss", description="Hybrid mass-spring systems validated against finite elements.")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = OneLineParser(prog="hybmss", description="Hybrid mass-spring systems validated against finite elements.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
 
     q = sub.add_parser("info", help="lattice counts of a box mesh (SPEC Table 6)")
     q.add_argument("--mesh", type=mesh_arg, default=(10, 10, 10), help="NXxNYxNZ cells (default 10x10x10)")
