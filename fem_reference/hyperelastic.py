@@ -18,8 +18,10 @@ Load stepping: the plates' displacements (exact rigid rotations for ``rotate``) 
 are scaled by s = s₁ < s₂ < … < 1.  The first step starts from the undeformed state and its first
 Newton iteration imposes the plate displacements as an inhomogeneous Dirichlet increment (a
 linearized predictor); later steps start from the secant extrapolation of the last two converged
-states (plates set to their exact values), unless that inverts an element.  An increment that
-converged in at most :data:`GROW_ITERATIONS` iterations doubles the next one.  Linear systems
+states (plates set to their exact values), unless that inverts an element.  The first increment
+is the whole load; an increment that converged in at most :data:`GROW_ITERATIONS` iterations
+doubles the next one.  An increment larger than ``1/steps`` gets at most
+:data:`OPTIMISTIC_MAXITER` iterations; if it fails, the next increment is ``1/steps``.  Linear systems
 inside Newton are solved inexactly when iterative (relative tolerance ``0.1 ‖R‖/‖f‖`` within
 [:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]).  A trial update
 is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
@@ -46,6 +48,8 @@ from .mesh import FemMesh
 from .space import Space
 
 
+OPTIMISTIC_MAXITER = 6
+"""Newton iterations allowed to an increment larger than ``1/steps``."""
 GROW_ITERATIONS = 4
 """A load step that converges in at most this many Newton iterations doubles the next increment."""
 LINEAR_RTOL_MAX = 1e-3
@@ -166,11 +170,12 @@ class Hyperelasticity:
         load: np.ndarray | None = None,
         adaptive: bool = True,
     ) -> tuple[Solution, NewtonLog]:
-        """Solve up to load factor 1, first increment ``1/steps`` (halved on failure, doubled after
-        a fast step).
+        """Solve up to load factor 1: one full step first, then increments of ``1/steps`` (halved on
+        failure, doubled after a fast step).
         ``load``: extra dead load vector (n_vector,), e.g. surface tractions, scaled with gravity.
-        ``adaptive=False``: equal increments from the linearized predictor only (no secant
-        predictor, no growth), and linear solves to the tightest tolerance."""
+        ``adaptive=False``: equal increments ``1/steps`` from the linearized predictor only (no
+        full first step, no secant predictor, no growth), and linear solves to the tightest
+        tolerance."""
         if self.mixed and material.lam <= 0:
             raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
         lam, mu = material.lam, material.G
@@ -190,16 +195,21 @@ class Hyperelasticity:
         C = self.pressure_mass / lam if self.mixed else None
         amg_cache: dict = {}  # AMG hierarchy reused across Newton iterations (same free dofs)
 
-        s_done, ds = 0.0, 1.0 / max(1, int(steps))
+        base = 1.0 / max(1, int(steps))
+        s_done, ds = 0.0, (1.0 if adaptive else base)
         prev = None  # (s, U, p) of the previous converged step, for the secant predictor
         while s_done < 1.0 - 1e-14:
             s = min(1.0, s_done + ds)
+            # An increment above the base one (the first full step, or grown) is optimistic: it
+            # gets few iterations, and on failure the base increment takes over.
+            optimistic = s - s_done > base * (1.0 + 1e-9)
+            its_max = min(maxiter, OPTIMISTIC_MAXITER) if optimistic else maxiter
             guess = None
             if adaptive and prev is not None and s_done > prev[0]:
                 r = (s - s_done) / (s_done - prev[0])
                 guess = (U + r * (U - prev[1]), None if p is None else p + r * (p - prev[2]))
             ok, U_new, p_new, its, res = self._step(
-                U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C, amg_cache,
+                U, p, s, fext, dirichlet, material, free, atol, rtol, its_max, method, stats, C, amg_cache,
                 guess, adaptive,
             )
             log.iterations += its
@@ -211,7 +221,7 @@ class Hyperelasticity:
                     ds *= 2.0
                 continue
             log.rejected_steps += 1
-            ds *= 0.5
+            ds = base if optimistic else 0.5 * min(ds, s - s_done)
             if ds < min_increment:
                 log.converged = False
                 st = self._evaluate(U, p, s_done, fext, material, tangent=False)
