@@ -34,6 +34,24 @@ class Figure:
     caption: str
 
 
+
+def _shared_legend(fig, axes, ncol=None, **kw):
+    """One legend for a grid of axes: each label once, in order of appearance."""
+    handles, labels = [], []
+    for ax in axes.flat:
+        for h, l in zip(*ax.get_legend_handles_labels()):
+            if l not in labels:
+                handles.append(h)
+                labels.append(l)
+    fig.legend(handles, labels, ncol=ncol or max(1, len(labels)), frameon=False, **kw)
+
+
+def _nu_axis(ax):
+    """The publication's three Poisson ratios on the x axis."""
+    ax.set_xlabel("ν")
+    ax.set_xticks(list(NUS))
+    ax.set_xticklabels(["0", "0.25", "0.499"])
+
 def _save(plt, fig, path: Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -191,13 +209,7 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
                     ax.set_xlabel(names[0])
                 if j == 0:
                     ax.set_ylabel(names[1])
-        handles, labels = [], []
-        for ax in axes.flat:
-            for h, l in zip(*ax.get_legend_handles_labels()):
-                if l not in labels:
-                    handles.append(h)
-                    labels.append(l)
-        fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False, bbox_to_anchor=(0.5, 1.0))
+        _shared_legend(fig, axes, loc="lower center", ncol=None, bbox_to_anchor=(0.5, 1.0))
         fig.tight_layout()
         _save(plt, fig, path)
     r0 = df.iloc[0]
@@ -245,18 +257,10 @@ def volume_change(results: Results, path: Path) -> Figure | None:
                             color=palette.color(base if base != "FEM-linear" else "fem"),
                             label=m.replace("paper", "[G20]"))
             ax.set_title(f"{exp}, d = {100 * d:g} %\nmesh {mesh}")
-            ax.set_xlabel("ν")
-            ax.set_xticks(list(NUS))
-            ax.set_xticklabels(["0", "0.25", "0.499"])
+            _nu_axis(ax)
         for r in range(nrow):
             axes[r, 0].set_ylabel("relative volume change e (%)")
-        handles, labels = [], []
-        for ax in axes.flat:
-            for h, l in zip(*ax.get_legend_handles_labels()):
-                if l not in labels:
-                    handles.append(h)
-                    labels.append(l)
-        fig.legend(handles, labels, loc="upper center", ncol=4, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        _shared_legend(fig, axes, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.0))
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("fig_e", "Relative volume change against ν (Tables 2, 3)", Path(path),
@@ -294,18 +298,10 @@ def reactions(results: Results, path: Path) -> Figure | None:
                             lw=1.0, label=m.replace(" static", ""))
             lab = f"θ = {v:g}°" if col == "angle_deg" else f"d = {100 * v:g} %"
             ax.set_title(f"{exp}, {lab}\nmesh {mesh}")
-            ax.set_xlabel("ν")
-            ax.set_xticks(list(NUS))
-            ax.set_xticklabels(["0", "0.25", "0.499"])
+            _nu_axis(ax)
             ax.set_ylabel(f"{q} ({unit})")
             ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
-        handles, labels = [], []
-        for ax in axes.flat:
-            for h, l in zip(*ax.get_legend_handles_labels()):
-                if l not in labels:
-                    handles.append(h)
-                    labels.append(l)
-        fig.legend(handles, labels, loc="upper center", ncol=4, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        _shared_legend(fig, axes, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.0))
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("fig_reactions", "Top-plate reactions against ν (Tables 4, 5)", Path(path),
@@ -342,9 +338,7 @@ def differences(results: Results, path: Path) -> Figure | None:
                             lw=1.0, label=f"{m.replace(' static', '')}, {lab}")
             ax.set_yscale("log")
             ax.set_title(f"{exp}, mesh {mesh}")
-            ax.set_xlabel("ν")
-            ax.set_xticks(list(NUS))
-            ax.set_xticklabels(["0", "0.25", "0.499"])
+            _nu_axis(ax)
         axes[0, 0].set_ylabel("‖u_MSS − u_FEM‖ / ‖u_FEM‖ (%)")
         from matplotlib.lines import Line2D
 
@@ -505,13 +499,7 @@ def performance(df: pd.DataFrame, path: Path) -> Figure | None:
             ax.set_ylabel("time per step (ms)")
             if scene is not None:
                 ax.set_title(str(scene))
-        handles, labels = [], []
-        for ax in axes.flat:
-            for h, l in zip(*ax.get_legend_handles_labels()):
-                if l not in labels:
-                    handles.append(h)
-                    labels.append(l)
-        fig.legend(handles, labels, loc="upper center", ncol=3, frameon=False, bbox_to_anchor=(0.5, 0.0), fontsize=7)
+        _shared_legend(fig, axes, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.0), fontsize=7)
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("fig_performance", "Time per explicit step against the number of volumes (Figs 11, 12)", Path(path),
@@ -559,13 +547,7 @@ def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
             ax.set_xlabel("wall time (s)", fontsize=7.5)
         for r in range(nrow):
             axes[r, 0].set_ylabel("nodal error (rel. L2)")
-        handles, labels = [], []
-        for ax in axes.flat:
-            for h, l in zip(*ax.get_legend_handles_labels()):
-                if l not in labels:
-                    handles.append(h)
-                    labels.append(l)
-        fig.legend(handles, labels, loc="upper center", ncol=5, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        _shared_legend(fig, axes, loc="upper center", ncol=5, bbox_to_anchor=(0.5, 0.0))
         fig.tight_layout()
         _save(plt, fig, path)
     more = f" (first {len(shown)} of {len(configs)} configurations; all in the table)" if len(configs) > len(shown) else ""
