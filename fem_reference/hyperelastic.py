@@ -20,10 +20,13 @@ Newton iteration imposes the plate displacements as an inhomogeneous Dirichlet i
 linearized predictor); later steps start from the secant extrapolation of the last two converged
 states (plates set to their exact values), unless that inverts an element.  The first increment
 is the whole load; an increment that converged in at most :data:`GROW_ITERATIONS` iterations
-doubles the next one.  An increment larger than ``1/steps`` gets at most
+(tangent factorizations) doubles the next one.  An increment larger than ``1/steps`` gets at most
 :data:`OPTIMISTIC_MAXITER` iterations; if it fails, the next increment is ``1/steps``.  Linear systems
 inside Newton are solved inexactly when iterative (relative tolerance ``0.1 ‖R‖/‖f‖`` within
-[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]).  A trial update
+[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]); for the mixed element (direct, costly
+factorizations of the saddle-point matrix) the factorization is reused
+for chord steps near the solution while they converge fast (:data:`CHORD_RATIO`,
+:data:`CHORD_NEAR`).  A trial update
 is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
 point) or fails to lower the residual norm; if a step does not converge the load increment is
 halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
@@ -50,6 +53,15 @@ from .space import Space
 
 OPTIMISTIC_MAXITER = 6
 """Newton iterations allowed to an increment larger than ``1/steps``."""
+CHORD_RATIO = 0.25
+"""Mixed element: after a full Newton update that reduced the residual by at least this factor,
+the next iteration reuses the direct factorization (a chord step); it refactorizes when a chord step
+gives no decrease or a slower one."""
+CHORD_NEAR = 1e-3
+"""Chord steps only once the residual is below this fraction of the force scale (near the
+solution, where the tangent changes little)."""
+CHORD_MAXITER_FACTOR = 3
+"""Chord and Newton iterations together: at most this many times ``maxiter``."""
 GROW_ITERATIONS = 4
 """A load step that converges in at most this many Newton iterations doubles the next increment."""
 LINEAR_RTOL_MAX = 1e-3
@@ -194,6 +206,7 @@ class Hyperelasticity:
         log = NewtonLog()
         C = self.pressure_mass / lam if self.mixed else None
         amg_cache: dict = {}  # AMG hierarchy reused across Newton iterations (same free dofs)
+        lu_cache: dict = {}  # last direct factorization, for chord steps
 
         base = 1.0 / max(1, int(steps))
         s_done, ds = 0.0, (1.0 if adaptive else base)
@@ -208,16 +221,16 @@ class Hyperelasticity:
             if adaptive and prev is not None and s_done > prev[0]:
                 r = (s - s_done) / (s_done - prev[0])
                 guess = (U + r * (U - prev[1]), None if p is None else p + r * (p - prev[2]))
-            ok, U_new, p_new, its, res = self._step(
+            ok, U_new, p_new, its, res, fresh = self._step(
                 U, p, s, fext, dirichlet, material, free, atol, rtol, its_max, method, stats, C, amg_cache,
-                guess, adaptive,
+                guess, adaptive, lu_cache if adaptive else None,
             )
             log.iterations += its
             if ok:
                 prev = (s_done, U, p)
                 U, p, s_done = U_new, p_new, s
                 log.steps.append((s, its, res))
-                if adaptive and its <= GROW_ITERATIONS:
+                if adaptive and fresh <= GROW_ITERATIONS:
                     ds *= 2.0
                 continue
             log.rejected_steps += 1
@@ -236,7 +249,7 @@ class Hyperelasticity:
         return Solution(U.reshape(-1, 3), p, r, energy, stats), log
 
     def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
-              amg_cache=None, guess=None, inexact=True):
+              amg_cache=None, guess=None, inexact=True, lu_cache=None):
         mu = material.G
         D = dirichlet.dofs
         target = dirichlet.values(s)
@@ -253,10 +266,17 @@ class Hyperelasticity:
             p = None if p is None else p.copy()
             st = self._evaluate(U, p, s, fext, material, tangent=True)
         if st is None:
-            return False, U, p, 0, np.inf
+            return False, U, p, 0, np.inf, 0
         res = np.inf
-        for it in range(1, maxiter + 1):
+        it = fresh = 0
+        chord = False  # the next iteration may reuse the last factorization (a chord step)
+        while fresh < maxiter and it < CHORD_MAXITER_FACTOR * maxiter:
+            it += 1
             dD = target - U[D]
+            use_chord = chord and self.mixed and lu_cache is not None and "lu" in lu_cache \
+                and not np.any(dD != 0.0)
+            if not use_chord and "K" not in st:
+                st = self._evaluate(U, p, s, fext, material, tangent=True)
             res0 = self._norm(st, free, mu)
             ref0 = max(np.linalg.norm(st["fint"]), s * np.linalg.norm(fext))
             # Inexact Newton: solve the linear system only as accurately as the current residual
@@ -265,14 +285,19 @@ class Hyperelasticity:
             eta = float(np.clip(0.1 * res0 / max(ref0, 1e-300), LINEAR_RTOL_MIN, LINEAR_RTOL_MAX))
             if not inexact:
                 eta = LINEAR_RTOL_MIN
-            if self.mixed:
-                du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
-                                      self.nullspace, 1.0 / mu + 1.0 / material.lam,
-                                      method=method, stats=stats)
+            if use_chord:
+                du, dp = self._chord_solve(lu_cache["lu"], st, free)
+                stats.calls += 1
             else:
-                du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
-                               stats=stats, cache=amg_cache)
-                dp = None
+                fresh += 1
+                if self.mixed:
+                    du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
+                                          self.nullspace, 1.0 / mu + 1.0 / material.lam,
+                                          method=method, stats=stats, cache=lu_cache)
+                else:
+                    du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
+                                   stats=stats, cache=amg_cache)
+                    dp = None
             first = np.any(dD != 0.0)
             alpha, new = 1.0, None
             while alpha >= 1.0 / 64:
@@ -287,19 +312,33 @@ class Hyperelasticity:
                 if first:
                     break  # a predictor that inverts elements: shorten the load step instead
                 alpha *= 0.5
+            if new is None and use_chord:
+                chord = False  # the old factorization no longer gives a descent: refactorize
+                continue
             if new is None:
                 if first:
-                    return False, U, p, it, np.inf
+                    return False, U, p, it, np.inf, fresh
                 # no decrease: accept the full step only if it keeps J > 0 (Newton may overshoot)
                 trial = self._evaluate(U + du, None if p is None else p + dp, s, fext, material, False)
                 if trial is None:
-                    return False, U, p, it, np.inf
+                    return False, U, p, it, np.inf, fresh
                 new = (U + du, None if p is None else p + dp, self._norm(trial, free, mu), trial)
                 alpha = 1.0
             U, p, res, st = new
             ref = max(np.linalg.norm(st["fint"]), s * np.linalg.norm(fext))
             step_small = np.linalg.norm(alpha * du) <= 1e-13 * (np.linalg.norm(U) + self.fmesh.h)
             if res <= rtol * ref + atol or (step_small and res <= 1e-6 * ref + atol):
-                return True, U, p, it, res
-            st = self._evaluate(U, p, s, fext, material, tangent=True)
-        return False, U, p, maxiter, res
+                return True, U, p, it, res, fresh
+            chord = alpha == 1.0 and res <= CHORD_RATIO * res0 and res <= CHORD_NEAR * ref
+        return False, U, p, it, res, fresh
+
+    def _chord_solve(self, lu, st, free):
+        """Newton update with an earlier factorization (prescribed dofs already at their values)."""
+        du = np.zeros(len(free))
+        if self.mixed:
+            nf = int(free.sum())
+            x = lu.solve(np.concatenate([-st["Ru"][free], -st["Rp"]]))
+            du[free] = x[:nf]
+            return du, x[nf:]
+        du[free] = lu.solve(-st["Ru"][free])
+        return du, None

@@ -98,7 +98,8 @@ def solve_spd(
     ``nullspace`` (n, 6) are the rigid-body modes (used by AMG only).  ``cache`` (a dict kept by
     the caller, e.g. across Newton iterations with the same prescribed dofs) keeps the AMG
     hierarchy of an earlier matrix as the preconditioner; it is rebuilt when CG needs more than
-    twice the iterations per decade of residual reduction it needed when built.
+    twice the iterations per decade of residual reduction it needed when built.  A direct solve
+    stores its factorization of the free-dof matrix in ``cache["lu"]``.
     """
     n = K.shape[0]
     free = np.ones(n, dtype=bool)
@@ -114,6 +115,8 @@ def solve_spd(
                        options=dict(SymmetricMode=True))
         x = lu.solve(b)
         its = 1
+        if cache is not None:
+            cache["lu"] = lu
     else:
         reuse = cache is not None and cache.get("n") == A.shape[0] and "M" in cache
         M = cache["M"] if reuse else _amg(A, np.ascontiguousarray(nullspace[free]))
@@ -151,11 +154,14 @@ def solve_saddle(
     method: str = "auto",
     rtol: float = 1e-11,
     stats: SolveStats | None = None,
+    cache: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Solve ``[[A, Bᵀ], [B, −C]] [u; p] = [f; g]`` with ``u[D] = uD``; returns ``(u, p)``.
 
     ``schur_scale`` multiplies the pressure mass matrix in the preconditioner:
-    ``S ≈ schur_scale · C_mass`` (use ``1/μ + 1/λ`` with ``C = M_p/λ``).
+    ``S ≈ schur_scale · C_mass`` (use ``1/μ + 1/λ`` with ``C = M_p/λ``).  ``cache``: a dict
+    that receives the factorization (``cache["lu"]``, of the system on the free dofs and the
+    pressure) when the solve is direct.
     """
     n, m = A.shape[0], B.shape[0]
     free = np.ones(n, dtype=bool)
@@ -178,6 +184,8 @@ def solve_saddle(
                        options=dict(SymmetricMode=True))
         x = lu.solve(rhs)
         its = 1
+        if cache is not None:
+            cache["lu"] = lu  # the caller may reuse the factorization (chord steps)
     else:
         Ma = _amg(Aff.tocsr(), np.ascontiguousarray(nullspace[free]))
         # Lumped pressure mass for the Schur block.
