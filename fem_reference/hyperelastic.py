@@ -28,8 +28,8 @@ factorizations of the saddle-point matrix) the factorization is reused
 for chord steps near the solution while they converge fast (:data:`CHORD_RATIO`,
 :data:`CHORD_NEAR`).  A trial update
 is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
-point) or fails to lower the residual norm; if a step does not converge the load increment is
-halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
+point) or lowers neither the residual norm nor (displacement formulation) the potential energy;
+if a step does not converge the load increment is halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
 
 The reaction of the plates is ``r = f_int(u) − f_ext`` at the prescribed dofs.
 """
@@ -299,6 +299,15 @@ class Hyperelasticity:
                                    stats=stats, cache=amg_cache)
                     dp = None
             first = np.any(dD != 0.0)
+            # Merit of the line search: the residual norm, or (displacement formulation, a
+            # minimum) the potential energy Π = ∫ψ − s fext·u, whose slope along du is Ru·du.
+            # Far from equilibrium under rotations the Newton step can raise ‖R‖ (spurious
+            # stresses of the linearized rotation) while lowering Π: accept on either.
+            energy_merit = not self.mixed and not first
+            if energy_merit:
+                pi0 = self._potential(st, U, s, fext)
+                slope = float(st["Ru"] @ du)
+                energy_merit = slope < 0.0
             alpha, new = 1.0, None
             while alpha >= 1.0 / 64:
                 Ut = U + alpha * du
@@ -306,7 +315,9 @@ class Hyperelasticity:
                 trial = self._evaluate(Ut, pt, s, fext, material, tangent=False)
                 if trial is not None:
                     rt = self._norm(trial, free, mu)
-                    if first or rt <= (1.0 - 1e-4 * alpha) * res0 or rt <= atol:
+                    if first or rt <= (1.0 - 1e-4 * alpha) * res0 or rt <= atol or (
+                            energy_merit
+                            and self._potential(trial, Ut, s, fext) <= pi0 + 1e-4 * alpha * slope):
                         new = (Ut, pt, rt, trial)
                         break
                 if first:
@@ -331,6 +342,10 @@ class Hyperelasticity:
                 return True, U, p, it, res, fresh
             chord = alpha == 1.0 and res <= CHORD_RATIO * res0 and res <= CHORD_NEAR * ref
         return False, U, p, it, res, fresh
+
+    def _potential(self, st, U, s, fext) -> float:
+        """Π = ∫ψ − s fext·u (displacement formulation)."""
+        return self.space.integrate(st["psi"]) - s * float(fext @ U)
 
     def _chord_solve(self, lu, st, free):
         """Newton update with an earlier factorization (prescribed dofs already at their values)."""

@@ -72,3 +72,19 @@ def test_adaptive_newton_same_answer(law, element, nu):
     assert np.abs(new.r[D] - ref.r[D]).max() <= 1e-8 * np.abs(ref.r[D]).max()
     if element == "mixed":
         assert np.abs(new.p - ref.p).max() <= 1e-8 * np.abs(ref.p).max()
+
+
+def test_energy_line_search_cantilever_same_answer():
+    """A soft cantilever under its weight (large rotations, where the line search takes the
+    potential energy as its merit): the adaptive scheme reaches the equilibrium of ten equal
+    increments, in fewer iterations."""
+    body = Body.box(1, 1, 6, 0.4)
+    sc = Scene(body, Material(2e6, 0.25, 1000.0), plates=(Plate("clamp", Region("z-")),),
+               gravity=(0.0, -10.0, 0.0))
+    hy = Hyperelasticity(build_mesh(body, 1), "hex2", "neo-hookean")
+    dirichlet = plate_dirichlet(sc, hy.space)
+    ref, log_ref = hy.solve(sc.material, dirichlet, sc.gravity, steps=10, method="direct", adaptive=False)
+    new, log_new = hy.solve(sc.material, dirichlet, sc.gravity, steps=10, method="direct")
+    assert np.abs(ref.U).max() > 0.5  # tip deflection of the order of the length: large rotation
+    assert log_new.iterations < log_ref.iterations
+    assert np.abs(new.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
