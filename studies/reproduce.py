@@ -55,10 +55,11 @@ def fem_solvers(spec: SceneSpec, quick: bool, sweep_svk: bool = True) -> list[So
 
 
 def _mss_models(nu: float):
-    """Variants compared at every ν, plus the E-form of [G20] eq. 5.12 where it differs (ν ≠ 1/4)."""
+    """Variants compared at every ν, plus the E-form of [G20] eq. 5.12 (hybmss and hybmss-fd)
+    where it differs from the G-form (ν ≠ 1/4)."""
     out = [dict(model=m) for m in MSS_MODELS]
     if nu != 0.25:
-        out.append(dict(model="hybmss", e_form=True))
+        out += [dict(model="hybmss", e_form=True), dict(model="hybmss-fd", e_form=True)]
     return out
 
 
