@@ -10,7 +10,7 @@ Six parts, each a table in the results store:
     defined; with the implicit mass-proportional damping c the limit of one mode becomes
     ``ω dt < 2 √(1 + c dt/2)`` (derived from the step's 2×2 amplification matrix, trace
     ``1 + d − d ω² dt²``, determinant ``d = 1/(1 + c dt)``).
-(b), (c) ``stability``: static Newton and the publication's explicit protocol (1 ms × 10,000
+(b), (c) ``stability_extreme``: static Newton and the publication's explicit protocol (1 ms × 10,000
     steps, c = 2 s⁻¹, ramp 1 s) at 20 % and 50 % compression, 45° and 90° torsion, 50 % shear,
     ν ∈ {0, ¼, 0.499}, each variant, on a small cube; the status (converged, diverged,
     unstable = static equilibrium lost, error), the count of inverted cells (V' ≤ 0) of the final
@@ -22,7 +22,7 @@ Six parts, each a table in the results store:
     and beyond); the stretch at the loss lies between ``1 + s_last`` and ``1 + s_fail``.  For each
     variant, with the quadratic volume energy and with the ``squared`` alternative; plus whether
     the publication's 20 % tension at ν = 0 is reached (static and explicit protocol).
-(e) ``stability`` (part e): irregular input — a lattice whose particles are jittered by 10 % of
+(e) ``stability_irregular``: irregular input — a lattice whose particles are jittered by 10 % of
     le at rest (uniform in each component, seeded; particles on the plates keep their z so the
     plates still select them), an L-shaped voxel body, a single cell, a one-cell-thick wall;
     5 % compression (the single cell: top sliding down, free sideways); cube 4³, L 4×3×4 minus a
@@ -37,7 +37,7 @@ Six parts, each a table in the results store:
     the static equilibrium, at each ν: explicit runs of increasing length (a grid of step counts),
     the first count from which every longer run on the grid stays within tolerance.
 
-Runs of (b)–(d) and (f) go through :func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
+``stability`` is the extreme and irregular tables together.  Runs of (b)–(d) and (f) go through :func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
 call the solvers directly (bisection and custom systems).
 """
 
