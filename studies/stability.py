@@ -37,7 +37,8 @@ Six parts, each a table in the results store:
     the static equilibrium, at each ν: explicit runs of increasing length (a grid of step counts),
     the first count from which every longer run on the grid stays within tolerance.
 
-``stability`` is the extreme and irregular tables together.  Runs of (b)–(d) and (f) go through :func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
+``stability`` is the extreme and irregular tables together.  Runs of (b)–(d) and (f) go through
+:func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
 call the solvers directly (bisection and custom systems).
 """
 
