@@ -7,27 +7,37 @@ For each experiment (compression, tension, shear, torsion, bending) and configur
 - the mass-spring variants (hybmss, hybmss-fd, hybmss-cf) with each solver: static Newton, implicit
   Euler to rest (dt = 0.25 s, at most 40 steps = 10 s, plates ramped over 1 s, c = 2 s⁻¹) and the
   publication's explicit protocol (dt = 1 ms × 10,000 steps, c = 2 s⁻¹, ramp 1 s), at the base
-  resolution and its refinements (cube 5³, 10³; beam 2×2×12, 4×4×24, 8×8×48, where the finest
-  has no explicit run of hybmss-cf, as in the reproduction study); implicit for hybmss at the
-  base resolution only (a Newton solve per step makes it the most expensive solver);
-- the FEM itself: Hex1 at every resolution (cube also 15³), Hex2 and mixed u–p at the
-  resolutions coarser than the reference's (cube 5³; beam 2×2×12 and 4×4×24), with the
-  reference's law.
+  resolution and its refinements (the finest beam has no explicit run of hybmss-cf, as in the
+  reproduction study); implicit for hybmss at the base resolution only (a Newton solve per step
+  makes it the most expensive solver);
+- the FEM itself: Hex1 at every resolution (cube also ×3), Hex2 and mixed u–p at the resolutions
+  coarser than the reference's, with the reference's law.
 
-Quick mode (tests): cube 2³ → 4³, beam 1×1×6 → 2×2×12, ν = ¼, 5 %, 1°, E = 10 MPa, linear law.
-``run(..., experiments=..., nus=...)`` restricts the configurations (the bending ones keep ν = ¼).
+Resolutions (:data:`LEVELS`; base → MSS refinements → reference):
+
+- ``medium`` (default): cube 3³ → 6³ → reference 6³; beam 1×1×6 → 2×2×12, 4×4×24 → reference
+  4×4×24.  The beam runs at 4×4×24 (reference, MSS static and explicit) are those of the
+  reproduction study, so ``make reproduce-paper`` computes them once.
+- ``full``: cube 5³ → 10³ → reference 10³; beam 2×2×12 → 4×4×24, 8×8×48 → reference 8×8×48 (also
+  shared with the reproduction study; the Hex2 Neo-Hookean references of the beam under gravity
+  are the long pole, tens of minutes on a loaded 2-core machine).
+- ``quick`` (tests): cube 2³ → 4³, beam 1×1×6 → 2×2×12, ν = ¼, 5 %, 1°, E = 10 MPa, linear law.
+
+``run(..., experiments=..., nus=..., level=...)`` restricts the configurations (the bending ones
+keep ν = ¼) or picks the level.
 
 **Reference.**  The finest FEM that fits the time budget: Hex2 (mixed u–p Hex2×Hex1 for
-ν ≥ 0.45, ``element='auto'``) on the cube 10³ / the beam 8×8×48, with the law of
-:func:`studies.compare.default_law` (linear up to 5 %, Neo-Hookean above, Neo-Hookean for the
-beam under gravity).  These are the runs of the reproduction studies, so ``make reproduce-paper``
-computes them once.  Its discretization error is estimated by Richardson from the same element
-one level coarser (cube 5³, beam 4×4×24; ratio 2): ``‖u_ref − u_coarse‖ / ((2^p − 1) ‖u_ref‖)``
-with p = 2 assumed (the clamped edges limit the smoothness; Hex2's nominal order is higher, so
-the estimate is conservative).  Errors below about this estimate are not resolved.
+ν ≥ 0.45, ``element='auto'``; Hex2 for the beam under gravity) at the reference resolution, with
+the law of :func:`studies.compare.default_law` (linear up to 5 %, Neo-Hookean above, Neo-Hookean
+for the beam under gravity).  Its discretization error is estimated by Richardson from the same
+element one level coarser (ratio 2): ``‖u_ref − u_coarse‖ / ((2^p − 1) ‖u_ref‖)`` with p = 2
+assumed (the clamped edges limit the smoothness; Hex2's nominal order is higher, so the estimate
+is conservative).  Errors below about this estimate are not resolved.  At ν = 0 compression and
+tension are homogeneous (no lateral strain), every FEM is exact and the estimate is ~1e-15.
 
 **Error.**  Relative L2 of the nodal displacement at the shared coarse points: the particles of
-the base lattice (cube 5³: 216 points; beam 2×2×12: 117 points) that no plate prescribes.  Every
+the base lattice that no plate prescribes (medium: cube 32, beam 20 points; full: cube 144, beam
+99 points).  Every
 resolution is an integer multiple of the base, so each run has a particle (or a FEM vertex) at
 every shared point: values are sampled, never interpolated.  Also a scalar per experiment:
 volume change (error |e − e*| in units of the imposed strain d), shear force F_x, torque T_z,
@@ -67,12 +77,11 @@ LEVELS = {
     "full": {"cube": ((5, 5, 5), (1, 2), (1, 2, 3), 2), "beam": ((2, 2, 12), (1, 2, 4), (1, 2, 4), 4)},
 }
 """Per level and body kind: base mesh, MSS resolution factors, Hex1 factors, reference factor.
-``full`` is the study of ``make reproduce-paper``; ``medium`` the same design on coarser bases
-(cube 3³ → reference 6³, beam 1×1×6 → reference 4×4×24) for a loaded or small machine."""
+``medium`` is the study of ``make reproduce-paper``; ``full`` the same design on finer bases."""
 
 
 def bases(quick: bool, level: str | None = None) -> dict:
-    return LEVELS[level or ("quick" if quick else "full")]
+    return LEVELS[level or ("quick" if quick else "medium")]
 
 
 def configs(quick: bool, experiments=EXPERIMENTS, nus=None, level: str | None = None) -> list[SceneSpec]:
