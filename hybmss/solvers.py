@@ -48,6 +48,9 @@ class StaticSolveError(RuntimeError):
 class StaticOptions:
     rtol: float = 1e-8
     max_iter: int = 20
+    """Newton iterations of the first attempt at a load step; a retry after a failed (halved)
+    step gets ``retry_iter``: from the tangent predictor a reachable state converges in a few."""
+    retry_iter: int = 8
     initial_steps: int = 1
     min_step: float = 1.0 / 4096
     max_step: float = 1.0
@@ -398,6 +401,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     s, ds = 0.0, min(opts.max_step, 1.0 / max(1, opts.initial_steps))
     x_prev, s_prev = None, None
     load_steps = 0
+    failed_before = False
     while s < 1.0 - 1e-14:
         s_new = min(1.0, s + ds)
         target = S.prescribed(s_new)
@@ -407,8 +411,10 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
                 guess += (x - x_prev) * ((s_new - s) / (s - s_prev))
         guess[S.fixed] = target[S.fixed]
-        ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, None, stats,
+        iters = opts.max_iter if not failed_before else opts.retry_iter
+        ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, iters, None, stats,
                                              opts.line_search, lu=lu)
+        failed_before = not ok
         if ok:
             load_steps += 1
             x_prev, s_prev, x, s = x, s, x_new, s_new
