@@ -373,11 +373,14 @@ def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, 
     if s == 0.0 and lam < 0:
         return head + ("; the model is not positive definite even at rest (its effective bulk or shear "
                        "modulus is negative for these constants): no stable equilibrium exists")
+    dilating = float(cell_volumes(x, S.lattice.cells).sum()) > float(S.lattice.cell_volumes(S.X).sum())
+    if S.kappa < 0 and dilating:
+        evidence = ("the Hessian becomes indefinite" if min(lam, lam_next) < 0 else
+                    "Newton no longer converges from the tangent predictor, as at a fold")
+        return head + (f"; {evidence}: the volume term has kappa={S.kappa:.4g} Pa < 0 (nu < 1/4) and is "
+                       "unbounded below under dilation, so the equilibrium is lost at a limit point "
+                       "(instability), not a numerical failure")
     if min(lam, lam_next) < 0:
-        if S.kappa < 0:
-            return head + (f"; the volume term has kappa={S.kappa:.4g} Pa < 0 (nu < 1/4) and is unbounded "
-                           "below under dilation: the equilibrium is lost at a limit point (instability), "
-                           "not a numerical failure")
         return head + "; the Hessian becomes indefinite: the equilibrium path is unstable (buckling or zero-energy modes)"
     return head + "; the Hessian stays positive definite: Newton failed to converge (try more load steps)"
 
