@@ -158,10 +158,10 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
     unknown = [n for n in names if n not in STUDIES and n not in EXTRA_STUDIES]
     if unknown:
         raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(list(STUDIES) + list(EXTRA_STUDIES))}")
-    rows = []
-    for name in names:
-        if name in STUDIES:
-            rows += run_tasks(tasks_for([name], quick), store, jobs=jobs, progress=progress, desc=name)
+    # one pool for every task list, so that no core idles at the end of a study's slowest run
+    listed = [n for n in names if n in STUDIES]
+    rows = run_tasks(tasks_for(listed, quick), store, jobs=jobs, progress=progress,
+                     desc=", ".join(listed)) if listed else []
     write_tables(store)
     for name in names:
         if name in EXTRA_STUDIES:
