@@ -278,8 +278,10 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
 
     diffs = results.table("differences")
     if diffs is not None and len(diffs):
-        a = diffs[diffs["method"] == "hybmss static"].set_index(["experiment", "mesh", "nu", "d", "angle_deg"])["rel_l2"]
-        b = diffs[diffs["method"] == "hybmss-fd static"].set_index(["experiment", "mesh", "nu", "d", "angle_deg"])["rel_l2"]
+        keys = [k for k in ("experiment", "mesh", "nu", "E", "d", "angle_deg") if k in diffs]
+        a = diffs[diffs["method"] == "hybmss static"].set_index(keys)["rel_l2"]
+        b = diffs[diffs["method"] == "hybmss-fd static"].set_index(keys)["rel_l2"]
+        a, b = a[~a.index.duplicated()], b[~b.index.duplicated()]
         common = a.index.intersection(b.index)
         if len(common):
             wins = int((a[common] < b[common]).sum())
