@@ -3,8 +3,8 @@
 Both minimize a potential with Newton's method on the exact Hessian (:func:`hybmss.forces.hessian`)
 over the free degrees of freedom, with a sparse direct solve and a backtracking line search:
 
-- static: ``Π(x) = E_springs + E_volume − Σ m g·x``; the plates' prescribed motion is applied in
-  load steps ``s ∈ (0, 1]`` whose size adapts (halved when Newton fails, grown when it converges
+- static: ``Π(x) = E_springs + E_volume − s Σ m g·x``; the plates' prescribed motion and the body
+  loads (gravity, dead loads) are applied together in load steps ``s ∈ (0, 1]`` whose size adapts (halved when Newton fails, grown when it converges
   quickly).  Converged when ``‖f_free‖₂ ≤ rtol · max(|R|, |m g|)`` with R the largest plate
   reaction (``rtol = 1e-8``).
 - implicit Euler with mass-proportional damping c (1/s): ``M (1 + c dt)(x − x_n)/dt² − M v_n/dt =
@@ -134,7 +134,7 @@ class _NewtonStats:
 
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
             inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True,
-            lu=None):
+            lu=None, load: float = 1.0):
     """Minimize Π (+ inertia term) over the free dofs starting from ``x`` (modified in place).
 
     ``inertia = (w, x_tilde)`` adds ``½ Σ w_a |x_a − x̃_a|²`` (w per particle).
@@ -148,8 +148,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     cells = system.lattice.cells
 
     def potential(xx):
-        e, f, _ = energy_forces(system, xx)
-        e += dead_load_energy(system, xx)
+        e, f = _loaded(system, xx, load)
         if inertia is not None:
             w, xt = inertia
             d = xx - xt
@@ -246,6 +245,20 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     return False, x, f, rnorm, scale
 
 
+def _loaded(system: System, x: np.ndarray, load: float = 1.0):
+    """Potential and forces with the body loads (gravity, dead loads of ``Scene.loads``) scaled by
+    the load factor ``load`` (the static solver ramps them with the plates)."""
+    e, f, parts = energy_forces(system, x)
+    if load != 1.0:
+        if system.gravity is not None:
+            e += (load - 1.0) * parts["gravity"]
+            f = f + (load - 1.0) * system.mass[:, None] * system.gravity[None, :]
+        dead = system.extras.get("dead_load")
+        if dead is not None:
+            f = f + (load - 1.0) * dead
+    return e + load * dead_load_energy(system, x), f
+
+
 def dead_load_energy(system: System, x: np.ndarray) -> float:
     """Potential ``−Σ f·x`` of the dead loads of ``Scene.loads`` (their forces reach
     :func:`energy_forces` through ``system.extras['forces']``, their energy is added here)."""
@@ -259,14 +272,15 @@ def _factor(A):
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
-def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray):
+def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray,
+                       load: float = 1.0):
     """First-order guess for a new load step: move the prescribed dofs to ``target`` and the free
     dofs by the linear response ``δ_f = H_ff⁻¹ (f_f − H_fc δ_c)``.  Returns ``(guess, lu)`` (the
     factorization of H_ff at ``x``, reusable by Newton), or ``(None, None)`` if it fails."""
     H = hessian(system, x).tocsr()
     delta = (target - x).ravel().copy()
     delta[free] = 0.0
-    _, f, _ = energy_forces(system, x)
+    _, f = _loaded(system, x, load)
     rhs = f.ravel()[free] - (H @ delta)[free]
     try:
         with np.errstate(all="ignore"):
@@ -408,7 +422,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     while s < 1.0 - 1e-14:
         s_new = min(1.0, s + ds)
         target = S.prescribed(s_new)
-        guess, lu = _tangent_predictor(S, x, target, free)
+        guess, lu = _tangent_predictor(S, x, target, free, s_new)
         if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
             guess, lu = x.copy(), None
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
@@ -416,7 +430,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         guess[S.fixed] = target[S.fixed]
         iters = opts.max_iter if not failed_before else opts.retry_iter
         ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, iters, None, stats,
-                                             opts.line_search, lu=lu)
+                                             opts.line_search, lu=lu, load=s_new)
         failed_before = not ok
         if ok:
             load_steps += 1

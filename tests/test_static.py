@@ -123,3 +123,18 @@ def test_buckled_column_leaves_the_symmetric_saddle():
     amplitude = np.abs(buckled.u[:, :2]).max()
     assert np.abs(straight.u[:, :2]).max() < 0.02 * A
     assert 0.6 * A < amplitude < 1.3 * A
+
+
+def test_soft_cantilever_under_gravity_is_load_stepped():
+    """Gravity is ramped with the load factor: a cantilever that sags by about half its length
+    (E = 2 MPa, 2.4 m beam) converges, and the clamp carries exactly the weight."""
+    L = 2.4
+    sc = Scene(Body.box(2, 2, 12, 0.2), Material(2e6, 0.25), Model("hybmss"),
+               plates=(Plate("clamp", Region("z-")),), gravity=(0.0, -10.0, 0.0))
+    r = solve_static(sc)
+    assert r.info["load_steps"] > 1
+    assert r.info["relative_residual"] <= 1e-8
+    tip = r.u[np.isclose(r.X[:, 2], L), 1].mean()
+    assert -0.8 * L < tip < -0.3 * L
+    W = 1000.0 * sc.body.volume * 10.0
+    assert r.reactions["clamp"].force[1] == pytest.approx(W, rel=1e-8)
