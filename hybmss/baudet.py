@@ -238,15 +238,10 @@ def total_forces(system, x, s: float = 1.0):
 
 
 def _scale(system, f):
-    scale = 0.0
-    for p in system.plates:
-        scale = max(scale, float(np.linalg.norm(f[p.particles].sum(axis=0))))
-    if system.gravity is not None:
-        scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
-    dead = system.extras.get("dead_load")
-    if dead is not None:
-        scale = max(scale, float(np.abs(dead).sum()))
-    return scale
+    """Force scale of the convergence test: the same as the conservative static solver's."""
+    from .solvers import _force_scale
+
+    return _force_scale(system, f)
 
 
 def _newton(system, x, free, s, rtol, max_iter, stats):
