@@ -323,34 +323,46 @@ def find_bad(x, X, limit2):
 
 
 @njit(**_OPTS)
+def plate_scratch(pl_ptr):
+    """Work arrays of :func:`apply_plates`: a rotation and two (3, largest plate) buffers."""
+    nmax = 1
+    for ip in range(pl_ptr.shape[0] - 1):
+        nmax = max(nmax, pl_ptr[ip + 1] - pl_ptr[ip])
+    return np.empty((3, 3)), np.empty((3, nmax)), np.empty((3, nmax))
+
+
+@njit(**_OPTS)
+def end_of_step(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle,
+                step, dt, ramp_time, R, u_old, u_new, n, nsteps, check_every, limit2):
+    """Prescribe the plates for step ``step`` → ``step + 1`` and, every ``check_every`` steps and at the
+    last one, return the index of a diverged node (−1: none)."""
+    if pl_ptr.shape[0] > 1:
+        s_old = ramp(step * dt, ramp_time)
+        s_new = ramp((step + 1) * dt, ramp_time)
+        apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                     pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new)
+    if (n + 1) % check_every == 0 or n == nsteps - 1:
+        return find_bad(x, X, limit2)
+    return -1
+
+
+@njit(**_OPTS)
 def run_serial(x, v, X, K, l0, offs, groups, kv, coff, squared, has_volume, invm, gacc, has_gravity,
                dt, damp, ramp_time, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                pl_center, pl_angle, step0, nsteps, check_every, limit2, T, ABC, CR, G, F):
     """Advance ``nsteps`` steps from global step ``step0``.  Returns (steps done, bad node or −1)."""
     N = x.shape[1]
     P = coff[7]
-    R = np.empty((3, 3))
-    nmax = 1
-    for ip in range(pl_ptr.shape[0] - 1):
-        nmax = max(nmax, pl_ptr[ip + 1] - pl_ptr[ip])
-    u_old = np.empty((3, nmax))
-    u_new = np.empty((3, nmax))
-    has_plates = pl_ptr.shape[0] > 1
+    R, u_old, u_new = plate_scratch(pl_ptr)
     for n in range(nsteps):
         springs_stage(x, K, l0, offs, T, F, P, 0, N)
         if has_volume:
             cells_stage(x, kv, coff, squared, ABC, CR, G, P, 0, N)
         accumulate_integrate(x, v, F, T, groups, G, coff, has_volume, invm, gacc, has_gravity, dt, damp, P, 0, N)
-        step = step0 + n
-        if has_plates:
-            s_old = ramp(step * dt, ramp_time)
-            s_new = ramp((step + 1) * dt, ramp_time)
-            apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
-                         pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new)
-        if (n + 1) % check_every == 0 or n == nsteps - 1:
-            bad = find_bad(x, X, limit2)
-            if bad >= 0:
-                return n + 1, bad
+        bad = end_of_step(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                          pl_angle, step0 + n, dt, ramp_time, R, u_old, u_new, n, nsteps, check_every, limit2)
+        if bad >= 0:
+            return n + 1, bad
     return nsteps, -1
 
 
@@ -361,13 +373,7 @@ def run_parallel(x, v, X, K, l0, offs, groups, kv, coff, squared, has_volume, in
     """As :func:`run_serial`, stages A and B split over the node ranges ``bounds`` with prange."""
     nchunks = bounds.shape[0] - 1
     P = coff[7]
-    R = np.empty((3, 3))
-    nmax = 1
-    for ip in range(pl_ptr.shape[0] - 1):
-        nmax = max(nmax, pl_ptr[ip + 1] - pl_ptr[ip])
-    u_old = np.empty((3, nmax))
-    u_new = np.empty((3, nmax))
-    has_plates = pl_ptr.shape[0] > 1
+    R, u_old, u_new = plate_scratch(pl_ptr)
     for n in range(nsteps):
         for ch in prange(nchunks):
             lo = bounds[ch]
@@ -378,16 +384,10 @@ def run_parallel(x, v, X, K, l0, offs, groups, kv, coff, squared, has_volume, in
         for ch in prange(nchunks):
             accumulate_integrate(x, v, F, T, groups, G, coff, has_volume, invm, gacc, has_gravity, dt,
                                  damp, P, bounds[ch], bounds[ch + 1])
-        step = step0 + n
-        if has_plates:
-            s_old = ramp(step * dt, ramp_time)
-            s_new = ramp((step + 1) * dt, ramp_time)
-            apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
-                         pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new)
-        if (n + 1) % check_every == 0 or n == nsteps - 1:
-            bad = find_bad(x, X, limit2)
-            if bad >= 0:
-                return n + 1, bad
+        bad = end_of_step(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                          pl_angle, step0 + n, dt, ramp_time, R, u_old, u_new, n, nsteps, check_every, limit2)
+        if bad >= 0:
+            return n + 1, bad
     return nsteps, -1
 
 

@@ -163,7 +163,8 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     for it in range(max_iter + 1):
         r = f.ravel()[free]
         rnorm = float(np.linalg.norm(r))
-        scale = _force_scale(system, f if inertia is None else energy_forces(system, x)[1])
+        # the reaction scale uses the static forces: remove the inertia term (derivable, no re-evaluation)
+        scale = _force_scale(system, f if inertia is None else f + inertia[0][:, None] * (x - inertia[1]))
         stats.history.append(rnorm / scale)
         if not np.isfinite(rnorm):
             return False, x, f, rnorm, scale
@@ -473,7 +474,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         "regularized_steps": stats.regularized,
         "line_search_cuts": stats.line_search_cuts,
         "residual": r,
-        "relative_residual": r / _force_scale(S, f) if _force_scale(S, f) > 0 else 0.0,
+        "relative_residual": r / fscale if (fscale := _force_scale(S, f)) > 0 else 0.0,
         "residual_floor": _force_floor(S),
         "kappa": S.kappa,
         "springs": int(len(S.spring_k)),
