@@ -1,0 +1,140 @@
+"""The explicit protocol of the mass-spring system for models with their own kernels.
+
+The competitors (:mod:`hybmss.models.corot_hex8`, :mod:`hybmss.models.xpbd_nh`) run on the same
+voxel grid as the MSS: nodes are the lattice particles, masses the lumped ``ρ Vc / 8`` per cell
+corner, the plates and their ramp ``s(t) = ½(1 − cos(π t/T))`` those of
+:mod:`hybmss.explicit`, and a run that leaves the physical range raises the same
+:class:`hybmss.explicit.DivergenceError`.  This module holds what they share: the plate arrays of
+the Numba kernels on particle-indexed ``(3, n)`` layouts (read by
+:func:`hybmss._kernels.end_of_step`), the divergence check of the NumPy twins and the
+:class:`~hybmss.result.Result` of a run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..explicit import BLOWUP_FACTOR, RAMP_LAW, DivergenceError
+from ..result import Result, reaction_from_nodal
+from ..system import System
+
+
+@dataclass(frozen=True, eq=False)
+class PlateArrays:
+    """Plates of a system in the layout of :func:`hybmss._kernels.apply_plates`, with particle
+    indices as node numbers (the kernels of the competitors work on ``(3, n)`` particle arrays)."""
+
+    nodes: np.ndarray
+    U1: np.ndarray
+    ptr: np.ndarray
+    mask: np.ndarray
+    kind: np.ndarray
+    disp: np.ndarray
+    axis: np.ndarray
+    center: np.ndarray
+    angle: np.ndarray
+
+    def args(self) -> tuple:
+        return (self.nodes, self.U1, self.ptr, self.mask, self.kind, self.disp, self.axis, self.center,
+                self.angle)
+
+
+def plate_arrays(system: System) -> PlateArrays:
+    """The plates of ``system`` for the kernels.  Raises ``ValueError`` for a motion neither linear
+    in the load factor nor a rotation (the kernels know only those two)."""
+    le = system.scene.body.le
+    nodes, U1, ptr, mask, kind, disp, axis, center, angle = [], [], [0], [], [], [], [], [], []
+    for plate, ps in zip(system.scene.plates, system.plates):
+        m = plate.motion
+        Xp = system.X[ps.particles]
+        u1 = m.displacement_at(Xp, 1.0)
+        if m.kind != "rotate" and not np.allclose(m.displacement_at(Xp, 0.5), 0.5 * u1, rtol=1e-12,
+                                                  atol=1e-12 * le):
+            raise ValueError(f"plate {plate.name!r}: the kernel needs a motion linear in the load factor "
+                             f"or a rotation, got {m.kind!r}; use kernel='numpy'")
+        nodes.append(ps.particles)
+        U1.append(u1.T)
+        ptr.append(ptr[-1] + len(ps.particles))
+        mask.append(ps.constrained)
+        kind.append(1 if m.kind == "rotate" else 0)
+        disp.append(m.displacement)
+        axis.append(m.axis)
+        center.append(m.center if m.center is not None else Xp.mean(axis=0))
+        angle.append(m.angle)
+    n_pl = len(system.plates)
+    return PlateArrays(
+        nodes=np.concatenate(nodes).astype(np.int64) if nodes else np.zeros(0, dtype=np.int64),
+        U1=np.ascontiguousarray(np.concatenate(U1, axis=1)) if U1 else np.zeros((3, 0)),
+        ptr=np.asarray(ptr, dtype=np.int64),
+        mask=np.asarray(mask, dtype=np.bool_).reshape(n_pl, 3),
+        kind=np.asarray(kind, dtype=np.int64),
+        disp=np.asarray(disp, dtype=float).reshape(n_pl, 3),
+        axis=np.asarray(axis, dtype=float).reshape(n_pl, 3),
+        center=np.asarray(center, dtype=float).reshape(n_pl, 3),
+        angle=np.asarray(angle, dtype=float),
+    )
+
+
+def blowup_limit2(system: System) -> float:
+    """Square of the runaway displacement: 10× the largest body edge (as the MSS)."""
+    limit = BLOWUP_FACTOR * max(system.scene.body.size)
+    return limit * limit
+
+
+def find_bad(x: np.ndarray, X: np.ndarray, limit2: float) -> int:
+    """NumPy twin of :func:`hybmss._kernels.find_bad` on (n, 3) arrays."""
+    u2 = np.einsum("ij,ij->i", x - X, x - X)
+    bad = np.flatnonzero(~np.isfinite(u2))
+    if len(bad):
+        return int(bad[0])
+    i = int(np.argmax(u2))
+    return i if u2[i] > limit2 else -1
+
+
+def divergence(system: System, x: np.ndarray, particle: int, step: int, dt: float, dt_c: float | None,
+               check_every: int, model: str) -> DivergenceError:
+    """The :class:`DivergenceError` of a run that left the physical range at ``step``."""
+    grid = tuple(int(g) for g in system.lattice.grid[particle])
+    u = x[particle] - system.X[particle]
+    unorm = float(np.linalg.norm(u))
+    limit = BLOWUP_FACTOR * max(system.scene.body.size)
+    what = ("has a non-finite position" if not np.all(np.isfinite(u)) else
+            f"moved {unorm:.3g} m, more than {BLOWUP_FACTOR:g}× the body size ({limit:.3g} m)")
+    if dt_c is not None and dt > dt_c:
+        cause = f"time step dt={dt:g} s exceeds the explicit stability limit dt_crit≈{dt_c:.4g} s of {model}"
+    else:
+        cause = ("the motion itself ran away (inverted elements under large deformation, or a plate ramp "
+                 "too fast); reduce dt or lengthen the ramp")
+    msg = (f"explicit {model} run diverged at step {step} (t = {step * dt:.6g} s; checked every "
+           f"{check_every} steps): particle {particle} (grid {grid}) {what}. Likely cause: {cause}.")
+    return DivergenceError(msg, step=step, particle=int(particle), grid=grid, displacement=unorm, dt=dt,
+                           dt_crit=float("nan") if dt_c is None else dt_c, positions=x)
+
+
+def run_result(system: System, solver: str, x: np.ndarray, v: np.ndarray, f_int: np.ndarray, energy: dict,
+               steps: int, wall: float, info: dict) -> Result:
+    """Result of an explicit run ending at ``x, v`` with internal forces ``f_int`` (no gravity).
+
+    Reactions as in :func:`hybmss.explicit.simulate_explicit`: ``−(f_int + m g)`` summed over each
+    plate's particles, prescribed components only."""
+    lat = system.lattice
+    vols = lat.cell_volumes(x)
+    reactions = {}
+    for ps in system.plates:
+        idx = ps.particles
+        r = -f_int[idx]
+        if system.gravity is not None:
+            r = r - system.mass[idx, None] * system.gravity[None, :]
+        reactions[ps.name] = reaction_from_nodal(x[idx], r * ps.constrained[None, :])
+    energy = dict(energy)
+    energy["kinetic"] = float(0.5 * np.sum(system.mass[:, None] * v * v))
+    info = dict(info)
+    info.setdefault("ramp_law", RAMP_LAW)
+    info["inverted_cells"] = int(np.count_nonzero(vols <= 0.0))
+    info["max_speed"] = float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0
+    return Result(solver=solver, scene_digest=system.scene.digest(), X=system.X.copy(), u=x - system.X,
+                  volume=float(vols.sum()), volume0=float(lat.cell_volumes(system.X).sum()),
+                  reactions=reactions, energy=energy, iterations=int(steps), wall_time_s=float(wall),
+                  converged=True, cell_volumes=vols, info=info)
