@@ -1,0 +1,177 @@
+"""Numba kernel of ``xpbd-nh``: XPBD substeps with the stable Neo-Hookean constraints.
+
+Layouts as in :mod:`hybmss._kernels` on particle arrays: ``x, v, X`` (3, n); ``winv`` (3, n) the
+inverse mass per component (0 on prescribed components); tetrahedra ``tets`` (T, 4) with the
+inverse rest edge matrices ``Dminv`` (T, 3, 3) and their weighted rest volumes ``Vt`` (T,).
+
+One substep of size h (see :mod:`hybmss.models.xpbd_nh` for the method):
+
+1. ``v ← (v + h g) / (1 + c h)``; ``x_prev = x``; ``x ← x + h v``; the plates' prescribed
+   components move to ``X + u(s(t + h))`` (:func:`hybmss._kernels.apply_plates`);
+2. ``iterations`` Gauss–Seidel sweeps over the tetrahedra in order, each projecting its
+   deviatoric constraint ``C_D = √tr(FᵀF)`` (compliance ``1/(μ V)``) and hydrostatic one
+   ``C_H = det F − γ`` (``1/(λ V)``) together (one 2×2 solve, ``coupled``) or C_D then C_H,
+   with multipliers reset at the start of the substep;
+3. ``v = (x − x_prev)/h``.
+
+The readable twin is :func:`hybmss.models.xpbd_nh.numpy_substep` (same order, plain Python).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._kernels import apply_plates, find_bad, plate_scratch, ramp
+
+_OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
+
+
+@njit(**_OPTS)
+def _gradients(x, i0, i1, i2, i3, Dm, kind, gamma, F, P, Gr):
+    """C and its node gradients Gr (3, 4) of constraint ``kind`` (0: C_D, 1: C_H) of a tetrahedron."""
+    for a in range(3):
+        e1 = x[a, i1] - x[a, i0]
+        e2 = x[a, i2] - x[a, i0]
+        e3 = x[a, i3] - x[a, i0]
+        for b in range(3):
+            F[a, b] = e1 * Dm[0, b] + e2 * Dm[1, b] + e3 * Dm[2, b]
+    if kind == 0:
+        C = math.sqrt(F[0, 0] ** 2 + F[0, 1] ** 2 + F[0, 2] ** 2 + F[1, 0] ** 2 + F[1, 1] ** 2 + F[1, 2] ** 2
+                      + F[2, 0] ** 2 + F[2, 1] ** 2 + F[2, 2] ** 2)
+        for a in range(3):
+            for b in range(3):
+                P[a, b] = F[a, b] / C
+    else:
+        for a in range(3):
+            a1 = (a + 1) % 3
+            a2 = (a + 2) % 3
+            for b in range(3):
+                b1 = (b + 1) % 3
+                b2 = (b + 2) % 3
+                P[a, b] = F[a1, b1] * F[a2, b2] - F[a1, b2] * F[a2, b1]
+        C = F[0, 0] * P[0, 0] + F[0, 1] * P[0, 1] + F[0, 2] * P[0, 2] - gamma
+    for a in range(3):
+        s = 0.0
+        for j in range(3):
+            gj = P[a, 0] * Dm[j, 0] + P[a, 1] * Dm[j, 1] + P[a, 2] * Dm[j, 2]
+            Gr[a, j + 1] = gj
+            s += gj
+        Gr[a, 0] = -s
+    return C
+
+
+@njit(**_OPTS)
+def _wdot(winv, i0, i1, i2, i3, A, B):
+    """Σ_i A_iᵀ W_i B_i over the tetrahedron's nodes."""
+    s = 0.0
+    for k in range(4):
+        q = i0 if k == 0 else (i1 if k == 1 else (i2 if k == 2 else i3))
+        for a in range(3):
+            s += winv[a, q] * A[a, k] * B[a, k]
+    return s
+
+
+@njit(**_OPTS)
+def _move(x, winv, i0, i1, i2, i3, A, da, B, db):
+    for k in range(4):
+        q = i0 if k == 0 else (i1 if k == 1 else (i2 if k == 2 else i3))
+        for a in range(3):
+            x[a, q] += winv[a, q] * (A[a, k] * da + B[a, k] * db)
+
+
+@njit(**_OPTS)
+def project_all(x, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb):
+    """``iterations`` Gauss–Seidel sweeps (multipliers ``lamb`` (T, 2) reset first).  ``coupled``:
+    both constraints of a tetrahedron in one 2×2 solve; else C_D then C_H, one after the other."""
+    F = np.empty((3, 3))
+    P = np.empty((3, 3))
+    GD = np.empty((3, 4))
+    GH = np.empty((3, 4))
+    nt = tets.shape[0]
+    for t in range(nt):
+        lamb[t, 0] = 0.0
+        lamb[t, 1] = 0.0
+    h2 = h * h
+    for it in range(iterations):
+        for t in range(nt):
+            i0 = tets[t, 0]
+            i1 = tets[t, 1]
+            i2 = tets[t, 2]
+            i3 = tets[t, 3]
+            Dm = Dminv[t]
+            aD = 1.0 / (mu * Vt[t] * h2)
+            aH = 1.0 / (lam * Vt[t] * h2)
+            if coupled:
+                CD = _gradients(x, i0, i1, i2, i3, Dm, 0, gamma, F, P, GD)
+                CH = _gradients(x, i0, i1, i2, i3, Dm, 1, gamma, F, P, GH)
+                a11 = aD + _wdot(winv, i0, i1, i2, i3, GD, GD)
+                a12 = _wdot(winv, i0, i1, i2, i3, GD, GH)
+                a22 = aH + _wdot(winv, i0, i1, i2, i3, GH, GH)
+                b1 = -CD - aD * lamb[t, 0]
+                b2 = -CH - aH * lamb[t, 1]
+                det = a11 * a22 - a12 * a12
+                d1 = (a22 * b1 - a12 * b2) / det
+                d2 = (a11 * b2 - a12 * b1) / det
+                _move(x, winv, i0, i1, i2, i3, GD, d1, GH, d2)
+                lamb[t, 0] += d1
+                lamb[t, 1] += d2
+            else:
+                CD = _gradients(x, i0, i1, i2, i3, Dm, 0, gamma, F, P, GD)
+                d1 = (-CD - aD * lamb[t, 0]) / (aD + _wdot(winv, i0, i1, i2, i3, GD, GD))
+                _move(x, winv, i0, i1, i2, i3, GD, d1, GD, 0.0)
+                lamb[t, 0] += d1
+                CH = _gradients(x, i0, i1, i2, i3, Dm, 1, gamma, F, P, GH)
+                d2 = (-CH - aH * lamb[t, 1]) / (aH + _wdot(winv, i0, i1, i2, i3, GH, GH))
+                _move(x, winv, i0, i1, i2, i3, GH, d2, GH, 0.0)
+                lamb[t, 1] += d2
+
+
+@njit(**_OPTS)
+def run(x, v, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
+        pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, sub0, nsub, iterations,
+        coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb):
+    """Advance ``nsub`` substeps from global substep ``sub0``.  Every ``check_every`` substeps: a
+    diverged node stops the run; after substep ``rest_after`` (the end of the ramp; −1: never) the
+    run also stops once no node moved more than ``rest_disp`` over the last ``check_every``
+    substeps.  Returns (substeps done, bad node or −1, 1 if at rest else 0)."""
+    n = x.shape[1]
+    R, u_old, u_new = plate_scratch(pl_ptr)
+    xcheck = x.copy()
+    for k in range(nsub):
+        step = sub0 + k
+        for d in range(3):
+            for q in range(n):
+                if has_gravity:
+                    v[d, q] = (v[d, q] + h * gacc[d, q]) * damp
+                else:
+                    v[d, q] = v[d, q] * damp
+                xprev[d, q] = x[d, q]
+                x[d, q] += h * v[d, q]
+        if pl_ptr.shape[0] > 1:
+            apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+                         pl_angle, ramp(step * h, ramp_time), ramp((step + 1) * h, ramp_time), h, R, u_old,
+                         u_new)
+        project_all(x, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
+        for d in range(3):
+            for q in range(n):
+                v[d, q] = (x[d, q] - xprev[d, q]) / h
+        if (k + 1) % check_every == 0 or k == nsub - 1:
+            bad = find_bad(x, X, limit2)
+            if bad >= 0:
+                return k + 1, bad, 0
+            if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0:
+                moved = 0.0
+                for d in range(3):
+                    for q in range(n):
+                        moved = max(moved, abs(x[d, q] - xcheck[d, q]))
+                        xcheck[d, q] = x[d, q]
+                if moved <= rest_disp:
+                    return k + 1, -1, 1
+            else:
+                for d in range(3):
+                    for q in range(n):
+                        xcheck[d, q] = x[d, q]
+    return nsub, -1, 0

@@ -1,0 +1,136 @@
+"""XPBD with stable Neo-Hookean constraints (xpbd-nh): tetrahedral split, Lamé map, kernel twin,
+the closed-form 20 % stretch, the rest state of a damped run and its O(h²) bias."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hybmss.lattice import CORNERS
+from hybmss.models.xpbd_nh import (CELL_TETS, XpbdNH, cell_tetrahedra, simulate_explicit, solve_static,
+                                   xpbd_lame)
+from hybmss.moduli import shear_scene, uniaxial_scene
+from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
+from hybmss.system import build
+
+E = 1e4
+HOST = Model("hybmss-cf")  # the scene's model field is not read by these functions
+
+
+def term_of(scene: Scene):
+    S = build(scene)
+    return S, XpbdNH(S.lattice, scene.material)
+
+
+def test_split_is_symmetric_and_integrates_affine_states_exactly():
+    tets, Dinv, V = cell_tetrahedra(0.5)
+    assert V.sum() == pytest.approx(0.5**3) and np.all(V > 0)
+    # the mirror x -> 1 - x maps one 5-tet split onto the other: the union has no preferred diagonal
+    mirror = {c: c ^ 1 for c in range(8)}
+    split = [frozenset(t) for t in CELL_TETS]
+    assert {frozenset(mirror[c] for c in t) for t in split[:5]} == set(split[5:])
+    Fm = np.array([[1.2, 0.1, 0.0], [0.05, 0.9, 0.1], [0.0, 0.2, 1.1]])
+    P = CORNERS * 0.5
+    for t, Di in zip(tets, Dinv):
+        assert np.allclose(((P[t[1:]] - P[t[0]]) @ Fm.T).T @ Di, Fm)
+
+
+def test_forces_are_the_energy_gradient_and_vanish_at_rest():
+    S, T = term_of(Scene(Body.box(2, 2, 1, 0.5), Material(E, 0.3), HOST))
+    assert np.abs(T.forces(S.X)).max() <= 1e-12 * E * 0.25
+    assert abs(T.energy(S.X)) <= 1e-12 * E
+    rng = np.random.default_rng(2)
+    x = S.X + 0.05 * rng.standard_normal(S.X.shape)
+    f = T.forces(x)
+    h = 1e-6
+    for i, d in ((3, 0), (7, 2), (11, 1)):
+        e = np.zeros_like(x)
+        e[i, d] = h
+        assert (T.energy(x - e) - T.energy(x + e)) / (2 * h) == pytest.approx(f[i, d], rel=1e-6)
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.3, 0.45])
+def test_lame_map_gives_the_material_at_small_strain(nu):
+    """Energy of a small homogeneous strain ε on the unit cube: ½ λ₀ (tr ε)² + μ₀ ε:ε to O(ε³)
+    with μ = μ₀, λ = λ₀ + μ₀; taking λ = λ₀ would be off by μ₀ (tr ε)²/2."""
+    mat = Material(E, nu)
+    S, T = term_of(Scene(Body.box(1, 1, 1, 1.0), mat, HOST))
+    eps = 1e-5 * np.array([[1.0, 0.3, 0.0], [0.3, -0.5, 0.2], [0.0, 0.2, 0.7]])
+    W = T.energy(S.X @ (np.eye(3) + eps).T)
+    W_lin = 0.5 * mat.lam * np.trace(eps) ** 2 + mat.G * np.sum(eps * eps)
+    assert W == pytest.approx(W_lin, rel=1e-4)
+    mu, lam, gamma = xpbd_lame(mat)
+    assert (mu, lam) == pytest.approx((mat.G, mat.lam + mat.G)) and gamma == pytest.approx(1 + mu / lam)
+
+
+@pytest.mark.parametrize("coupled", [True, False])
+def test_numba_kernel_matches_numpy_twin_over_100_substeps(coupled):
+    H = 1.0
+    scene = Scene(Body.box(2, 2, 2, 0.5), Material(E, 0.3, 1000.0), HOST,
+                  plates=(Plate("bottom", Region("z-")),
+                          Plate("top", Region("z+"), Motion("rotate", (0.0, 0.0, -0.1 * H), angle=0.5))),
+                  gravity=(0.0, 0.0, -10.0), damping=0.5)
+    S, T = term_of(scene)
+    kw = dict(dt=2e-2, steps=10, ramp_time=0.15, substeps=10, coupled=coupled)
+    a = simulate_explicit(S, T, kernel="numba", **kw)
+    b = simulate_explicit(S, T, kernel="numpy", **kw)
+    assert np.abs(a.u).max() > 0.1
+    assert np.abs(a.u - b.u).max() <= 1e-10 * np.abs(a.u).max()
+
+
+def _stretch(substeps: int):
+    mat = Material(E, 0.3, 1000.0)
+    S, T = term_of(uniaxial_scene(HOST, mat, 0.2, 2))
+    r = solve_static(S, T, substeps=substeps)
+    X, u = r.X, r.u
+    lateral = 1.0 + (u[np.isclose(X[:, 0], 2.0)][:, 0].mean() - u[np.isclose(X[:, 0], 0.0)][:, 0].mean()) / 2.0
+    return T, r, lateral
+
+
+def test_twenty_percent_stretch_of_a_free_cube_reaches_the_closed_form_state():
+    """Uniaxial stress, stretch s = 1.2: F = diag(a, a, s) with μ + λ s (a² s − γ) = 0 (lateral
+    stress free), axial nominal stress μ s + λ (J − γ) J / s.  The rest state of the damped run is
+    within 1e-3 with the default 10 substeps, and its bias shrinks as h² (30 substeps: ~9× less)."""
+    T, r, lateral = _stretch(10)
+    assert r.converged and r.info["t_rest"] > 0
+    s, mu, lam, g = 1.2, T.mu, T.lam, T.gamma
+    a = math.sqrt((g - mu / (lam * s)) / s)
+    J = a * a * s
+    force = (mu * s + lam * (J - g) * J / s) * 4.0
+    assert abs(lateral / a - 1) < 1e-3
+    assert np.allclose(r.u[:, 2], 0.2 * r.X[:, 2], atol=1e-3 * 0.4)  # homogeneous along z
+    err10 = abs(r.reactions["top"].force[2] / force - 1)
+    assert err10 < 1e-3
+    _, r30, _ = _stretch(30)
+    err30 = abs(r30.reactions["top"].force[2] / force - 1)
+    assert 5.0 < err10 / err30 < 13.0
+
+
+def test_unloaded_body_rests_at_its_reference_state_only_with_the_coupled_solve():
+    """Solved one after the other, the two constraints of a tetrahedron (each far from satisfied
+    at rest: C_D = √3) leave an O(h²) pre-strain; solved together, X is an exact fixed point."""
+    S, T = term_of(uniaxial_scene(HOST, Material(E, 0.0, 1000.0), 0.0, 2))
+    coupled = solve_static(S, T, rest_tol=1e-12)
+    sequential = solve_static(S, T, rest_tol=1e-12, coupled=False, max_time=40.0)
+    assert np.abs(coupled.u).max() <= 1e-12
+    assert np.abs(sequential.u).max() > 1e-5
+
+
+def test_small_strain_moduli_are_biased_by_the_substep_size():
+    """E and G from the rest states at small strain: low by O((h ω)²), ~9× less with 3× the substeps."""
+    mat = Material(E, 0.3, 1000.0)
+    eps = 1e-3
+
+    def G_eff(substeps):
+        sc = shear_scene(HOST, mat, eps, 3)
+        S, T = term_of(sc)
+        r = solve_static(S, T, substeps=substeps, rest_tol=1e-11)
+        held = S.fixed.any(axis=1)
+        sig = np.einsum("ai,aj->ij", -T.forces(r.x)[held], r.x[held]) / sc.body.volume
+        return 0.5 * (sig[0, 2] + sig[2, 0]) / eps / mat.G - 1.0
+
+    e10, e30 = G_eff(10), G_eff(30)
+    assert -2e-3 < e10 < 0 and -2e-4 < e30 < 0
+    assert 7.0 < e10 / e30 < 11.0
