@@ -38,21 +38,31 @@ def _gradients(x, i0, i1, i2, i3, Dm, kind, gamma, F, P, Gr):
         e3 = x[a, i3] - x[a, i0]
         for b in range(3):
             F[a, b] = e1 * Dm[0, b] + e2 * Dm[1, b] + e3 * Dm[2, b]
-    if kind == 0:
-        C = math.sqrt(F[0, 0] ** 2 + F[0, 1] ** 2 + F[0, 2] ** 2 + F[1, 0] ** 2 + F[1, 1] ** 2 + F[1, 2] ** 2
-                      + F[2, 0] ** 2 + F[2, 1] ** 2 + F[2, 2] ** 2)
-        for a in range(3):
-            for b in range(3):
-                P[a, b] = F[a, b] / C
-    else:
-        for a in range(3):
-            a1 = (a + 1) % 3
-            a2 = (a + 2) % 3
-            for b in range(3):
-                b1 = (b + 1) % 3
-                b2 = (b + 2) % 3
-                P[a, b] = F[a1, b1] * F[a2, b2] - F[a1, b2] * F[a2, b1]
-        C = F[0, 0] * P[0, 0] + F[0, 1] * P[0, 1] + F[0, 2] * P[0, 2] - gamma
+    if kind == 1:
+        return _hydrostatic_from(F, Dm, gamma, P, Gr)
+    C = math.sqrt(F[0, 0] ** 2 + F[0, 1] ** 2 + F[0, 2] ** 2 + F[1, 0] ** 2 + F[1, 1] ** 2 + F[1, 2] ** 2
+                  + F[2, 0] ** 2 + F[2, 1] ** 2 + F[2, 2] ** 2)
+    for a in range(3):
+        s = 0.0
+        for j in range(3):
+            gj = (F[a, 0] * Dm[j, 0] + F[a, 1] * Dm[j, 1] + F[a, 2] * Dm[j, 2]) / C
+            Gr[a, j + 1] = gj
+            s += gj
+        Gr[a, 0] = -s
+    return C
+
+
+@njit(**_OPTS)
+def _hydrostatic_from(F, Dm, gamma, P, Gr):
+    """C_H and its gradients Gr (3, 4) from a deformation gradient F already computed."""
+    for a in range(3):
+        a1 = (a + 1) % 3
+        a2 = (a + 2) % 3
+        for b in range(3):
+            b1 = (b + 1) % 3
+            b2 = (b + 2) % 3
+            P[a, b] = F[a1, b1] * F[a2, b2] - F[a1, b2] * F[a2, b1]
+    C = F[0, 0] * P[0, 0] + F[0, 1] * P[0, 1] + F[0, 2] * P[0, 2] - gamma
     for a in range(3):
         s = 0.0
         for j in range(3):
@@ -104,9 +114,9 @@ def project_all(x, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled
             Dm = Dminv[t]
             aD = 1.0 / (mu * Vt[t] * h2)
             aH = 1.0 / (lam * Vt[t] * h2)
-            if coupled:
+            if coupled:  # one F for both constraints
                 CD = _gradients(x, i0, i1, i2, i3, Dm, 0, gamma, F, P, GD)
-                CH = _gradients(x, i0, i1, i2, i3, Dm, 1, gamma, F, P, GH)
+                CH = _hydrostatic_from(F, Dm, gamma, P, GH)
                 a11 = aD + _wdot(winv, i0, i1, i2, i3, GD, GD)
                 a12 = _wdot(winv, i0, i1, i2, i3, GD, GH)
                 a22 = aH + _wdot(winv, i0, i1, i2, i3, GH, GH)

@@ -32,6 +32,7 @@ strain energy ``Σ_e ½ u_eᵀ K_e u_e`` as a measure, not as a potential to min
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -44,7 +45,8 @@ from ..explicit import ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
-from ..solvers import StaticSolveError, _force_floor, _force_scale, plate_reactions
+from ..solvers import StaticOptions
+from ..solvers import solve_static as _solve_static
 from ..system import System
 from ._voxel_explicit import blowup_limit2, divergence, find_bad, plate_arrays, run_result
 
@@ -314,81 +316,18 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
 
 
 # ------------------------------------------------------------------------------ static equilibrium
-def _total_forces(system: System, term: CorotHex8, x: np.ndarray, load: float) -> np.ndarray:
-    f = term.forces(x)
-    if system.gravity is not None:
-        f = f + load * system.mass[:, None] * system.gravity[None, :]
-    dead = system.extras.get("dead_load")
-    if dead is not None:
-        f = f + load * dead
-    return f
+def with_term(system: System, term) -> System:
+    """``system`` with its springs and volume energy replaced by ``term`` (kept: masses, plates,
+    gravity and the other terms, e.g. dead loads): the system of a model that is not a lattice."""
+    none = np.zeros(0, dtype=np.int64)
+    return dataclasses.replace(system, spring_a=none, spring_b=none, spring_k=np.zeros(0), spring_l0=np.zeros(0),
+                               spring_family=none, vol_cells=np.zeros((0, 8), dtype=np.int64), vol_V0=np.zeros(0),
+                               kappa=0.0, terms=tuple(system.terms) + (term,))
 
 
-def solve_static(system: System, term: CorotHex8, rtol: float = 1e-8, max_iter: int = 40,
-                 min_step: float = 1.0 / 1024) -> Result:
-    """Static equilibrium by Newton on the force residual with the tangent ``R K Rᵀ`` and a
-    backtracking line search on the residual norm, plates and body loads in adaptive load steps.
-    Converged as the MSS static solver: ``‖f_free‖ ≤ max(rtol · largest plate reaction, floor)``."""
-    t0 = time.perf_counter()
-    free = ~system.fixed.ravel()
-    floor = _force_floor(system)
-    x = system.X.copy()
-    s, ds, iterations, load_steps = 0.0, 1.0, 0, 0
-    while s < 1.0 - 1e-14:
-        s_new = min(1.0, s + ds)
-        target = system.prescribed(s_new)
-        xt = x.copy()
-        xt[system.fixed] = target[system.fixed]
-        ok = False
-        rnorm = np.inf
-        for it in range(max_iter + 1):
-            f = _total_forces(system, term, xt, s_new)
-            r = f.ravel()[free]
-            rnorm = float(np.linalg.norm(r))
-            if not np.isfinite(rnorm):
-                break
-            if rnorm <= max(rtol * _force_scale(system, f), floor):
-                ok = True
-                break
-            if it == max_iter:
-                break
-            iterations += 1
-            K = term.stiffness(xt).tocsc()
-            Kff = K[free][:, free]
-            try:
-                dx = spla.splu(Kff).solve(r)
-            except RuntimeError:
-                break
-            step = np.zeros(xt.size)
-            step[free] = dx
-            step = step.reshape(xt.shape)
-            alpha = 1.0
-            for _ in range(30):
-                xn = xt + alpha * step
-                fn = _total_forces(system, term, xn, s_new).ravel()[free]
-                if np.all(np.isfinite(fn)) and np.linalg.norm(fn) < rnorm:
-                    break
-                alpha *= 0.5
-            xt = xn
-        if ok:
-            x, s, load_steps = xt, s_new, load_steps + 1
-            ds = min(1.0, 1.5 * ds)
-            continue
-        ds *= 0.5
-        if ds < min_step:
-            raise StaticSolveError(
-                f"static solve of {term.name} scene {system.scene.name or '(unnamed)'} failed at load factor "
-                f"{s_new:.6g} (last converged {s:.6g}): residual {rnorm:.3g} N; the deformation inverts cells "
-                "or needs more load steps")
-    f = _total_forces(system, term, x, 1.0)
-    r = float(np.linalg.norm(f.ravel()[free]))
-    vols = system.lattice.cell_volumes(x)
-    info = {"model": term.name, "tangent": "R K R^T", "load_steps": load_steps, "residual": r,
-            "residual_floor": floor, "inverted_cells": int(np.count_nonzero(vols <= 0.0))}
-    energy = {"strain": term.energy(x)}
-    if system.gravity is not None:
-        energy["gravity"] = -float(np.dot(system.mass, x @ system.gravity))
-    return Result(solver=f"{term.name}-static", scene_digest=system.scene.digest(), X=system.X.copy(),
-                  u=x - system.X, volume=float(vols.sum()), volume0=float(system.lattice.cell_volumes(system.X).sum()),
-                  reactions=plate_reactions(system, x, f), energy=energy, iterations=iterations,
-                  wall_time_s=time.perf_counter() - t0, converged=True, cell_volumes=vols, info=info)
+def solve_static(system: System, term: CorotHex8, options: StaticOptions | None = None) -> Result:
+    """Static equilibrium with the project's static Newton (:func:`hybmss.solvers.solve_static`):
+    the term is non-conservative, so it runs in residual mode with the tangent ``R K Rᵀ``, load
+    steps and line search, to the MSS residual criterion ``‖f_free‖ ≤ rtol · largest reaction``."""
+    S = with_term(system, term)
+    return _solve_static(S.scene, options, system=S)
