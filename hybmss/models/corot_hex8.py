@@ -254,11 +254,12 @@ def numpy_step(system: System, term: CorotHex8, x, v, dt, damp, x_old, x_new):
 
 def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: int = 10_000,
                       kernel: str = "numba", ramp_time: float = 1.0, *, check_every: int = 10,
-                      x0: np.ndarray | None = None, v0: np.ndarray | None = None,
+                      record_every: int = 0, x0: np.ndarray | None = None, v0: np.ndarray | None = None,
                       dt_crit_value: float | None = None, compute_dt_crit: bool = True) -> Result:
     """Semi-implicit Euler of ``system`` with the corotational forces ``term``: the protocol of
     :func:`hybmss.explicit.simulate_explicit` (damping ``scene.damping`` implicit, plate ramp,
-    divergence every ``check_every`` steps).  ``wall_time_s`` is the stepping alone."""
+    divergence every ``check_every`` steps; ``record_every > 0`` keeps ``info['history']`` of t,
+    the largest displacement and the kinetic energy).  ``wall_time_s`` is the stepping alone."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
     dt, steps = float(dt), int(steps)
@@ -266,6 +267,8 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
         raise ValueError(f"dt must be > 0 s, got {dt}")
     if steps < 0:
         raise ValueError(f"steps must be >= 0, got {steps}")
+    if not (ramp_time >= 0 and math.isfinite(ramp_time)):
+        raise ValueError(f"ramp_time must be >= 0 s, got {ramp_time}")
     if (system.mass <= 0).any():
         raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
     damp = 1.0 / (1.0 + system.scene.damping * dt)
@@ -280,37 +283,65 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
     if dt_c is None and compute_dt_crit:
         dt_c = dt_crit(system, term)
 
-    t0 = time.perf_counter()
     if kernel == "numba":
         xg, vg = np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
         f = np.empty_like(xg)
         gacc = np.zeros_like(xg)
         if system.gravity is not None:
             gacc[:] = system.gravity[:, None]
-        done, bad = _kernels_corot.advance(xg, vg, np.ascontiguousarray(system.X.T), term.cells, term.Ke, XI,
-                                           term.le, 1.0 / system.mass, gacc, system.gravity is not None, dt,
-                                           damp, ramp_time, plate_arrays(system), 0, steps, check_every,
-                                           limit2, f)
-        x, v = xg.T.copy(), vg.T.copy()
+        Xg, invm, plates = np.ascontiguousarray(system.X.T), 1.0 / system.mass, plate_arrays(system)
+
+        def advance(step0, n):
+            return _kernels_corot.advance(xg, vg, Xg, term.cells, term.Ke, XI, term.le, invm, gacc,
+                                          system.gravity is not None, dt, damp, ramp_time, plates, step0, n,
+                                          check_every, limit2, f)
+
+        def state():
+            return xg.T.copy(), vg.T.copy()
     else:
-        done, bad = steps, -1
-        has_plates = len(system.plates) > 0
-        P_old = system.prescribed(ramp(0.0, ramp_time)) if has_plates else system.X
-        for n in range(steps):
-            P_new = system.prescribed(ramp((n + 1) * dt, ramp_time)) if has_plates else system.X
-            numpy_step(system, term, x, v, dt, damp, P_old, P_new)
-            P_old = P_new
-            if (n + 1) % check_every == 0 or n == steps - 1:
-                bad = find_bad(x, system.X, limit2)
-                if bad >= 0:
-                    done = n + 1
-                    break
-    wall = time.perf_counter() - t0
-    if bad >= 0:
-        raise divergence(system, x, bad, done, dt, dt_c, check_every, term.name)
-    info = {"kernel": kernel, "dt": dt, "steps": steps, "t_end": steps * dt,
+        def advance(step0, n):
+            P_old = system.prescribed(ramp(step0 * dt, ramp_time))
+            for k in range(n):
+                P_new = system.prescribed(ramp((step0 + k + 1) * dt, ramp_time))
+                numpy_step(system, term, x, v, dt, damp, P_old, P_new)
+                P_old = P_new
+                if (k + 1) % check_every == 0 or k == n - 1:
+                    bad = find_bad(x, system.X, limit2)
+                    if bad >= 0:
+                        return k + 1, bad
+            return n, -1
+
+        def state():
+            return x.copy(), v.copy()
+
+    history = {"t": [], "max_displacement": [], "kinetic": []} if record_every > 0 else None
+
+    def record(step):
+        xs, vs = state()
+        history["t"].append(step * dt)
+        history["max_displacement"].append(float(np.linalg.norm(xs - system.X, axis=1).max()))
+        history["kinetic"].append(float(0.5 * np.sum(system.mass[:, None] * vs * vs)))
+
+    if history is not None:
+        record(0)
+    chunk = int(record_every) if record_every > 0 else max(steps, 1)
+    wall, done = 0.0, 0
+    while done < steps:
+        n = min(chunk, steps - done)
+        t0 = time.perf_counter()
+        k, bad = advance(done, n)
+        wall += time.perf_counter() - t0
+        if bad >= 0:
+            raise divergence(system, state()[0], bad, done + k, dt, dt_c, check_every, term.name)
+        done += n
+        if history is not None:
+            record(done)
+    x, v = state()
+    info = {"kernel": kernel, "threads": 1, "dt": dt, "steps": steps, "t_end": steps * dt,
             "dt_crit": None if dt_c is None else float(dt_c), "damping": float(system.scene.damping),
             "ramp_time": float(ramp_time), "load_factor": ramp(steps * dt, ramp_time), "model": term.name}
+    if history is not None:
+        info["history"] = history
     return run_result(system, f"{term.name}-explicit", x, v, term.forces(x), {"strain": term.energy(x)}, steps,
                       wall, info)
 
