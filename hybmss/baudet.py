@@ -88,6 +88,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -116,7 +117,12 @@ def coefficient(nu: float) -> float:
 @dataclass(frozen=True)
 class Corrections:
     """Parameters of the correction forces of one system: per-cell spring shares ``kx``, ``kd``
-    (N/m), rest edge ``le`` (m), coefficient ``c``, and the cells (m, 8) they act on."""
+    (N/m), rest edge ``le`` (m), coefficient ``c``, and the cells (m, 8) they act on.  A
+    non-conservative :class:`hybmss.terms.ForceTerm` (no energy)."""
+
+    name: ClassVar[str] = "baudet"
+    conservative: ClassVar[bool] = False
+    scaled: ClassVar[bool] = False
 
     cells: np.ndarray
     kx: float
@@ -134,6 +140,10 @@ class Corrections:
     def forces(self, x: np.ndarray) -> np.ndarray:
         """Correction forces (n, 3) at positions ``x`` (NumPy reference)."""
         return correction_forces(x, self.cells, self.kx, self.kd, self.le, self.c)
+
+    def stiffness(self, x: np.ndarray) -> sp.csr_matrix:
+        """``∂(−forces)/∂x`` (not symmetric)."""
+        return -correction_jacobian(x, self)
 
 
 # ------------------------------------------------------------------------- NumPy reference

@@ -2,7 +2,9 @@
 
 :func:`build` keeps only the force terms the scene needs (SPEC "model only what a scene
 needs"): springs of zero stiffness are dropped (no face diagonals when A = 0), the volume term
-is built only when κ ≠ 0 (not at ν = 1/4 nor for ``hybmss-cf``), gravity only when g ≠ 0.
+is built only when κ ≠ 0 (not at ν = 1/4 nor for a model without one), gravity only when g ≠ 0.
+The model (:mod:`hybmss.models`) gives the spring constants, κ, the volume-energy form and the
+force terms it adds.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .calibrate import Constants, constants
+from .calibrate import Constants
 from .lattice import Lattice
 from .scene import Scene
 
@@ -78,7 +80,8 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     """Assemble ``scene`` into a :class:`System`."""
     lat = lattice if lattice is not None else Lattice.from_body(scene.body)
     le = scene.body.le
-    c = constants(scene.model, scene.material, le)
+    model, params = scene.model.spec, scene.model.params
+    c = model.constants(params, scene.material, le)
     X = lat.X.astype(float)
     mass = scene.material.rho * lat.masses_per_density
 
@@ -88,7 +91,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     a, b = lat.springs[keep, 0], lat.springs[keep, 1]
     l0 = np.linalg.norm(X[b] - X[a], axis=1)
 
-    if c.kappa != 0.0 and scene.model.name != "baudet2009":
+    if c.kappa != 0.0:
         vol_cells = lat.cells
         vol_V0 = lat.cell_volumes(X)
     else:
@@ -109,7 +112,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         fixed[np.ix_(sel, np.flatnonzero(cons))] = True
 
     return System(
-        extras=_variant_extras(scene, lat, c),
+        extras=_extras(scene, lat, model.terms(params, scene, lat, c)),
         scene=scene,
         lattice=lat,
         consts=c,
@@ -123,34 +126,32 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         vol_cells=vol_cells,
         vol_V0=vol_V0,
         kappa=float(c.kappa),
-        volume_energy=scene.model.volume_energy,
+        volume_energy=model.volume_energy(params),
         gravity=gravity,
         plates=tuple(plates),
         fixed=fixed,
     )
 
 
-def _variant_extras(scene: Scene, lat: Lattice, consts: Constants) -> dict:
+def _extras(scene: Scene, lat: Lattice, terms) -> dict:
     """``System.extras`` of a scene: ``forces(x)`` sums the dead loads of ``Scene.loads``
-    (``dead_load``, conservative: the static solver adds their potential ``−f·x``) and the [B09]
-    correction forces of ``baudet2009`` (``baudet``, non-conservative, see :mod:`hybmss.baudet`)."""
+    (``dead_load``, conservative: the static solver adds their potential ``−f·x``) and the force
+    terms the model adds (each under its ``name``; ``non_conservative`` if one of them is)."""
     extras: dict = {}
-    terms = []
+    parts = []
     if scene.loads:
         dead = dead_loads(scene, lat)
         extras["dead_load"] = dead
-        terms.append(lambda x: dead)
-    if scene.model.name == "baudet2009":
-        from .baudet import Corrections
-
-        corr = Corrections.for_system(consts, scene.material, lat)
-        extras["baudet"] = corr
-        extras["non_conservative"] = True
-        terms.append(corr.forces)
-    if len(terms) == 1:
-        extras["forces"] = terms[0]
-    elif terms:
-        extras["forces"] = lambda x: terms[0](x) + terms[1](x)
+        parts.append(lambda x: dead)
+    for term in terms:
+        extras[term.name] = term
+        if not term.conservative:
+            extras["non_conservative"] = True
+        parts.append(term.forces)
+    if len(parts) == 1:
+        extras["forces"] = parts[0]
+    elif parts:
+        extras["forces"] = lambda x: sum(f(x) for f in parts)
     return extras
 
 

@@ -262,7 +262,7 @@ def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
             label = ROWS[r].replace(" static", "")
             fam = "fem-linear" if label == "FEM" else label
             axes[r, 0].text(-0.04, 0.5, label, rotation=90, ha="right", va="center", transform=axes[r, 0].transAxes,
-                            color=palette.COLORS.get(fam, "k"), fontsize=9.5, fontweight="bold")
+                            color=palette.color(fam), fontsize=9.5, fontweight="bold")
         cax = fig.add_axes([0.905, 0.08, 0.022, 0.8])
         sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(*clim), cmap=palette.CMAP)
         cb = fig.colorbar(sm, cax=cax)

@@ -9,6 +9,7 @@
   (linear at ≤ 5 %, Neo-Hookean above) and the reference's model-form spread (|NH − SVK|).
 - ``eform_check``: which spring calibration reproduces the publication's hybmss column.
 - ``moduli``: effective E, ν, G per variant (homogeneous static tests).
+- ``models``: every registered model's variants with their label and plot style.
 """
 
 from __future__ import annotations
@@ -16,9 +17,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from hybmss import models
+from hybmss.experiments import SceneSpec
+from hybmss.moduli import measure_moduli
+from hybmss.scene import Material, Model
+from hybmss.solvers import StaticSolveError
+
 from .compare import default_law, diff_metrics
 from .paper import load as load_paper
-from .scenes import SceneSpec
 from .store import Store
 
 SCENE_COLS = ["scene_experiment", "scene_mesh", "scene_nu", "scene_E", "scene_deformation", "scene_angle_deg"]
@@ -29,11 +35,24 @@ def runs_frame(store: Store) -> pd.DataFrame:
     if not rows:
         return pd.DataFrame()
     df = pd.DataFrame([{k: v for k, v in r.items() if k not in ("info", "traceback")} for r in rows])
-    df["variant"] = np.where(df.get("scene_e_form", False).astype(bool), df["scene_model"] + " (E-form)",
-                             df["scene_model"])
+    df["variant"] = [_variant(r) for r in df.to_dict("records")]
     df["method"] = np.where(df["solver"].str.startswith("fem"), df["solver"],
                             df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
     return df
+
+
+def _variant(row: dict) -> str:
+    """The stored variant name of a run; for a run stored without one, its model's name for the
+    stored parameters."""
+    v = row.get("scene_variant")
+    if isinstance(v, str):
+        return v
+    try:
+        spec = models.get(row["scene_model"])
+        given = {k: row.get(f"scene_{k}") for k in spec.parameter_names()}
+        return spec.variant(spec.parameters(**{k: v for k, v in given.items() if v is not None and v == v}))
+    except ValueError:
+        return str(row["scene_model"])
 
 
 def _ok(df):
@@ -143,14 +162,14 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
     out = []
     for exp, paper_name in (("compression", "g20_table2_compression"), ("tension", "g20_table3_tension")):
         paper = load_paper(paper_name)
-        for model in ("hybmss", "hybmss-fd"):
+        for model in [m for m in models.names() if m in paper.columns]:
             sub = _ok(df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
                          & (df["scene_model"] == model) & (df["study"] == exp)])
             for _, p in paper.iterrows():
                 sel = sub[np.isclose(sub["scene_nu"], p["nu"]) & np.isclose(sub["scene_deformation"], p["deformation"])]
                 for mesh, grp in sel.groupby("scene_mesh"):
-                    g = grp[~grp["scene_e_form"].astype(bool)]
-                    e = grp[grp["scene_e_form"].astype(bool)]
+                    eform = grp["scene_e_form"].fillna(False).astype(bool)
+                    g, e = grp[~eform], grp[eform]
                     gval = 100 * abs(g["volume_change"].iloc[0]) if len(g) else np.nan
                     eval_ = 100 * abs(e["volume_change"].iloc[0]) if len(e) else gval  # identical at ν = 1/4
                     ref = p[model]
@@ -163,16 +182,19 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
-    from hybmss.moduli import measure_moduli
-    from hybmss.scene import Material, Model
-    from hybmss.solvers import StaticSolveError
-
-    variants = [("hybmss", Model("hybmss")), ("hybmss-fd", Model("hybmss-fd")), ("hybmss-cf", Model("hybmss-cf")),
-                ("hybmss (E-form)", Model("hybmss", e_form=True)), ("baudet2009", Model("baudet2009"))]
+    """Effective moduli of every registered model, with each parameter set it is compared in."""
+    variants = []
+    for m in models.all_models():
+        if not m.supports("static"):
+            continue
+        for nu in nus:  # every parameter set the model is compared in at any of these ν
+            variants += [Model(m.name, **v) for v in m.study_variants(nu)]
+    variants = list(dict.fromkeys(variants))
     rows = []
     for nu in nus:
         mat = Material(1e4, nu)
-        for name, model in variants:
+        for model in variants:
+            name = model.variant
             try:
                 m = measure_moduli(model, mat)
                 # a stationary homogeneous state exists even for a non-positive-definite material;
@@ -186,10 +208,23 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def models_table() -> pd.DataFrame:
+    """One row per variant name of every registered model: its model, label, plot style and
+    capabilities (what the report's palette and legends use)."""
+    rows = []
+    for m in models.all_models():
+        for variant, st in m.styles().items():
+            rows.append({"variant": variant, "model": m.name, "label": m.label, "color": st.color,
+                         "marker": st.marker, "linestyle": st.linestyle, "order": m.order,
+                         "conservative": m.conservative, "solvers": " ".join(m.solvers),
+                         "kernels": " ".join(m.kernels)})
+    return pd.DataFrame(rows)
+
+
 def write_tables(store: Store) -> dict:
     """Build every table from the stored runs (and the cheap moduli tests); returns them."""
     df = runs_frame(store)
-    tables = {}
+    tables = {"models": models_table()}
     if not df.empty:
         keep = [c for c in df.columns if not c.startswith("env_")] + ["env_git_revision", "env_code_version"]
         tables["runs"] = df[[c for c in keep if c in df.columns]]
