@@ -9,13 +9,14 @@ force terms it adds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .calibrate import Constants
-from .lattice import Lattice
+from .lattice import CORNERS, Lattice
 from .scene import Scene
+from .terms import DeadLoad, ForceTerm, all_conservative
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,7 +49,8 @@ class System:
     gravity: np.ndarray | None  # (3,) or None when g = 0
     plates: tuple[PlateSet, ...]
     fixed: np.ndarray  # (n, 3) bool: prescribed components
-    extras: dict = field(default_factory=dict)
+    terms: tuple[ForceTerm, ...] = ()
+    """What the model adds beyond springs and volume energy (:mod:`hybmss.terms`)."""
 
     @property
     def n(self) -> int:
@@ -57,6 +59,18 @@ class System:
     @property
     def has_volume(self) -> bool:
         return len(self.vol_cells) > 0
+
+    @property
+    def conservative(self) -> bool:
+        """True when every force has a potential (all ``terms`` conservative)."""
+        return all_conservative(self.terms)
+
+    def term(self, name: str) -> ForceTerm | None:
+        """The term called ``name``, or None."""
+        for t in self.terms:
+            if t.name == name:
+                return t
+        return None
 
     def prescribed(self, s: float = 1.0) -> np.ndarray:
         """Target positions (n, 3) of the prescribed components at load factor ``s``
@@ -112,7 +126,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         fixed[np.ix_(sel, np.flatnonzero(cons))] = True
 
     return System(
-        extras=_extras(scene, lat, model.terms(params, scene, lat, c)),
+        terms=_terms(scene, lat, model.terms(params, scene, lat, c)),
         scene=scene,
         lattice=lat,
         consts=c,
@@ -133,33 +147,18 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     )
 
 
-def _extras(scene: Scene, lat: Lattice, terms) -> dict:
-    """``System.extras`` of a scene: ``forces(x)`` sums the dead loads of ``Scene.loads``
-    (``dead_load``, conservative: the static solver adds their potential ``−f·x``) and the force
-    terms the model adds (each under its ``name``; ``non_conservative`` if one of them is)."""
-    extras: dict = {}
-    parts = []
+def _terms(scene: Scene, lat: Lattice, model_terms) -> tuple[ForceTerm, ...]:
+    """``System.terms`` of a scene: the dead loads of ``Scene.loads`` (:class:`DeadLoad`) and the
+    force terms its model adds (:meth:`hybmss.models.ModelBase.terms`)."""
+    terms: list[ForceTerm] = []
     if scene.loads:
-        dead = dead_loads(scene, lat)
-        extras["dead_load"] = dead
-        parts.append(lambda x: dead)
-    for term in terms:
-        extras[term.name] = term
-        if not term.conservative:
-            extras["non_conservative"] = True
-        parts.append(term.forces)
-    if len(parts) == 1:
-        extras["forces"] = parts[0]
-    elif parts:
-        extras["forces"] = lambda x: sum(f(x) for f in parts)
-    return extras
+        terms.append(DeadLoad(dead_loads(scene, lat)))
+    return tuple(terms) + tuple(model_terms)
 
 
 def dead_loads(scene: Scene, lat: Lattice) -> np.ndarray:
     """Nodal forces (n, 3) of ``scene.loads``: each selected surface face of a cell gives
     ``traction · le²/4`` to each of its 4 vertices (consistent load of a bilinear face)."""
-    from .lattice import CORNERS
-
     f = np.zeros((lat.n_particles, 3))
     area = scene.body.le**2
     for load in scene.loads:
