@@ -90,9 +90,8 @@ def cmd_info(args) -> int:
 def cmd_moduli(args) -> int:
     from .moduli import measure_moduli
 
-    spec = models.get(args.model)
     given = {k: v for k, v in (("A", args.A), ("e_form", args.e_form or None)) if v is not None}
-    model = Model(args.model, **{k: v for k, v in given.items() if k in spec.parameter_names()})
+    model = Model(args.model, **given)  # a parameter the model does not have: exit 2
     mat = Material(args.E, args.nu, args.rho)
     m = measure_moduli(model, mat, strain=args.strain)
     G = mat.G

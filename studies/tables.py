@@ -10,6 +10,9 @@
 - ``eform_check``: which spring calibration reproduces the publication's hybmss column.
 - ``moduli``: effective E, ν, G per variant (homogeneous static tests).
 - ``models``: every registered model's variants with their label and plot style.
+- ``reference_laws``: the FEM law each scene load is compared with.
+- ``bending_curves`` / ``euler_bernoulli``: centre-line deflection of every bending run and the
+  Euler–Bernoulli curve of each beam ([G20] Fig. 5).
 """
 
 from __future__ import annotations
@@ -208,6 +211,51 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:
+    """The FEM law each stored scene load is compared with (:func:`studies.compare.default_law`),
+    one row per (experiment, d, torsion angle): the decision the report shows, made here once."""
+    keys = df[["scene_experiment", "scene_deformation", "scene_angle_deg"]].fillna(0.0).drop_duplicates()
+    rows = [{"experiment": e, "deformation": float(d), "angle_deg": float(a),
+             "law": default_law(SceneSpec(e, deformation=float(d), angle_deg=float(a)))}
+            for e, d, a in keys.itertuples(index=False) if e != "uniaxial"]
+    return pd.DataFrame(rows)
+
+
+def spec_of(row: dict) -> SceneSpec:
+    """The :class:`SceneSpec` a stored run recorded (its ``scene_*`` fields and model parameters)."""
+    fields = {f: row[f"scene_{f}"] for f in ("mesh", "E", "nu", "rho", "model", "deformation", "angle_deg",
+                                             "gravity", "damping", "le") if f"scene_{f}" in row}
+    fields = {k: v for k, v in fields.items() if not (isinstance(v, float) and v != v)}
+    fields["mesh"] = tuple(int(n) for n in str(fields["mesh"]).split("x"))
+    names = models.get(fields.get("model", "hybmss")).parameter_names()
+    params = {k: row[f"scene_{k}"] for k in names if f"scene_{k}" in row and row[f"scene_{k}"] == row[f"scene_{k}"]}
+    return SceneSpec.default(row["scene_experiment"], **fields, **params)
+
+
+def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The centre line of every bending run, ``(key, method, mesh, E, z, u_y)`` with z from the
+    clamp ([G20] Fig. 5), and the Euler–Bernoulli deflection of each (mesh, E) on 101 points."""
+    from .runner import neutral_axis
+
+    sub = _ok(df[df["scene_experiment"] == "bending"])
+    curves, theory = [], []
+    for r in sub.to_dict("records"):
+        a = store.arrays(r["key"])
+        if "u" not in a:
+            continue
+        z, uy = neutral_axis(a["X"], a["u"])
+        z0 = float(a["X"][:, 2].min())
+        curves += [{"key": r["key"], "method": r["method"], "mesh": r["scene_mesh"], "E": r["scene_E"],
+                    "z": float(zi - z0), "u_y": float(u)} for zi, u in zip(z, uy)]
+    for (mesh, E), grp in sub.groupby(["scene_mesh", "scene_E"]):
+        spec = spec_of(grp.iloc[0].to_dict())
+        L = spec.beam_section()[2]
+        zz = np.linspace(0.0, L, 101)
+        theory += [{"mesh": mesh, "E": E, "z": float(z), "u_y": float(y)}
+                   for z, y in zip(zz, spec.euler_bernoulli(zz))]
+    return pd.DataFrame(curves), pd.DataFrame(theory)
+
+
 def models_table() -> pd.DataFrame:
     """One row per variant name of every registered model: its model, label, plot style and
     capabilities (what the report's palette and legends use)."""
@@ -235,6 +283,8 @@ def write_tables(store: Store) -> dict:
         tables["bending"] = bending_table(df)
         tables["differences"] = differences_table(df, store)
         tables["eform_check"] = eform_check(df)
+        tables["reference_laws"] = reference_laws_table(df)
+        tables["bending_curves"], tables["euler_bernoulli"] = bending_curves(df, store)
     tables["moduli"] = moduli_table()
     for name, t in tables.items():
         if t is not None and not t.empty:

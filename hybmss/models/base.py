@@ -43,10 +43,14 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
 - ``dt_crit(system) -> float | None``: its critical explicit time step, or None to let the
   harness estimate it from the system's stiffness and masses (the default);
 - ``solve_static``, ``simulate_explicit``: None (the default) to use the harness's Newton and
-  explicit integrator, or a callable with the signature of :func:`hybmss.solvers.solve_static`
-  (``(scene, options=None, system=None) -> Result``) and of
-  :func:`hybmss.explicit.simulate_explicit` respectively, for a model that brings its own (e.g.
-  a position-based integrator whose static answer is the rest state of a damped run).
+  explicit integrator, or methods ``solve_static(self, scene, options=None, system=None)`` and
+  ``simulate_explicit(self, scene, **kw)`` (the keywords of :func:`hybmss.explicit.simulate_explicit`)
+  returning a :class:`hybmss.result.Result`, for a model that brings its own (e.g. a
+  position-based integrator whose static answer is the rest state of a damped run).
+  :func:`hybmss.solvers.solve_static` and :func:`hybmss.explicit.simulate_explicit` hand the
+  scene to them; :func:`hybmss.explicit.dt_crit` returns the model's ``dt_crit`` when it has one.
+  ``simulate_explicit`` refuses a kernel that is not in ``kernels``, ``solve_static`` a model
+  without ``"static"`` in ``solvers``.
 
 A model with no springs and one force term (a corotational hexahedral FEM) returns
 :data:`NO_SPRINGS` and puts its element forces and tangent in ``terms``; a model with its own
