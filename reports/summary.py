@@ -428,7 +428,7 @@ def published_claims(results: Results) -> list[Claim]:
         out.append(Claim(stmt, crit, UNTESTED, "no published values stored"))
     else:
         good = ml[ml["state"] == "ok"]
-        ratio = good["ours_m"] / good["paper_m"]
+        ratio = good["ours_m"] / good["paper_m"] if len(good) else pd.Series(dtype=float)
         n_ok = int(((ratio >= 1 / MIDDLE_LAYER_TOL) & (ratio <= MIDDLE_LAYER_TOL)).sum())
         ev = f"{n_ok} of {len(ml)} rows within"
         if len(good):
@@ -447,7 +447,7 @@ def published_claims(results: Results) -> list[Claim]:
     else:
         s = b[b["model"] == "baudet2009"]
         good = s[s["state"] == "ok"]
-        ratio = good["err_mean_pct"] / good["b09_mean_pct"]
+        ratio = good["err_mean_pct"] / good["b09_mean_pct"] if len(good) else pd.Series(dtype=float)
         n_ok = int(((ratio >= 1 / MIDDLE_LAYER_TOL) & (ratio <= MIDDLE_LAYER_TOL)).sum())
         ev = f"{n_ok} of {len(s)} meshes within: " + ", ".join(
             f"{r['experiment']} {r['mesh']} ×{r['err_mean_pct'] / r['b09_mean_pct']:.3g}" if r["state"] == "ok"
