@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import models as registry
-from .models.hybmss import VOLUME_ENERGIES  # noqa: F401  (the forms of the volume energy)
 
 MOTIONS = ("clamped", "translate", "rotate", "slide", "affine")
 

@@ -31,7 +31,7 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
   (:class:`hybmss.calibrate.Constants`).  Zero constants drop the springs and the volume term,
   so a model that is not a spring lattice returns :data:`NO_SPRINGS` (the default);
 - ``volume_energy(p) -> str``: form of the per-cell volume energy when κ ≠ 0
-  (``"quadratic"`` or ``"squared"``, :data:`hybmss.scene.VOLUME_ENERGIES`);
+  (``"quadratic"`` or ``"squared"``, :data:`hybmss.models.hybmss.VOLUME_ENERGIES`);
 - ``terms(p, scene, lattice, consts) -> tuple[ForceTerm, ...]``: force terms it adds beyond the
   springs and the volume energy (:mod:`hybmss.terms`: energy, forces and Hessian for a
   conservative term; forces and Jacobian for a non-conservative one).  Default: none;
