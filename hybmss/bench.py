@@ -99,7 +99,7 @@ def run_bench(steps: int = 10_000, kernels=("numba", "numpy"), quick: bool = Fal
             "cpu_time_s": cpu,
             "s_per_10k_steps": wall * 10_000 / n,
             "springs": springs,
-            "ns_per_spring_step": wall / n / springs * 1e9,
+            "ns_per_spring_step": wall / n / springs * 1e9 if springs else None,  # None: not a spring model
             "dt_crit_s": dc,
             "load_avg": load,
         })
@@ -146,19 +146,23 @@ def _ratio(rows, kernel, threads, num, den):
     return None if a is None or b is None else a / b
 
 
+def _num(v) -> float:
+    return float("nan") if v is None else v
+
+
 def format_bench(d: dict) -> str:
     """Readable table of :func:`run_bench`'s result, with the ratios of [G20] Figs 11–12."""
     rows = d.get("explicit", [])
     out = ["explicit dynamics, compression cube (dt = 1 ms; time per 10,000 steps)", ""]
-    head = f"{'model':<10} {'nu':>6} {'mesh':>9} {'kernel':>6} {'thr':>3} {'steps':>6} " \
+    head = f"{'model':<14} {'nu':>6} {'mesh':>9} {'kernel':>6} {'thr':>3} {'steps':>6} " \
            f"{'wall s':>8} {'cpu s':>8} {'s/10k':>8} {'springs':>7} {'ns/spr/step':>11} {'dt_crit s':>9}"
     out += [head, "-" * len(head)]
     for r in rows:
         out.append(
-            f"{r['model']:<10} {r['nu']:>6g} {r['mesh']:>9} {r['kernel']:>6} {r['threads']:>3} "
+            f"{r['model']:<14} {r['nu']:>6g} {r['mesh']:>9} {r['kernel']:>6} {r['threads']:>3} "
             f"{r['steps']:>6} {r['wall_time_s']:>8.3f} {r.get('cpu_time_s', float('nan')):>8.3f} "
             f"{r['s_per_10k_steps']:>8.3f} "
-            f"{r.get('springs', 0):>7} {r.get('ns_per_spring_step', float('nan')):>11.2f} "
+            f"{r.get('springs', 0):>7} {_num(r.get('ns_per_spring_step')):>11.2f} "
             f"{r.get('dt_crit_s', float('nan')):>9.4g}"
         )
     if rows and "load_avg" in rows[0]:
@@ -178,6 +182,14 @@ def format_bench(d: dict) -> str:
                 val = _ratio(rows, kernel, th, (model, nu), base[1:])
                 if val is not None:
                     parts.append(f"{model}(nu={nu:g})/{base[1]}(nu={base[2]:g}) {val:.2f}")
+            out.append("  ".join(parts))
+        ref = pairs[0] if pairs else None  # the registry's first model (hybmss) at 0.499
+        if ref is not None:
+            parts = [f"  time per step / {ref[0]}(nu={ref[1]:g}), numba 1 thread:"]
+            for model, nu in pairs[1:]:
+                val = _ratio(rows, "numba", 1, (model, nu), ref)
+                if val is not None:
+                    parts.append(f"{model}(nu={nu:g}) {val:.2f}")
             out.append("  ".join(parts))
         for model, nu in pairs:
             pick = {}

@@ -32,7 +32,6 @@ strain energy ``Σ_e ½ u_eᵀ K_e u_e`` as a measure, not as a potential to min
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 
@@ -45,9 +44,8 @@ from ..explicit import ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
-from ..solvers import StaticOptions
-from ..solvers import solve_static as _solve_static
-from ..system import System
+from ..system import System, build
+from .base import STUDY_ROLES, ModelBase, Style
 from ._voxel_explicit import blowup_limit2, divergence, find_bad, plate_arrays, run_result
 
 XI = np.ascontiguousarray(2.0 * CORNERS - 1.0)
@@ -325,19 +323,20 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
     if history is not None:
         record(0)
     chunk = int(record_every) if record_every > 0 else max(steps, 1)
-    wall, done = 0.0, 0
+    wall, cpu, done = 0.0, 0.0, 0
     while done < steps:
         n = min(chunk, steps - done)
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         k, bad = advance(done, n)
         wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
         if bad >= 0:
             raise divergence(system, state()[0], bad, done + k, dt, dt_c, check_every, term.name)
         done += n
         if history is not None:
             record(done)
     x, v = state()
-    info = {"kernel": kernel, "threads": 1, "dt": dt, "steps": steps, "t_end": steps * dt,
+    info = {"kernel": kernel, "threads": 1, "cpu_time_s": cpu, "dt": dt, "steps": steps, "t_end": steps * dt,
             "dt_crit": None if dt_c is None else float(dt_c), "damping": float(system.scene.damping),
             "ramp_time": float(ramp_time), "load_factor": ramp(steps * dt, ramp_time), "model": term.name}
     if history is not None:
@@ -346,19 +345,47 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
                       wall, info)
 
 
-# ------------------------------------------------------------------------------ static equilibrium
-def with_term(system: System, term) -> System:
-    """``system`` with its springs and volume energy replaced by ``term`` (kept: masses, plates,
-    gravity and the other terms, e.g. dead loads): the system of a model that is not a lattice."""
-    none = np.zeros(0, dtype=np.int64)
-    return dataclasses.replace(system, spring_a=none, spring_b=none, spring_k=np.zeros(0), spring_l0=np.zeros(0),
-                               spring_family=none, vol_cells=np.zeros((0, 8), dtype=np.int64), vol_V0=np.zeros(0),
-                               kappa=0.0, terms=tuple(system.terms) + (term,))
+# ------------------------------------------------------------------------------ the registry's model
+def corot_term(system: System) -> CorotHex8:
+    """The corotational term of a system built for a corot model."""
+    for t in system.terms:
+        if isinstance(t, CorotHex8):
+            return t
+    raise ValueError("the system has no corotational hexahedra (its model is not corot-hex8 or corot-hex8-sri)")
 
 
-def solve_static(system: System, term: CorotHex8, options: StaticOptions | None = None) -> Result:
-    """Static equilibrium with the project's static Newton (:func:`hybmss.solvers.solve_static`):
-    the term is non-conservative, so it runs in residual mode with the tangent ``R K Rᵀ``, load
-    steps and line search, to the MSS residual criterion ``‖f_free‖ ≤ rtol · largest reaction``."""
-    S = with_term(system, term)
-    return _solve_static(S.scene, options, system=S)
+def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba", ramp_time: float = 1.0,
+                   threads: int = 1, record_every: int = 0, system: System | None = None, *,
+                   x0: np.ndarray | None = None, v0: np.ndarray | None = None, dt_crit_value: float | None = None,
+                   compute_dt_crit: bool = True, check_every: int = 10) -> Result:
+    """:func:`simulate_explicit` with the signature of :func:`hybmss.explicit.simulate_explicit`
+    (one thread: the element scatter is serial)."""
+    S = system if system is not None else build(scene)
+    return simulate_explicit(S, corot_term(S), dt, steps, kernel, ramp_time, check_every=check_every,
+                             record_every=record_every, x0=x0, v0=v0, dt_crit_value=dt_crit_value,
+                             compute_dt_crit=compute_dt_crit)
+
+
+class CorotHex8Model(ModelBase):
+    """``corot-hex8``: corotational linear hexahedra, full 2×2×2 integration (module docstring)."""
+
+    name = "corot-hex8"
+    label = "corotational linear Hex8 FEM, polar rotation, 2x2x2 Gauss (SOFA; Nesme 2005)"
+    style = Style("#2ca02c", "s", "--")
+    conservative = False
+    solvers = ("static", "explicit")
+    kernels = ("numba", "numpy")
+    order = 20
+    studies = tuple(r for r in STUDY_ROLES if r != "regression")
+    sri = False
+
+    def terms(self, p, scene, lattice, consts):
+        return (CorotHex8(lattice, scene.material, self.sri),)
+
+    def dt_crit(self, system) -> float:
+        return dt_crit(system, corot_term(system))
+
+    simulate_explicit = staticmethod(simulate_scene)
+
+
+MODEL = CorotHex8Model()
