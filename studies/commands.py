@@ -126,7 +126,10 @@ def cmd_run(args) -> int:
                          "ones abandoned; rerun the same command to resume\n")
         return 130
     except SweepError as exc:
-        sys.stderr.write(f"error: {' '.join(str(exc).split())}\n")
+        msg = " ".join(str(exc).split())
+        if args.json:
+            emit({"status": "error", "message": msg, "out": str(args.out), **runner.summary.as_dict()}, True, "")
+        sys.stderr.write(f"error: {msg}\n")
         return 3
     s = runner.summary
     out = {"status": "ok", "out": str(args.out), **s.as_dict()}

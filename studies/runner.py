@@ -338,8 +338,8 @@ class Runner:
             if store.has(k):
                 s.stored += 1
             else:
-                todo.append(t)
-        todo.sort(key=_expected_cost, reverse=True)  # longest first: the pool's tail stays short
+                todo.append((k, t))
+        todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)  # longest first: a short tail
         bar = tqdm(total=len(unique), initial=s.stored, desc=desc, disable=not self.progress, unit="run",
                    dynamic_ncols=True, file=sys.stderr)
         own = self._dask is None and self.executor == "dask" and bool(todo)
@@ -373,6 +373,8 @@ class Runner:
                 c.release()
             if ex is not None and ex is not self._dask:
                 ex.abandon()
+            if own:
+                self.close()
             bar.close()
             self.summary.add(s)
             raise
@@ -384,17 +386,17 @@ class Runner:
         self.summary.add(s)
         return [store.row(k) for k in keys]
 
-    def _sweep(self, ex, todo: list[Task], store: Store, s: Summary, bar, claims: dict) -> None:
+    def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict) -> None:
         pending = deque(todo)
-        waiting: list[Task] = []
+        by_key = dict(todo)
+        waiting: list[tuple[str, Task]] = []
         own_version = code_version()
         while pending or claims or waiting:
             while pending and len(claims) < ex.capacity():
-                t = pending.popleft()
-                k = t.key()
+                k, t = pending.popleft()
                 claim = store.claim(k)
                 if claim is None:  # another process is computing it
-                    waiting.append(t)
+                    waiting.append((k, t))
                     continue
                 try:
                     done = store.check(k) is not None
@@ -414,7 +416,7 @@ class Runner:
             if claims:
                 k, outcome = ex.wait_one()
                 if isinstance(outcome, WorkerDied):
-                    row, arrays = base_row(next(t for t in todo if t.key() == k), k), None
+                    row, arrays = base_row(by_key[k], k), None
                     row.update(status="error", message=outcome.message)
                 else:
                     row, arrays = outcome
@@ -430,7 +432,7 @@ class Runner:
                 bar.set_postfix_str(str(stored.get("label", ""))[:40], refresh=False)
                 bar.update(1)
             elif waiting:
-                holders = sorted({store.holder(t.key()) for t in waiting} - {""})
+                holders = sorted({store.holder(k) for k, _ in waiting} - {""})
                 bar.set_postfix_str(f"waiting for {len(waiting)} runs claimed by "
                                     f"{', '.join(holders) or 'another process'}"[:60], refresh=True)
                 time.sleep(0.5)

@@ -194,3 +194,22 @@ def test_out_that_cannot_be_a_folder_is_refused_before_work(tmp_path):
 def test_runner_arguments_are_checked(kw, words):
     with pytest.raises(ValueError, match=words):
         Runner(**kw)
+
+
+def test_results_of_other_solver_code_are_not_stored(tmp_path, monkeypatch):
+    """A worker whose hybmss differs from this process's (its rows name another code version)
+    stops the sweep instead of storing its results under this code's keys."""
+    import studies.runner as runner_mod
+    from studies.executors import SweepError
+
+    real = runner_mod.compute
+
+    def other_version(task, key=None):
+        row, arrays = real(task, key)
+        return {**row, "env_code_version": "0" * 16}, arrays
+
+    monkeypatch.setattr(runner_mod, "compute", other_version)
+    store = Store(tmp_path)
+    with pytest.raises(SweepError, match="code version"):
+        Runner(jobs=1, progress=False).run(tiny_tasks()[:1], store)
+    assert store.keys() == [] and not list(store.locks.iterdir())
