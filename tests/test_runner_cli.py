@@ -46,7 +46,9 @@ def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_p
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
     err = p.stderr.read()
-    assert rc == 130, err
+    # 130 from the handler; a second SIGINT landing while the interpreter exits ends it by the
+    # signal itself (the same status to a shell)
+    assert rc in (130, -signal.SIGINT), err
     assert "Traceback" not in err and "interrupted" in err
     _, alive = psutil.wait_procs(workers, timeout=10)
     assert alive == []  # the pool is shut down
