@@ -49,22 +49,83 @@ DEFAULTS = {
 
 
 @dataclass(frozen=True)
+class Range:
+    """An interval of allowed values, ``lo`` and ``hi`` included unless ``*_open``."""
+
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def __contains__(self, value: float) -> bool:
+        v = float(value)
+        if not math.isfinite(v):
+            return False
+        above = v > self.lo if self.lo_open else v >= self.lo
+        below = v < self.hi if self.hi_open else v <= self.hi
+        return above and below
+
+    def __str__(self) -> str:
+        def end(x):
+            return "inf" if x == math.inf else "-inf" if x == -math.inf else f"{x:g}"
+
+        return f"{'(' if self.lo_open or self.lo == -math.inf else '['}{end(self.lo)}, " \
+               f"{end(self.hi)}{')' if self.hi_open or self.hi == math.inf else ']'}"
+
+
+FINITE = Range()
+
+MSS_SOLVERS = ("static", "explicit", "implicit")
+"""The mass-spring solvers (the FEM reference is ``fem``): the model parameters are theirs only."""
+
+
+def param(default, help: str, unit: str = "", ranges=None, experiments=None, flags=(), solvers=None):
+    """A :class:`SceneSpec` field with what a user needs to set it: ``help`` and ``unit``; the
+    allowed values ``ranges`` (a :class:`Range`, or a dict experiment → Range; ``None``: checked
+    by the scene's own types); ``experiments`` that use it (``None``: every one); ``solvers`` that
+    use it (``None``: every one); extra command-line ``flags``."""
+    return dataclasses.field(default=default, metadata={
+        "help": help, "unit": unit, "ranges": ranges, "experiments": experiments, "flags": tuple(flags),
+        "solvers": solvers})
+
+
+class ParameterError(ValueError):
+    """A scene parameter outside its allowed range: ``name``, ``value`` and ``allowed``."""
+
+    def __init__(self, name: str, value, allowed: str, why: str = ""):
+        self.name, self.value, self.allowed = name, value, allowed
+        super().__init__(f"{name} = {value!r} is not allowed: {why + '; ' if why else ''}allowed: {allowed}")
+
+
+@dataclass(frozen=True)
 class SceneSpec:
-    """Parameters of one experiment run (everything a row of a results table needs)."""
+    """Parameters of one experiment run (everything a row of a results table needs).
+
+    Each field's metadata (:func:`param`) says what it means, its unit, the values a user may
+    ask for (:meth:`check`) and which experiments use it (:meth:`uses`); the command line's
+    scene options are generated from these fields.
+    """
 
     experiment: str
-    mesh: tuple[int, int, int] = (10, 10, 10)
-    E: float = 1e4
-    nu: float = 0.25
-    rho: float = 1000.0
-    model: str = "hybmss"
-    A: float | None = None
-    e_form: bool = False
-    volume_energy: str = "quadratic"
-    deformation: float = 0.05
-    angle_deg: float = 0.0
-    gravity: float = 0.0
-    damping: float = 0.0
+    mesh: tuple[int, int, int] = param((10, 10, 10), "cells NXxNYxNZ")
+    E: float = param(1e4, "Young's modulus", "Pa", Range(0.0, lo_open=True))
+    nu: float = param(0.25, "Poisson ratio", "", Range(-1.0, 0.5, lo_open=True, hi_open=True))
+    rho: float = param(1000.0, "density", "kg/m^3", Range(0.0))
+    model: str = param("hybmss", "mass-spring model", solvers=MSS_SOLVERS)
+    A: float | None = param(None, "face/inner diagonal stiffness ratio kf/kc (default: the model's)", "",
+                            Range(0.0), solvers=MSS_SOLVERS)
+    e_form: bool = param(False, "spring constants from [G20] eq. 5.12 (assumes E = 5G/2)", solvers=MSS_SOLVERS)
+    volume_energy: str = param("quadratic", "volume-energy form", solvers=MSS_SOLVERS)
+    deformation: float = param(0.05, "plate displacement / height d (0.05 = 5 %)", "", {
+        "compression": Range(0.0, 1.0, hi_open=True), "tension": Range(0.0), "shear": FINITE,
+        "uniaxial": Range(-0.1, 0.1)}, experiments=("compression", "tension", "shear", "uniaxial"),
+        flags=("-d",))
+    angle_deg: float = param(0.0, "torsion angle of the top plate", "degrees",
+                             Range(-180.0, 180.0, lo_open=True, hi_open=True), experiments=("torsion",),
+                             flags=("--angle",))
+    gravity: float = param(0.0, "gravity along -y", "m/s^2", FINITE, experiments=("bending",))
+    damping: float = param(0.0, "mass-proportional damping c of the dynamic solvers", "1/s", Range(0.0),
+                           solvers=("explicit", "implicit"))
 
     def __post_init__(self):
         if self.experiment not in EXPERIMENTS:
@@ -78,6 +139,47 @@ class SceneSpec:
         params = dict(DEFAULTS[experiment])
         params.update({k: v for k, v in overrides.items() if v is not None})
         return cls(experiment, **params)
+
+    @staticmethod
+    def parameters() -> tuple[dataclasses.Field, ...]:
+        """The fields a user sets (every field but ``experiment``), with their :func:`param` metadata."""
+        return tuple(f for f in dataclasses.fields(SceneSpec) if f.name != "experiment")
+
+    @staticmethod
+    def uses(name: str, experiment: str, solver: str | None = None) -> bool:
+        """Whether parameter ``name`` changes an ``experiment`` solved by ``solver``."""
+        meta = {f.name: f.metadata for f in SceneSpec.parameters()}[name]
+        if meta["experiments"] is not None and experiment not in meta["experiments"]:
+            return False
+        return solver is None or meta["solvers"] is None or solver in meta["solvers"]
+
+    def check(self) -> "SceneSpec":
+        """Refuse values a user may not ask for (:class:`ParameterError`, a ``ValueError`` naming
+        the parameter, its value and the allowed range); returns ``self``.
+
+        Beyond each field's range: a scene with a plate on each end needs two cell layers along z
+        (with one, every particle lies on a plate and nothing is left to solve); the torsion range
+        is below half a turn because a plate rotation is defined by its end position, so θ and
+        θ − 360° are the same boundary condition.  The model and material are built to check
+        their own constraints (A of ``hybmss-fd``, ν, …).
+        """
+        for f in self.parameters():
+            rng = f.metadata["ranges"]
+            if isinstance(rng, dict):
+                rng = rng.get(self.experiment)
+            value = getattr(self, f.name)
+            if rng is None or value is None or not self.uses(f.name, self.experiment):
+                continue
+            if value not in rng:
+                unit = f" {f.metadata['unit']}" if f.metadata["unit"] else ""
+                raise ParameterError(f.name, value, f"{rng}{unit}", f"{self.experiment}: {f.metadata['help']}")
+        if self.experiment in ("compression", "tension", "shear", "torsion") and self.mesh[2] < 2:
+            raise ParameterError("mesh", "x".join(map(str, self.mesh)), "NZ >= 2",
+                                 f"{self.experiment} moves a plate on each end, so one cell layer leaves "
+                                 "nothing to solve")
+        Model(self.model, A=self.A, e_form=self.e_form, volume_energy=self.volume_energy)
+        Material(self.E, self.nu, self.rho)
+        return self
 
     def replace(self, **kw) -> "SceneSpec":
         return dataclasses.replace(self, **kw)
