@@ -172,10 +172,10 @@ class Stencil:
 
 def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
     """Lay ``system`` out on its grid.  Raises ``ValueError`` for what the stencil cannot hold
-    (variant correction forces in ``system.extras``, non-regular rest lengths)."""
-    if system.extras.get("forces") is not None:
+    (force terms of ``system.terms``, non-regular rest lengths)."""
+    if system.terms:
         raise ValueError(
-            "the numba kernel has no variant correction forces (system.extras['forces']); "
+            f"the numba kernel has no force terms ({', '.join(t.name for t in system.terms)}); "
             "use kernel='numpy'"
         )
     lat = system.lattice
