@@ -44,6 +44,7 @@ exit status and output:
   3  the input was valid but the simulation failed (diverged, lost equilibrium, Newton did
      not converge, inverted cells): one line on stderr with the cause and a likely remedy;
      with --json also one JSON object with "status" and "message" on stdout.
+  130 stopped by Ctrl-C (one line saying what was kept).
   Never a traceback: --debug shows one (and the solvers' warnings).
 """
 
@@ -318,7 +319,8 @@ def main(argv=None) -> int:
         message = _one_line(message)
         err.write(f"hybmss: {kind}: {message}\n")
         if as_json:
-            out.write(dump({"status": "invalid" if status == 2 else "failed", "message": message}) + "\n")
+            kind_ = {2: "invalid", 3: "failed"}.get(status, "interrupted")
+            out.write(dump({"status": kind_, "message": message}) + "\n")
         return status
 
     caught: list = []
@@ -337,8 +339,8 @@ def main(argv=None) -> int:
         if debug:
             traceback.print_exc()
         return fail(2, "error", str(exc))
-    except KeyboardInterrupt:
-        return fail(3, "interrupted", "stopped by the user (Ctrl-C); stored results are kept")
+    except KeyboardInterrupt as exc:  # 130, the shell's status for SIGINT; the message says what was kept
+        return fail(130, "interrupted", str(exc) or "stopped by Ctrl-C; stored results are kept")
     except MemoryError:
         if debug:
             traceback.print_exc()

@@ -135,6 +135,8 @@ REFUSED = [
     (["bench", "--steps", "0"], "--steps"),
     (["bench", "--steps", "-5", "--json"], "got '-5'"),
     (["info", "--scene", "cylinder"], "invalid choice: 'cylinder'"),
+    (["info", "--mesh", "3x3"], "--mesh"),
+    (["info", "--le", "0"], "unrecognized arguments: --le"),
     (["compare"], "required: scene"),
     (["compare", "uniaxial"], "invalid choice: 'uniaxial'"),
     (["compare", "compression", "--element", "hex3"], "invalid choice: 'hex3'"),
@@ -241,6 +243,9 @@ def test_fem_convergence_and_text_output():
 
 def test_info_counts_without_building_arrays():
     out = check(hybmss("info", "--mesh", "1000x1000x1000", "--json"), 0)
+    assert set(out) == {"status", "mesh", "le", "volumes", "vertices", "springs", "paper_springs_no_fd",
+                        "paper_springs_with_fd"}
+    assert set(out["springs"]) == {"edge", "face_diagonal", "inner_diagonal", "total"}
     n = 1000
     assert out["vertices"] == (n + 1) ** 3 and out["volumes"] == n**3
     assert out["springs"]["inner_diagonal"] == 4 * n**3
