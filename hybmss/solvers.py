@@ -50,6 +50,21 @@ class StaticSolveError(RuntimeError):
     """The static solver could not reach equilibrium; the message says where and why."""
 
 
+NU_RANGE = (-0.99, 0.49999)
+"""Poisson ratios for which the Newton solvers reach equilibrium in float64 and the moduli come out
+right (tests/test_moduli.py).  Beyond ν = 0.49999 the volume term (κ > 1.6e4 E) drowns the plate
+reactions in its round-off; below ν = −0.99 the shear springs (k > 50 E le) do, and finite-strain
+terms amplified by G/K make the measured E wrong by more than 1 % at a strain of 1e-4."""
+
+
+def check_nu(nu: float) -> None:
+    """Raise ``ValueError`` for a Poisson ratio outside :data:`NU_RANGE`."""
+    lo, hi = NU_RANGE
+    if not (lo <= nu <= hi):
+        raise ValueError(f"nu={nu!r} is outside [{lo}, {hi}], the range in which the static and implicit "
+                         "solvers reach an equilibrium in float64")
+
+
 @dataclass(frozen=True)
 class StaticOptions:
     rtol: float = 1e-8
@@ -117,12 +132,12 @@ def _force_scale(system: System, f_total: np.ndarray) -> float:
     (a zero load has the rest state as its answer: the residual is then judged on the floor)."""
     scale = 0.0
     for p in system.plates:
-        scale = max(scale, float(np.linalg.norm(f_total[p.particles].sum(axis=0))))
+        scale = max(scale, _norm(f_total[p.particles].sum(axis=0)))
     if system.gravity is not None:
-        scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
+        scale = max(scale, _norm(system.mass.sum() * system.gravity))
     for t in system.terms:
         if t.scaled:
-            scale = max(scale, float(np.linalg.norm(t.forces(system.X).sum(axis=0))))
+            scale = max(scale, _norm(t.forces(system.X).sum(axis=0)))
     return max(scale, _force_floor(system))
 
 
@@ -131,6 +146,22 @@ def _force_floor(system: System) -> float:
     error is ≈ 1e-16 k le with k ≈ E le, so this floor sits ~4 orders above round-off and far
     below ``rtol`` times any plate reaction of a loaded body."""
     return 1e-12 * system.scene.material.E * system.scene.body.le**2 * np.sqrt(3 * system.n)
+
+
+def _norm(v: np.ndarray) -> float:
+    """Euclidean norm without overflow or underflow of the squares (forces of E = 1e300 Pa)."""
+    a = float(np.max(np.abs(v), initial=0.0))
+    if a == 0.0 or not np.isfinite(a):
+        return a
+    return a * float(np.linalg.norm(v / a))
+
+
+def _inertia_floor(w: np.ndarray, x: np.ndarray) -> float:
+    """Round-off level of the inertia force ``w (x − x̃)`` of implicit Euler: positions carry a
+    relative error of one ulp, so its rounding is ≈ eps · max|x| · max w per dof; the floor is 10×
+    that over the 3n dofs.  At small dt (w = m (1 + c dt)/dt² large) it exceeds the static floor,
+    and a residual at this level is as converged as positions stored in float64 allow."""
+    return 10.0 * np.finfo(float).eps * float(np.abs(x).max()) * float(w.max()) * np.sqrt(x.size)
 
 
 @dataclass
@@ -175,7 +206,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
       Π and the backtracking line search asks Π to decrease (Armijo);
     - **residual** (non-conservative terms, no energy; ``inertia`` must be None): find a zero of the
       force residual r with the exact nonsymmetric Jacobian ``∂(−f)/∂x`` (general LU); the merit
-      is ``½‖r‖²``, a line search asks ``‖r‖`` to decrease (Armijo on the norm), and a step the
+      is ``‖r‖``, a line search asks it to decrease (Armijo on the norm), and a step the
       search rejects is retried with the next Levenberg–Marquardt shift of ``_RESIDUAL_SHIFTS``.
 
     Both share the shifts ``μ·mean(diag)·I`` against zero-energy modes, the rejection of inverted
@@ -196,7 +227,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     le = system.scene.body.le
 
     def evaluate(xx):
-        """(merit, forces): Π (+ inertia) in energy mode, ½‖r_free‖² in residual mode."""
+        """(merit, forces): Π (+ inertia) in energy mode, ‖r_free‖ in residual mode."""
         e, f, _ = energy_forces(system, xx, load)
         if inertia is not None:
             w, xt = inertia
@@ -204,12 +235,13 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             e += 0.5 * float(np.sum(w[:, None] * d * d))
             f = f - w[:, None] * d
         if residual:
-            rr = f.ravel()[free]
-            e = 0.5 * float(rr @ rr)
+            e = _norm(f.ravel()[free])
         return e, f
 
     e, f = evaluate(x)
     floor = _force_floor(system)
+    if inertia is not None:
+        floor = max(floor, _inertia_floor(inertia[0], x))
     if np.any(cell_volumes(x, cells) <= 0.0):
         return False, x, f, np.inf, _force_scale(system, f)
     best, e_best, stalled = np.inf, np.inf, 0
@@ -218,7 +250,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
         lu = None
     for it in range(max_iter + 1):
         r = f.ravel()[free]
-        rnorm = float(np.linalg.norm(r))
+        rnorm = _norm(r)
         # the reaction scale uses the static forces: remove the inertia term (derivable, no re-evaluation)
         scale = _force_scale(system, f if inertia is None else f + inertia[0][:, None] * (x - inertia[1]))
         stats.history.append(rnorm / scale)
@@ -280,7 +312,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                 xt = x + alpha * step
                 if np.all(cell_volumes(xt, cells) > 0.0):
                     et, ft = evaluate(xt)
-                    rt = float(np.linalg.norm(ft.ravel()[free]))
+                    rt = _norm(ft.ravel()[free])
                     if residual:
                         accepted = rt <= (1.0 - 1e-4 * alpha) * rnorm
                     else:
@@ -458,6 +490,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     Hessian and leaves saddles; residual mode returns the equilibrium without that certificate."""
     opts = options or StaticOptions()
     t0 = time.perf_counter()
+    check_nu(scene.material.nu)
     S = system if system is not None else build(scene)
     residual = not S.conservative
     free = ~S.fixed.ravel()
@@ -470,6 +503,15 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     while s < 1.0 - 1e-14:
         s_new = min(1.0, s + ds)
         target = S.prescribed(s_new)
+        # a step that changes nothing (a zero load: no plate motion, no body load) is already in
+        # equilibrium: the rest state is the answer, exactly
+        trial = x.copy()
+        trial[S.fixed] = target[S.fixed]
+        if _newton(S, trial, free, opts.rtol, 0, None, stats, load=s_new)[0]:
+            x_prev, s_prev, x, s = x, s, trial, s_new
+            load_steps += 1
+            ds = min(opts.max_step, ds * 1.5)
+            continue
         guess, lu = _tangent_predictor(S, x, target, free, s_new)
         if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
             guess, lu = x.copy(), None
@@ -512,7 +554,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
                 break
             x = x_new
     e, f, parts = energy_forces(S, x)
-    r = float(np.linalg.norm(f.ravel()[free]))
+    r = _norm(f.ravel()[free])
     if residual:
         info = {
             "equilibrium": "force-residual Newton (non-conservative terms, no energy)",
@@ -540,6 +582,21 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
 
 
 # --------------------------------------------------------------------------------- implicit
+def _implicit_failure_message(S: System, n: int, t: float, dt: float, rnorm: float, scale: float) -> str:
+    """Why Newton failed in step ``n``: a residual already small against the step's forces
+    stalled at round-off (the inertia term M/dt² dwarfs the elastic forces: a larger dt helps); a
+    large one is a step too big for Newton or a lost equilibrium (a smaller dt helps if not κ < 0)."""
+    head = (f"implicit Euler step {n} (t={t:.4g} s) did not converge: residual {rnorm:.3g} N vs "
+            f"scale {scale:.3g} N")
+    if np.isfinite(rnorm) and rnorm <= 1e-3 * scale:
+        return head + (f"; Newton stalled at round-off of the inertia term M/dt^2: increase dt={dt:g} s "
+                       "(or use solve_static for the rest state)")
+    if S.kappa < 0:
+        return head + (f"; kappa={S.kappa:.4g} Pa < 0 (nu < 1/4): the equilibrium may be lost (check with "
+                       f"solve_static); otherwise reduce dt={dt:g} s")
+    return head + f"; the step is too large for Newton: reduce dt={dt:g} s"
+
+
 def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
                       system: System | None = None) -> Result:
     """Backward Euler with Newton per step (solver name ``mss-implicit``).
@@ -548,6 +605,7 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
     once the ramp is over and every particle moves less than ``rest_tol · le`` in one step."""
     opts = options or ImplicitOptions()
     t0 = time.perf_counter()
+    check_nu(scene.material.nu)
     S = system if system is not None else build(scene)
     if not S.conservative:
         raise StaticSolveError(
@@ -571,10 +629,7 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
         guess[S.fixed] = target[S.fixed]
         ok, x_new, _, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, (w, x_tilde), stats)
         if not ok:
-            raise StaticSolveError(
-                f"implicit Euler step {n} (t={t:.4g} s) did not converge: residual {rnorm:.3g} N "
-                f"vs scale {scale:.3g} N; reduce dt={dt} or check for instability (kappa={S.kappa:.4g})"
-            )
+            raise StaticSolveError(_implicit_failure_message(S, n, t, dt, rnorm, scale))
         v = (x_new - x) / dt
         x = x_new
         steps_done = n
