@@ -242,7 +242,7 @@ def build_parser() -> tuple[Parser, Options]:
     q = command("moduli", "effective E, nu, G of a model (static homogeneous tests)", commands.moduli)
     add_scene_options(q, opts, names=("model", "A", "e_form", "volume_energy", "E", "nu", "rho"))
     opts.add(q, "--strain", type=number, default=DEFAULTS["uniaxial"]["deformation"],
-             help=f"test strain (|strain| in (0, 0.1]; default {DEFAULTS['uniaxial']['deformation']:g})")
+             help=f"test strain (allowed [1e-06, 0.01]; default {DEFAULTS['uniaxial']['deformation']:g})")
 
     q = command("bench", "speed of the explicit kernels and the static solver", commands.bench)
     opts.add(q, "--steps", type=positive_int, default=10_000, help="explicit steps (integer >= 1; default 10000)")

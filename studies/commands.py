@@ -29,8 +29,6 @@ SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
 
 MSS_SOLVERS = ("static", "explicit", "implicit")
 SOLVER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(SolverSpec)}
-STRAIN_MAX = 0.1
-"""Largest |strain| of ``moduli`` (effective moduli are a small-strain property)."""
 
 
 class InputError(ValueError):
@@ -159,8 +157,6 @@ def moduli(args):
     p = {f.name: getattr(base, f.name) for f in SceneSpec.parameters()}
     p.update(given_scene_options(args))
     strain = args.strain
-    if not 0 < abs(strain) <= STRAIN_MAX:
-        raise InputError(f"--strain = {strain:g} is not allowed: allowed: 0 < |strain| <= {STRAIN_MAX:g}")
     try:
         model = Model(p["model"], A=p["A"], e_form=p["e_form"], volume_energy=p["volume_energy"])
         mat = Material(p["E"], p["nu"], p["rho"])

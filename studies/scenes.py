@@ -109,7 +109,8 @@ class SceneSpec:
     experiment: str
     mesh: tuple[int, int, int] = param((10, 10, 10), "cells NXxNYxNZ")
     E: float = param(1e4, "Young's modulus", "Pa", Range(0.0, lo_open=True))
-    nu: float = param(0.25, "Poisson ratio", "", Range(-1.0, 0.5, lo_open=True, hi_open=True))
+    nu: float = param(0.25, "Poisson ratio (the static and implicit mass-spring solvers and moduli take "
+                      "[-0.99, 0.49999])", "", Range(-1.0, 0.5, lo_open=True, hi_open=True))
     rho: float = param(1000.0, "density", "kg/m^3", Range(0.0))
     model: str = param("hybmss", "mass-spring model", solvers=MSS_SOLVERS)
     A: float | None = param(None, "face/inner diagonal stiffness ratio kf/kc (default: the model's)", "",

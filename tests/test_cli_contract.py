@@ -81,8 +81,10 @@ REFUSED = [
     (["compare", "compression", "--E", "abc"], "expected a number, got 'abc'"),
     (["compare", "compression", "--E", "nan", "--json"], "expected a finite number"),
     (["fem", "--deformation", "inf"], "expected a finite number"),
-    (["moduli", "--strain", "0"], "--strain = 0"),
-    (["moduli", "--strain", "-0.5", "--json"], "0 < |strain| <= 0.1"),
+    (["moduli", "--strain", "0"], "strain=0"),
+    (["moduli", "--strain", "-0.5", "--json"], "outside [1e-06, 0.01]"),
+    (["moduli", "--nu", "-0.999999"], "outside [-0.99, 0.49999]"),
+    (["compare", "compression", "--nu", "0.4999999", "--json"], "outside [-0.99, 0.49999]"),
     # compression by d >= 1 (the plate at or below the floor), negative compressions and tensions
     (["fem", "--deformation", "1.5"], "--deformation = 1.5"),
     (["fem", "--deformation", "5", "--json"], "allowed: [0, 1)"),

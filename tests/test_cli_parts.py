@@ -110,3 +110,14 @@ def test_parameter_errors_name_the_range():
     with pytest.raises(ValueError, match=r"deformation = 1.*\[0, 1\)"):
         SceneSpec.default("compression", deformation=1.0).check()
     assert math.isfinite(SceneSpec.default("compression", deformation=0.99).check().deformation)
+
+
+def test_help_ranges_are_the_solvers(capsys):
+    from hybmss.moduli import STRAIN_RANGE
+    from hybmss.solvers import NU_RANGE
+
+    for argv in (["moduli", "--help"], ["compare", "--help"]):
+        assert cli.main(argv) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"[{NU_RANGE[0]:g}, {NU_RANGE[1]:g}]" in text
+    assert f"[{STRAIN_RANGE[0]:g}, {STRAIN_RANGE[1]:g}]" in text
