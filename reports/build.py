@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import figures as figmod
+from . import palette
 from . import render as rendermod
 from . import findings, summary, tables, vtu
 from .data import Results
@@ -36,6 +37,9 @@ STUDY_SECTIONS = (
     ("baudet", "[B09]'s experiments at [B09]'s parameters", ("study_b09",),
      ("baudet_cantilever", "baudet_lshape", "baudet_moduli", "baudet_volume")),
 )
+#: study figures printed at a third of the page height, so that a section's figures and short table share a page
+HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability", "study_damping",
+                "study_limit_stretch", "study_b09"}
 OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", *OPTIONAL_TABLES}
@@ -83,8 +87,6 @@ def _fingerprint(results: Results, *modules) -> str:
 
 def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list) -> dict:
     """matplotlib figures, reused when neither the results nor the drawing code changed."""
-    from . import palette
-
     key = _fingerprint(results, figmod, palette)
     manifest = cache / f"figures-{key}.json"
     if manifest.exists():
@@ -139,14 +141,15 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     warnings: list[str] = []
     vtu_files = vtu.export_all(results, out / "vtu")
     log(f"{len(vtu_files)} VTU files")
-    figs = _cached_figures(results, fig_dir, cache, warnings)
+    with palette.models(results.table("models")):  # the models' own plot styles, as stored
+        figs = _cached_figures(results, fig_dir, cache, warnings)
+        render_key = _fingerprint(results, rendermod)
+        try:
+            renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
+        except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
+            warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
+            renders = []
     log(f"{len(figs)} figures")
-    render_key = _fingerprint(results, rendermod)
-    try:
-        renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
-    except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
-        warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
-        renders = []
     log(f"{len(renders)} renders")
     for w in warnings:
         print(f"warning: {w}", flush=True)
@@ -224,7 +227,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         s = Section(f"study_{sid}", title, intro)
         for fid in fig_ids:
             if fid in figs:
-                s.items.append(("figure", _fig(figs[fid])))
+                item = _fig(figs[fid])
+                if fid in HALF_FIGURES:
+                    item["css"] = "study"
+                s.items.append(("figure", item))
         if short is not None:
             s.items.append(("table", short))
         for name in names:

@@ -22,16 +22,17 @@ import sys
 import traceback
 import warnings
 
-from hybmss.scene import VOLUME_ENERGIES, parse_mesh
+from hybmss.experiments import DEFAULTS, SceneSpec
+from hybmss.scene import parse_mesh
 
 from . import commands
-from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices
+from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices, \
+    model_parameters
 
 ELEMENTS = ("hex1", "hex2", "mixed", "auto")
 LAWS = ("linear", "neo-hookean", "svk")
 """The FEM reference's elements and laws (``fem_reference.solve``'s, named here so that a refused
 invocation does not import scikit-fem)."""
-from .scenes import DEFAULTS, SceneSpec
 
 CONTRACT = """\
 exit status and output:
@@ -49,7 +50,7 @@ exit status and output:
 """
 
 
-CHOICES = {"model": model_choices, "volume_energy": lambda: tuple(VOLUME_ENERGIES)}
+CHOICES = {"model": model_choices}
 """Allowed values of the scene's text parameters."""
 
 
@@ -194,6 +195,20 @@ def add_scene_options(parser, opts: Options, names=None) -> None:
             opts.add(group, *flags, dest=f.name, type=number, default=None, help=text)
 
 
+def add_model_options(parser, opts: Options) -> None:
+    """One option per parameter of the registered models (default ``None``: the model's own)."""
+    group = parser.add_argument_group("model parameters (of the models that declare them)")
+    for name, (f, owners) in model_parameters().items():
+        default = f.default if f.default is not dataclasses.MISSING else None
+        doc = f"parameter of {', '.join(owners)} (default: the model's)".replace("%", "%%")
+        if isinstance(default, bool):
+            opts.add(group, flag(name), dest=name, action="store_const", const=True, default=None, help=doc)
+        elif isinstance(default, (int, float)):
+            opts.add(group, flag(name), dest=name, type=number, default=None, help=doc)
+        else:
+            opts.add(group, flag(name), dest=name, default=None, help=doc)
+
+
 def add_fem_options(parser, opts: Options) -> None:
     from_spec = SOLVER_DEFAULTS
     g = parser.add_argument_group("FEM reference")
@@ -237,10 +252,11 @@ def build_parser() -> tuple[Parser, Options]:
     q = command("info", "lattice counts of a scene's body (SPEC Table 6)", commands.info)
     opts.add(q, "--scene", choices=SCENES, default="compression", help="scene whose body is counted "
              "(default compression)")
-    add_scene_options(q, opts, names=("mesh",))
+    add_scene_options(q, opts, names=("mesh", "le"))
 
     q = command("moduli", "effective E, nu, G of a model (static homogeneous tests)", commands.moduli)
-    add_scene_options(q, opts, names=("model", "A", "e_form", "volume_energy", "E", "nu", "rho"))
+    add_scene_options(q, opts, names=("model", "E", "nu", "rho"))
+    add_model_options(q, opts)
     opts.add(q, "--strain", type=number, default=DEFAULTS["uniaxial"]["deformation"],
              help=f"test strain (allowed [1e-06, 0.01]; default {DEFAULTS['uniaxial']['deformation']:g})")
 
@@ -253,6 +269,7 @@ def build_parser() -> tuple[Parser, Options]:
     opts.add(q, "--scene-json", default=None, metavar="FILE",
              help="solve a stored Scene (Scene.to_dict JSON) instead of an experiment")
     add_scene_options(q, opts)
+    add_model_options(q, opts)
     add_fem_options(q, opts)
     opts.add(q, "--load-steps", type=positive_int, default=None,
              help="load steps of the finite-strain laws (integer >= 1; default 5)")
@@ -265,6 +282,7 @@ def build_parser() -> tuple[Parser, Options]:
                 commands.compare)
     opts.add(q, "scene", choices=SCENES, help="experiment")
     add_scene_options(q, opts)
+    add_model_options(q, opts)
     add_mss_options(q, opts)
     add_fem_options(q, opts)
 

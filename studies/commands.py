@@ -16,13 +16,14 @@ import os
 import time
 from pathlib import Path
 
-from hybmss.scene import MODELS, Material, Model, Scene
+from hybmss import models
+from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
+from hybmss.scene import Material, Model, Scene
 
 from . import sizing
 from .compare import default_law, diff_metrics
 from .reproduce import EXTRA_STUDIES, STUDIES
 from .runner import SolverSpec, Task, measure, solve
-from .scenes import EXPERIMENTS, ParameterError, SceneSpec
 
 SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
 """Experiments the ``fem`` and ``compare`` subcommands solve (``uniaxial`` is ``moduli``'s)."""
@@ -40,8 +41,19 @@ class SolveFailure(RuntimeError):
 
 
 def model_choices() -> tuple[str, ...]:
-    """The mass-spring models a user can pick."""
-    return tuple(MODELS)
+    """The mass-spring models a user can pick (the registry's)."""
+    return tuple(models.names())
+
+
+def model_parameters() -> dict[str, tuple[dataclasses.Field, tuple[str, ...]]]:
+    """Every registered model's parameters: name → (its field in the first model that declares
+    it, the models that have it)."""
+    out: dict[str, tuple[dataclasses.Field, tuple[str, ...]]] = {}
+    for m in models.all_models():
+        for f in dataclasses.fields(m.Parameters):
+            field, owners = out.get(f.name, (f, ()))
+            out[f.name] = (field, owners + (m.name,))
+    return out
 
 
 def study_names() -> tuple[str, ...]:
@@ -61,12 +73,12 @@ def show(v) -> str:
 
 # ------------------------------------------------------------------------------- scene options
 def given_scene_options(args) -> dict:
-    """The scene parameters set on the command line (``None`` = not given)."""
-    return {f.name: getattr(args, f.name) for f in SceneSpec.parameters()
-            if getattr(args, f.name, None) is not None}
+    """The scene and model parameters set on the command line (``None`` = not given)."""
+    names = [f.name for f in SceneSpec.parameters()] + list(model_parameters())
+    return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
 
 
-def scene_spec(args, experiment: str, solvers: tuple[str, ...], check: bool = True) -> SceneSpec:
+def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = True) -> SceneSpec:
     """The :class:`SceneSpec` of the options, checked (:meth:`SceneSpec.check`); refuses an option
     that this experiment and these solvers do not use (it would be silently ignored)."""
     given = given_scene_options(args)
@@ -74,7 +86,7 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], check: bool = Tr
     for name in given:
         if any(SceneSpec.uses(name, experiment, s) for s in solvers):
             continue
-        m = meta[name]
+        m = meta.get(name, {"experiments": None, "solvers": MSS_SOLVERS})
         if m["experiments"] is not None and experiment not in m["experiments"]:
             why = f"{experiment} does not use it; used by: {', '.join(e for e in m['experiments'] if e in SCENES)}"
         else:
@@ -83,10 +95,12 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], check: bool = Tr
         raise InputError(f"{flag(name)} = {show(given[name])} is not allowed: {why}")
     try:
         spec = SceneSpec.default(experiment, **given)
-        return spec.check() if check else spec
+        return spec.check(solved)
     except ParameterError as exc:
         raise InputError(f"{flag(exc.name)} = {show(exc.value)} is not allowed: "
                          f"{str(exc).split(': ', 1)[1]}") from None
+    except TypeError as exc:  # a model parameter of the wrong kind
+        raise InputError(f"model {given.get('model', 'hybmss')}: {exc}") from None
 
 
 def guard(est: sizing.Estimate, what: str, estimate=None) -> None:
@@ -131,12 +145,12 @@ def box_counts(shape) -> dict:
 
 
 def info(args):
-    spec = scene_spec(args, args.scene, ("static",), check=False)
+    spec = scene_spec(args, args.scene, ("static",), solved=False)
     counts = box_counts(spec.mesh)
     s = counts["springs"]
     mesh = show(spec.mesh)
     table = "\n".join([
-        f"{spec.experiment} body, mesh {mesh}, le = {spec.le:g} m",
+        f"{spec.experiment} body, mesh {mesh}, le = {spec.cell_edge:g} m",
         f"  volumes (cells)        {counts['volumes']:>14,}",
         f"  vertices (particles)   {counts['vertices']:>14,}",
         f"  edge springs           {s['edge']:>14,}",
@@ -146,35 +160,35 @@ def info(args):
         f"  [G20] Table 6, no FD   {counts['paper_springs_no_fd']:>14,}",
         f"  [G20] Table 6, with FD {counts['paper_springs_with_fd']:>14,}   (12 unmerged face diagonals per cell)",
     ])
-    return {"mesh": mesh, "le": spec.le, **counts}, table
+    return {"mesh": mesh, "le": spec.cell_edge, **counts}, table
 
 
 # ------------------------------------------------------------------------------- moduli
 def moduli(args):
     from hybmss.moduli import measure_moduli
 
+    given = given_scene_options(args)
     base = SceneSpec("uniaxial")
-    p = {f.name: getattr(base, f.name) for f in SceneSpec.parameters()}
-    p.update(given_scene_options(args))
-    strain = args.strain
+    name = given.pop("model", base.model)
+    mat_p = {k: given.pop(k, getattr(base, k)) for k in ("E", "nu", "rho")}
     try:
-        model = Model(p["model"], A=p["A"], e_form=p["e_form"], volume_energy=p["volume_energy"])
-        mat = Material(p["E"], p["nu"], p["rho"])
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    m = measure_moduli(model, mat, strain=strain)
+        model = Model(name, **given)  # a parameter the model does not have: exit 2
+        mat = Material(**mat_p)
+    except TypeError as exc:
+        raise InputError(f"model {name}: {exc}") from None
+    m = measure_moduli(model, mat, strain=args.strain)
     bad = [k for k, v in m.items() if isinstance(v, float) and not math.isfinite(v)]
     if bad:
         raise SolveFailure(f"the moduli tests gave non-finite {', '.join(bad)}; try a smaller --strain")
     G = mat.G
+    extra = "".join(f", {k} = {v}" for k, v in model.to_dict().items() if k != "name")
     table = "\n".join([
-        f"model {model.name}{'' if model.name == 'baudet2009' else f' (A = {model.A:g})'}"
-        f"{', E-form' if model.e_form else ''}, E = {mat.E:g} Pa, nu = {mat.nu:g}",
+        f"model {model.variant}{extra}, E = {mat.E:g} Pa, nu = {mat.nu:g}",
         f"  E_eff  = {m['E_eff']:.6g} Pa   (input {mat.E:g}, rel. error {m['E_eff'] / mat.E - 1:+.2e})",
         f"  nu_eff = {m['nu_eff']:.6g}      (input {mat.nu:g}, error {m['nu_eff'] - mat.nu:+.2e})",
         f"  G_eff  = {m['G_eff']:.6g} Pa   (E/(2(1+nu)) = {G:.6g}, rel. error {m['G_eff'] / G - 1:+.2e})",
     ])
-    return {"model": model.name, "A": model.A, "e_form": model.e_form, "E": mat.E, "nu": mat.nu, **m}, table
+    return {**model.to_dict(), "model": model.name, "variant": model.variant, "E": mat.E, "nu": mat.nu, **m}, table
 
 
 # ------------------------------------------------------------------------------- bench

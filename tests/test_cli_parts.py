@@ -11,7 +11,7 @@ import pytest
 
 from studies import cli, commands, sizing
 from studies.compare import default_law
-from studies.scenes import DEFAULTS, SceneSpec
+from hybmss.experiments import DEFAULTS, SceneSpec
 
 
 def parse(*argv):
@@ -21,10 +21,11 @@ def parse(*argv):
 
 VALUES = {"mesh": ("3x4x5", (3, 4, 5)), "model": ("hybmss-cf", "hybmss-cf"), "volume_energy": ("squared", "squared"),
           "e_form": (None, True)}
+MSS_ONLY = {"model"} | set(commands.model_parameters())
 
 
-@pytest.mark.parametrize("field", [f.name for f in SceneSpec.parameters()])
-def test_every_scene_parameter_is_one_option_of_fem_and_compare(field):
+@pytest.mark.parametrize("field", [f.name for f in SceneSpec.parameters()] + list(commands.model_parameters()))
+def test_every_scene_and_model_parameter_is_one_option_of_fem_and_compare(field):
     text, value = VALUES.get(field, ("-0.125", -0.125))
     flag = cli.flag(field)
     extra = [] if text is None else [text]
@@ -121,3 +122,12 @@ def test_help_ranges_are_the_solvers(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert f"[{NU_RANGE[0]:g}, {NU_RANGE[1]:g}]" in text
     assert f"[{STRAIN_RANGE[0]:g}, {STRAIN_RANGE[1]:g}]" in text
+
+
+def test_model_options_come_from_the_registry():
+    from hybmss import models
+
+    assert cli.model_choices() == tuple(models.names())
+    for m in models.all_models():
+        for name in m.parameter_names():
+            assert name in commands.model_parameters() and m.name in commands.model_parameters()[name][1]

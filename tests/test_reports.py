@@ -256,9 +256,23 @@ def test_cell_volume_change_of_a_stretched_lattice():
     ("Euler-Bernoulli", "Euler-Bernoulli")])
 def test_one_colour_per_model(method, family):
     from reports import palette
+    from studies.tables import models_table
 
-    assert palette.family(method) == family
-    assert palette.color(method) == palette.COLORS[family]
+    with palette.models(models_table()) as styles:
+        assert palette.family(method) == family
+        assert palette.color(method) == (palette.COLORS[family] if family in palette.COLORS else styles[family][0])
+
+
+def test_unknown_model_is_not_coloured_as_another():
+    """A method of no stored model gets the neutral 'other' style, never a model's colour."""
+    from reports import palette
+    from studies.tables import models_table
+
+    with palette.models(models_table()) as styles:
+        assert palette.family("hybmss-xyz static") == palette.OTHER
+        assert palette.color("hybmss-xyz static") not in {c for c, _, _ in styles.values()}
+        assert palette.family("hybmss static") == "hybmss"
+    assert palette.family("hybmss static") == palette.OTHER  # outside the block: no stored styles
 
 
 def test_the_command_reads_results_only(report, results):
@@ -326,7 +340,7 @@ def test_new_tables_have_their_rows_and_published_columns(report):
     m = b.columns.index("[B09] M")
     rows = {(r[0][0], r[1][0], r[2][0]): r for r in b.rows}
     assert rows[("cantilever", "4x1x1", "baudet2009")][m][0] == "16.3"
-    assert rows[("lshape", "2x2x2", "baudet2009")][m][0] == "6.99"
+    assert rows[("L-shape", "2x2x2", "baudet2009")][m][0] == "6.99"
     ours = b.columns.index("ours M")
     assert all(float(r[ours][0]) > 0 for r in b.rows if r[ours][0] not in ("–",) and not r[ours][0].startswith("failed"))
 
