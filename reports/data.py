@@ -56,7 +56,9 @@ class Results:
                 df[col] = default
         df["scene_e_form"] = df["scene_e_form"].fillna(False).astype(bool)
         df["message"] = df["message"].fillna("")
-        df["variant"] = np.where(df["scene_e_form"], df["scene_model"] + " (E-form)", df["scene_model"])
+        # the variant name the study stored with the run (its model's name for its parameters)
+        stored = df["scene_variant"] if "scene_variant" in df else pd.Series(np.nan, index=df.index)
+        df["variant"] = stored.where(stored.notna(), df["scene_model"])
         fem = df["solver"].map(is_fem)
         df["method"] = np.where(fem, df["solver"],
                                 df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))

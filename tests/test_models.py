@@ -204,3 +204,10 @@ def test_a_model_with_its_own_solvers_and_time_step_gets_the_scene():
             solve_static(SceneSpec.default("compression", mesh=(1, 1, 1), model="test-rods").build())
     finally:
         models.unregister("test-rods")
+
+
+def test_parameter_fields_give_each_parameter_once_with_its_help():
+    f = models.parameter_fields()
+    assert {"A", "e_form", "volume_energy"} <= set(f)
+    assert f["A"].default == 1.0 and f["volume_energy"].metadata["choices"] == ("quadratic", "squared")
+    assert all(fl.metadata.get("help") for k, fl in f.items() if k in ("A", "e_form", "volume_energy"))

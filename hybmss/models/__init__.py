@@ -16,6 +16,7 @@ not load every model.  :func:`names` and :func:`all_models` list models in their
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.metadata
 import pkgutil
@@ -24,7 +25,7 @@ from .base import (KERNELS, NO_SPRINGS, SOLVER_KINDS, STUDY_ROLES, ModelBase, No
                    check)
 
 __all__ = ["ENTRY_POINT_GROUP", "KERNELS", "NO_SPRINGS", "SOLVER_KINDS", "STUDY_ROLES", "ModelBase",
-           "NoParameters", "REGISTRY", "Registry", "Style", "all_models", "check", "get", "in_role", "names", "register", "unregister"]
+           "NoParameters", "REGISTRY", "Registry", "Style", "all_models", "check", "get", "in_role", "names", "parameter_fields", "register", "unregister"]
 
 ENTRY_POINT_GROUP = "hybmss.models"
 
@@ -114,6 +115,17 @@ def all_models() -> tuple[ModelBase, ...]:
 def names() -> tuple[str, ...]:
     """Names of :func:`all_models`."""
     return REGISTRY.names()
+
+
+def parameter_fields() -> dict[str, dataclasses.Field]:
+    """Every parameter name of the registered models and its dataclass field (the first model
+    declaring it, in registry order): type, default and ``metadata`` (``help``, ``choices``), from
+    which a command line builds its model options."""
+    out: dict[str, dataclasses.Field] = {}
+    for m in all_models():
+        for f in dataclasses.fields(m.Parameters):
+            out.setdefault(f.name, f)
+    return out
 
 
 def in_role(role: str) -> tuple[str, ...]:

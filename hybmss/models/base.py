@@ -12,7 +12,8 @@ Class attributes (plain data):
 - ``name``: the registry key, e.g. ``"hybmss-fd"`` (lower case, digits, ``-``, ``_``, ``.``);
 - ``label``: one line for legends and ``--help``;
 - ``style``: :class:`Style` (colour, marker, line style) of its plots;
-- ``Parameters``: a frozen dataclass of its parameters with their defaults; its
+- ``Parameters``: a frozen dataclass of its parameters with their defaults (a field's
+  ``metadata`` may give ``help`` and ``choices`` for the command line); its
   ``__post_init__`` validates them and raises :class:`ValueError` naming the parameter and its
   allowed range (see :func:`check`).  :class:`NoParameters` for a model without any.  Parameter
   names must not be fields of the experiment specification (``E``, ``nu``, ``mesh``, ...);

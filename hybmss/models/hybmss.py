@@ -3,7 +3,7 @@ springs calibrated for G, plus a per-cell volume energy of stiffness κ for ν (
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..calibrate import G_e_form, hybrid_springs, kappa_e_form, kappa_from
 from .base import STUDY_ROLES, ModelBase, Style, check
@@ -21,9 +21,10 @@ class HybridParameters:
       builds them from G = E/(2(1+ν)), right at every ν.
     - ``volume_energy``: ``quadratic`` ([G20]) or ``squared`` (the alternative it mentions)."""
 
-    A: float = 1.0
-    e_form: bool = False
-    volume_energy: str = "quadratic"
+    A: float = field(default=1.0, metadata={"help": "face/inner diagonal stiffness ratio kf/kc (>= 0)"})
+    e_form: bool = field(default=False, metadata={"help": "spring constants from [G20] eq. 5.12 (E = 5G/2)"})
+    volume_energy: str = field(default="quadratic", metadata={"help": "form of the per-cell volume energy",
+                                                              "choices": VOLUME_ENERGIES})
 
     def __post_init__(self):
         object.__setattr__(self, "A", check("A (face/inner diagonal stiffness ratio)", self.A, 0.0))

@@ -3,7 +3,7 @@ for G, volume energy for ν ([G20] "HybMSS-FD")."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from .base import Style
 from .hybmss import HybMSS, HybridParameters
@@ -13,7 +13,7 @@ from .hybmss import HybMSS, HybridParameters
 class NoFaceDiagonalParameters(HybridParameters):
     """As :class:`~hybmss.models.hybmss.HybridParameters`, with ``A`` fixed to 0."""
 
-    A: float = 0.0
+    A: float = field(default=0.0, metadata={"help": "face/inner diagonal stiffness ratio kf/kc (0: none)"})
 
     def __post_init__(self):
         super().__post_init__()
