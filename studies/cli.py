@@ -200,13 +200,17 @@ def add_model_options(parser, opts: Options) -> None:
     group = parser.add_argument_group("model parameters (of the models that declare them)")
     for name, (f, owners) in model_parameters().items():
         default = f.default if f.default is not dataclasses.MISSING else None
-        doc = f"parameter of {', '.join(owners)} (default: the model's)".replace("%", "%%")
+        doc = f.metadata.get("help", name)
+        doc = f"{doc}; parameter of {', '.join(owners)} (default: the model's)".replace("%", "%%")
+        kw = dict(dest=name, default=None, help=doc)
         if isinstance(default, bool):
-            opts.add(group, flag(name), dest=name, action="store_const", const=True, default=None, help=doc)
+            opts.add(group, flag(name), action="store_const", const=True, **kw)
+        elif f.metadata.get("choices"):
+            opts.add(group, flag(name), choices=tuple(f.metadata["choices"]), **kw)
         elif isinstance(default, (int, float)):
-            opts.add(group, flag(name), dest=name, type=number, default=None, help=doc)
+            opts.add(group, flag(name), type=number, **kw)
         else:
-            opts.add(group, flag(name), dest=name, default=None, help=doc)
+            opts.add(group, flag(name), **kw)
 
 
 def add_fem_options(parser, opts: Options) -> None:

@@ -46,14 +46,11 @@ def model_choices() -> tuple[str, ...]:
 
 
 def model_parameters() -> dict[str, tuple[dataclasses.Field, tuple[str, ...]]]:
-    """Every registered model's parameters: name → (its field in the first model that declares
-    it, the models that have it)."""
-    out: dict[str, tuple[dataclasses.Field, tuple[str, ...]]] = {}
-    for m in models.all_models():
-        for f in dataclasses.fields(m.Parameters):
-            field, owners = out.get(f.name, (f, ()))
-            out[f.name] = (field, owners + (m.name,))
-    return out
+    """Every registered model's parameters (:func:`hybmss.models.parameter_fields`): name → (its
+    field, with ``help`` and ``choices`` metadata; the models that have it)."""
+    owners = {name: tuple(m.name for m in models.all_models() if name in m.parameter_names())
+              for name in models.parameter_fields()}
+    return {name: (f, owners[name]) for name, f in models.parameter_fields().items()}
 
 
 def study_names() -> tuple[str, ...]:

@@ -75,7 +75,7 @@ REFUSED = [
     (["compare", "compression", "--A", "-0.5"], "must be >= 0, got -0.5"),
     (["compare", "compression", "--model", "hybmss-fd", "--A", "2"], "A must be 0 for model hybmss-fd"),
     (["compare", "compression", "--model", "baudet2009", "--A", "2"], "model baudet2009 has no parameter 'A'"),
-    (["moduli", "--volume-energy", "cubic", "--json"], "volume_energy must be one of"),
+    (["moduli", "--volume-energy", "cubic", "--json"], "invalid choice: 'cubic'"),
     (["fem", "--le", "-0.5"], "--le = -0.5"),
     # nu outside (-1, 1/2) and other non-numbers
     (["compare", "compression", "--nu", "0.5", "--json"], "--nu = 0.5"),
