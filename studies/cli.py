@@ -26,6 +26,7 @@ from hybmss.experiments import DEFAULTS, SceneSpec
 from hybmss.scene import parse_mesh
 
 from . import commands
+from .executors import EXECUTORS
 from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices, \
     model_parameters
 
@@ -87,6 +88,13 @@ def positive_int(text: str) -> int:
     if v < 1:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
     return v
+
+
+def integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
 
 
 def mesh_arg(text: str):
@@ -296,7 +304,13 @@ def build_parser() -> tuple[Parser, Options]:
     opts.add(q, "--all", action="store_true", help="every study of make reproduce-paper")
     opts.add(q, "--out", default="artifacts/results", help="results folder (default artifacts/results)")
     opts.add(q, "--quick", action="store_true", help="coarse meshes (the tests' mode)")
-    opts.add(q, "--jobs", type=positive_int, default=None, help="parallel runs (integer >= 1; default: all cores)")
+    opts.add(q, "--jobs", type=integer, default=None,
+             help="parallel runs, >= 1 (default: all cores, or the Dask cluster's threads)")
+    opts.add(q, "--executor", choices=EXECUTORS, default="local",
+             help="local: a process pool on this machine (default); dask: a dask.distributed "
+                  "cluster (--scheduler, or a local cluster of --jobs workers)")
+    opts.add(q, "--scheduler", default=None, metavar="ADDRESS",
+             help="address of a running dask scheduler, e.g. tcp://host:8786 (--executor dask)")
     opts.add(q, "--no-progress", action="store_true", help="no progress bar")
     return p, opts
 

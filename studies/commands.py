@@ -12,9 +12,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
+import signal
 import time
-from pathlib import Path
 
 from hybmss import models
 from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
@@ -23,7 +22,8 @@ from hybmss.scene import Material, Model, Scene
 from . import sizing
 from .compare import default_law, diff_metrics
 from .reproduce import EXTRA_STUDIES, STUDIES
-from .runner import SolverSpec, Task, measure, solve
+from .runner import Runner, SolverSpec, Task, exit_now, measure, solve
+from .store import Store
 
 SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
 """Experiments the ``fem`` and ``compare`` subcommands solve (``uniaxial`` is ``moduli``'s)."""
@@ -349,35 +349,28 @@ def compare(args):
 
 
 # ------------------------------------------------------------------------------- run
-def check_out(out: str) -> Path:
-    """The results folder: an existing folder, or one that can be created."""
-    if not str(out).strip():
-        raise InputError("--out = '' is not allowed: allowed: a folder path (existing, or creatable)")
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise InputError(f"--out = {out} is not allowed: it is a file; allowed: a folder path")
-    parent = path
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"--out = {out} is not allowed: {parent} is not a writable folder; "
-                         "allowed: a folder path under a writable folder")
-    return path
-
-
 def run(args):
+    """The studies into ``--out``: 0 when the sweep finishes (failed runs are stored rows), 2 for
+    options not allowed (checked before any work: the folder, the executor and its scheduler),
+    3 when the sweep cannot go on (:class:`studies.executors.SweepError`), 130 on SIGINT (finished
+    runs are kept, running ones abandoned; a second Ctrl-C exits at once)."""
     from .reproduce import run_studies
 
     if args.all and args.study:
-        raise InputError(f"--study = {args.study[0]} is not allowed with --all: --all runs every study; "
-                         "give one or the other")
-    out = check_out(args.out)
-    rows = run_studies(str(out), names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,
-                       progress=not args.no_progress)
-    by_status: dict[str, int] = {}
-    for r in rows:
-        by_status[str(r.get("status"))] = by_status.get(str(r.get("status")), 0) + 1
+        raise InputError(f"--all and --study {','.join(args.study)} together are not allowed: "
+                         "--all runs every study; give one or the other")
+    if not str(args.out).strip():
+        raise InputError("--out '' is not allowed: a results folder path is required")
+    runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
+    Store(args.out).check_writable()
+    try:
+        with runner:
+            run_studies(args.out, names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,
+                        progress=not args.no_progress, runner=runner)
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, exit_now)  # exiting; a second Ctrl-C exits at once
+        raise KeyboardInterrupt(f"{runner.summary.computed} runs computed and stored in {args.out}, running "
+                                "ones abandoned; rerun the same command to resume") from None
+    s = runner.summary
     names = list(study_names()) if args.all or not args.study else list(args.study)
-    obj = {"out": str(out), "studies": names, "runs": len(rows), "runs_by_status": by_status}
-    text = f"{len(rows)} runs of {', '.join(names)} in {out}: " + ", ".join(f"{n} {k}" for k, n in by_status.items())
-    return obj, text
+    return {"out": str(args.out), "studies": names, **s.as_dict()}, f"{args.out}: {s.line()}"

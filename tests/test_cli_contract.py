@@ -128,13 +128,16 @@ REFUSED = [
     (["fem", "--scene-json", "{text}"], "not JSON"),
     (["fem", "--scene-json", "{list}", "--mesh", "2x2x2"], "--scene-json is not allowed with --mesh"),
     # run: folders, jobs, studies
-    (["run", "--all", "--study", "bending"], "--study = bending is not allowed with --all"),
-    (["run", "--jobs", "0"], "--jobs"),
-    (["run", "--jobs", "-1", "--study", "bending"], "expected an integer >= 1, got '-1'"),
-    (["run", "--out", ""], "--out = ''"),
-    (["run", "--out", "/dev/null"], "it is a file"),
-    (["run", "--out", "/dev/null/results"], "not a writable folder"),
-    (["run", "--out", "{file}", "--study", "bending"], "it is a file"),
+    (["run", "--all", "--study", "bending"], "--all and --study bending together are not allowed"),
+    (["run", "--jobs", "0"], "jobs 0 is not allowed"),
+    (["run", "--jobs", "-1", "--study", "bending", "--json"], "jobs -1 is not allowed: an integer >= 1"),
+    (["run", "--jobs", "two"], "expected an integer, got 'two'"),
+    (["run", "--out", ""], "--out '' is not allowed"),
+    (["run", "--out", "/dev/null"], "is a file"),
+    (["run", "--out", "/dev/null/results"], "which is not a folder"),
+    (["run", "--out", "{file}", "--study", "bending"], "is a file"),
+    (["run", "--scheduler", "tcp://h:1"], "needs executor dask"),
+    (["run", "--executor", "slurm"], "invalid choice: 'slurm'"),
     (["run", "--study", "nosuch"], "invalid choice: 'nosuch'"),
     # bench, info and the parser itself
     (["bench", "--steps", "0"], "--steps"),
@@ -278,10 +281,10 @@ def test_bench_quick():
 def test_run_a_quick_study(tmp_path):
     out = check(hybmss("run", "--study", "bending", "--quick", "--jobs", "2", "--no-progress",
                        "--out", str(tmp_path / "res"), "--json"), 0)
-    assert out["runs"] == 8 and out["runs_by_status"] == {"ok": 8}
+    assert out["runs"] == out["computed"] == 8 and out["failed"] == 0
     again = check(hybmss("run", "--study", "bending", "--quick", "--no-progress", "--out", str(tmp_path / "res"),
                          "--json"), 0)  # resumed: every run stored
-    assert again["runs"] == 8
+    assert again["runs"] == again["stored"] == 8 and again["computed"] == 0
 
 
 def test_invocation_count():
