@@ -506,8 +506,11 @@ def explicit_table(results: Results) -> Table | None:
 # ------------------------------------------------------------------ the publication's numbers beside ours
 def run_state(results: Results, experiment: str, method: str, **scene) -> str:
     """What a reader sees instead of a number: "missing" if no run of ``method`` is stored for the
-    scene, "failed (status: message)" if every stored one failed, "" if one reached a result."""
+    scene, "failed (status: message)" if every stored one failed, "" if one reached a result;
+    an E-form method at ν = 1/4 is the G-form (the same constants, not run) and says so."""
     sub = results.find(experiment, method=method, ok_only=False, **scene)
+    if sub.empty and "(E-form)" in method and scene.get("nu") is not None and np.isclose(float(scene["nu"]), 0.25):
+        return "= G-form (ν = 1/4)"  # the same constants: not run
     if sub.empty:
         return "missing"
     if (sub["status"] == "ok").any():

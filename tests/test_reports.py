@@ -315,6 +315,11 @@ def test_new_tables_have_their_rows_and_published_columns(report):
     assert "hybmss [G20] (N)" in t4.columns and "FEM [G20] (N)" in t4.columns
     assert [r[t4.columns.index("hybmss [G20] (N)")][0] for r in t4.rows] == ["3396", "1.460e+04"] or \
         [r[t4.columns.index("hybmss [G20] (N)")][0] for r in t4.rows] == ["3396", "14600"]
+    head = res.tables["table_headline"]
+    g = head.columns.index("[G20] hybmss")
+    shear = [r for r in head.rows if r[0][0] == "shear" and r[2][0] == "0.25"]
+    assert [r[g][0] for r in shear] == ["3396"]  # [G20] Table 4 in the headline, where it publishes a value
+    assert all(r[g][0] == "–" for r in head.rows if r[0][0] == "shear" and r[2][0] != "0.25")
     t5 = res.tables["table5_g20"]
     assert [r[t5.columns.index("load here")][0] for r in t5.rows] == ["θ = 1°", "θ = 45°"]
     ml = res.tables["table_middle_layer"]
