@@ -237,28 +237,39 @@ def b09_frame(cantilever: pd.DataFrame | None, lshape: pd.DataFrame | None, pape
         return pd.DataFrame()
     df = pd.concat(parts, ignore_index=True)
     df["state"] = df["status"].fillna("missing").astype(str)
-    if paper is not None:
+    if paper is not None:  # [B09]'s figures are for its own model, named in the published table
         p = paper.rename(columns={"mean_pct": "b09_mean_pct", "sd_pct": "b09_sd_pct", "max_pct": "b09_max_pct"})
-        df = df.merge(p, on=["experiment", "mesh"], how="left")
+        df = df.merge(p, on=["experiment", "mesh", "model"], how="left")
     return df
+
+
+def b09_models(df: pd.DataFrame) -> list[str]:
+    """The models [B09]'s figures are for (those rows of :func:`b09_frame` with published values)."""
+    if "b09_mean_pct" not in df:
+        return []
+    return list(dict.fromkeys(df.loc[df["b09_mean_pct"].notna(), "model"]))
 
 
 def b09_sentence(df: pd.DataFrame) -> str:
     if df.empty:
         return "No [B09] table is stored (study baudet2009 not run)."
+    own = b09_models(df)
+    if not own:
+        return "No published [B09] values are stored beside these runs."
+    name = own[0]
     parts = []
     for exp, g in df.groupby("experiment", sort=False):
-        b = g[(g["model"] == "baudet2009") & (g["state"] == "ok")].sort_values("cells")
+        b = g[(g["model"] == name) & (g["state"] == "ok")].sort_values("cells")
         exp = EXPERIMENT_NAMES.get(exp, exp)
         if b.empty:
-            parts.append(f"{exp}: baudet2009 has no successful run")
+            parts.append(f"{exp}: {name} has no successful run")
             continue
         ours = " → ".join(f"{v:.3g}" for v in b["err_mean_pct"])
         theirs = " → ".join("missing" if pd.isna(v) else f"{v:.3g}" for v in b.get("b09_mean_pct", []))
         meshes = " → ".join(b["mesh"])
         fine = g[(g["state"] == "ok") & (g["cells"] == g["cells"].max())]
         best = fine.set_index("model")["err_mean_pct"].sort_values()
-        parts.append(f"{exp} ({meshes}): baudet2009 mean error {ours} % against [B09]'s {theirs} %; on the finest "
+        parts.append(f"{exp} ({meshes}): {name} mean error {ours} % against [B09]'s {theirs} %; on the finest "
                      f"mesh here the lowest mean error is {best.index[0]}'s ({best.iloc[0]:.3g} %)")
     s = "; ".join(parts) + "."
     return s[0].upper() + s[1:]

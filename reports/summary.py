@@ -460,7 +460,7 @@ def published_claims(results: Results) -> list[Claim]:
     if b.empty or "b09_mean_pct" not in b:
         out.append(Claim(stmt, crit, UNTESTED, "no [B09] experiments stored"))
     else:
-        s = b[b["model"] == "baudet2009"]
+        s = b[b["model"].isin(findings.b09_models(b))]
         good = s[s["state"] == "ok"]
         ratio = good["err_mean_pct"] / good["b09_mean_pct"] if len(good) else pd.Series(dtype=float)
         n_ok = int(((ratio >= 1 / MIDDLE_LAYER_TOL) & (ratio <= MIDDLE_LAYER_TOL)).sum())
