@@ -286,7 +286,7 @@ def test_run_a_quick_study(tmp_path):
     assert out["runs"] == out["computed"] == len(reproduce.bending(quick=True)) and out["failed"] == 0
     again = check(hybmss("run", "--study", "bending", "--quick", "--no-progress", "--out", str(tmp_path / "res"),
                          "--json"), 0)  # resumed: every run stored
-    assert again["runs"] == again["stored"] == 8 and again["computed"] == 0
+    assert again["runs"] == again["stored"] == out["runs"] and again["computed"] == 0
 
 
 def test_invocation_count():

@@ -386,13 +386,13 @@ class XpbdParameters:
       ``h ω_max ≤ 0.1`` ("small steps": Macklin et al. 2019), ω_max the highest frequency of the
       body at rest (:func:`frequencies`), at least 1.
     - ``iterations``: Gauss–Seidel sweeps per substep (≥ 1).
-    - ``coupled``: solve the two constraints of a tetrahedron together (a 2×2 system: the
-      unloaded body then rests exactly at its reference state) or one after the other (the
-      textbook sequence, which leaves an O(h²) pre-strain at rest)."""
+    - ``sequential``: solve the two constraints of a tetrahedron one after the other (the textbook
+      sequence, which leaves an O(h²) pre-strain at rest) instead of together (a 2×2 system: the
+      unloaded body then rests exactly at its reference state)."""
 
     substeps: int = 0
     iterations: int = 1
-    coupled: bool = True
+    sequential: bool = False
 
     def __post_init__(self):
         for name, lo in (("substeps", 0.0), ("iterations", 1.0)):
@@ -400,9 +400,9 @@ class XpbdParameters:
             if v != int(v):
                 raise ValueError(f"{name} must be an integer >= {lo:g}, got {getattr(self, name)!r}")
             object.__setattr__(self, name, int(v))
-        if self.coupled not in (True, False):
-            raise ValueError(f"coupled must be true or false, got {self.coupled!r}")
-        object.__setattr__(self, "coupled", bool(self.coupled))
+        if self.sequential not in (True, False):
+            raise ValueError(f"sequential must be true or false, got {self.sequential!r}")
+        object.__setattr__(self, "sequential", bool(self.sequential))
 
 
 H_OMEGA = 0.1
@@ -435,7 +435,7 @@ def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "
     p = scene.model.params
     substeps = p.substeps or auto_substeps(S, dt)
     return simulate_explicit(S, xpbd_term(S), dt, steps, kernel, ramp_time, substeps=substeps,
-                             iterations=p.iterations, coupled=p.coupled, check_every=check_every,
+                             iterations=p.iterations, coupled=not p.sequential, check_every=check_every,
                              record_every=record_every, x0=x0, v0=v0)
 
 
@@ -447,7 +447,7 @@ def solve_scene(scene, options=None, system: System | None = None) -> Result:
     S = system if system is not None else build(scene)
     p = scene.model.params
     r = solve_static(S, xpbd_term(S), substeps=p.substeps or AUTO_SUBSTEPS_STATIC, iterations=p.iterations,
-                     coupled=p.coupled)
+                     coupled=not p.sequential)
     if not r.converged:
         raise StaticSolveError(
             f"xpbd-nh scene {scene.name or '(unnamed)'}: the damped run did not come to rest within "
