@@ -400,3 +400,25 @@ def kernel_module(cfg: Config):
     spec.loader.exec_module(mod)
     _MODULES[key] = mod
     return mod
+
+
+def instruction_mix(cfg: Config) -> dict:
+    """Square roots and divisions in the machine code of the step of ``cfg`` (thread 0), by kind
+    and register: ``{("sqrt" | "div", "scalar" | "xmm" | "ymm" | "zmm"): count}``.  Compiled
+    afresh (a kernel loaded from Numba's cache has no assembly to show): load-independent
+    evidence that LLVM vectorized the loops."""
+    import re
+
+    from numba import njit
+
+    mod = kernel_module(cfg)
+    fn = njit(error_model="numpy", fastmath=False, boundscheck=False)(mod.step_0_0.py_func)
+    dt = np.float32 if cfg.precision == "f32" else np.float64
+    fn(np.zeros(layout(cfg).size, dtype=dt), np.zeros(len(cfg.offsets) + 3, dtype=dt))
+    asm = "\n".join(fn.inspect_asm().values())
+    out = {}
+    for op, name in (("sqrt", "vsqrt"), ("div", "vdiv")):
+        out[(op, "scalar")] = len(re.findall(rf"\b{name}s[sd]\b", asm))
+        for reg in ("xmm", "ymm", "zmm"):
+            out[(op, reg)] = len(re.findall(rf"\b{name}p[sd]\s+[^\n]*%{reg}", asm))
+    return out
