@@ -107,7 +107,17 @@ def cmd_moduli(args) -> int:
 def cmd_bench(args) -> int:
     from .bench import format_bench, run_bench
 
-    d = run_bench(steps=args.steps, quick=args.quick)
+    one = {k: getattr(args, k) for k in ("model", "nu", "mesh", "threads", "precision")}
+    if any(v is not None for v in one.values()):  # one configuration
+        from .bench import MESH, NU, time_config
+
+        row = time_config(model=one["model"] or "hybmss", nu=NU if one["nu"] is None else one["nu"],
+                          mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
+                          precision=one["precision"] or "f64", steps=args.steps,
+                          repeats=1 if args.quick else 3)
+        d = {"explicit": [row], "static": []}
+    else:
+        d = run_bench(steps=args.steps, quick=args.quick)
     emit(d, args.json, format_bench(d))
     return 0
 
@@ -130,8 +140,14 @@ def build_parser() -> argparse.ArgumentParser:
     q.set_defaults(func=cmd_moduli)
 
     q = sub.add_parser("bench", help="speed of the explicit kernels and the static solver")
-    q.add_argument("--steps", type=positive_int, default=10_000, help="explicit steps (default 10000)")
+    q.add_argument("--steps", type=positive_int, default=None,
+                   help="explicit steps per timed run (default 10000 on 10x10x10, 1000 on 30x30x30)")
     q.add_argument("--quick", action="store_true", help="fewer, smaller runs")
+    q.add_argument("--model", choices=MODELS, default=None, help="time one configuration: this model")
+    q.add_argument("--nu", type=float, default=None, help="one configuration: Poisson ratio (default 0.499)")
+    q.add_argument("--mesh", type=mesh_arg, default=None, help="one configuration: NXxNYxNZ cells (default 10x10x10)")
+    q.add_argument("--threads", type=positive_int, default=None, help="one configuration: threads (default 1)")
+    q.add_argument("--precision", choices=("f64", "f32"), default=None, help="one configuration: precision (default f64)")
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_bench)
     return p

@@ -176,14 +176,28 @@ def test_numba_kernel_refuses_unknown_forces():
 def test_bench_rows_and_table():
     from hybmss.bench import format_bench, run_bench
 
-    d = run_bench(steps=20, numpy_steps=2, repeats=1, threads=(1,), quick=True)
-    assert [set(r) >= {"scene", "mesh", "wall_time_s"} for r in d["static"]] == [True]
+    variants = (("hybmss-fd", 0.499), ("hybmss", 0.499))
+    d = run_bench(steps=20, numpy_steps=2, repeats=1, threads=(1,), meshes=((3, 3, 3),), variants=variants)
+    assert [set(r) >= {"scene", "mesh", "wall_time_s"} for r in d["static"]] == [True] * 4
     rows = d["explicit"]
-    assert {(r["model"], r["nu"]) for r in rows} == {
-        ("hybmss-fd", 0.499), ("hybmss-cf", 0.499), ("hybmss", 0.499), ("hybmss", 0.25)}
+    assert {(r["model"], r["precision"], r["kernel"]) for r in rows} == {
+        (m, p, "numba") for m, _ in variants for p in ("f64", "f32")} | {(m, "f64", "numpy") for m, _ in variants}
     for r in rows:
-        assert {"model", "nu", "mesh", "kernel", "threads", "steps", "wall_time_s"} <= set(r)
-        assert r["mesh"] == "10x10x10" and r["wall_time_s"] > 0
+        assert {"model", "nu", "mesh", "kernel", "precision", "threads", "steps", "wall_time_s", "load_avg"} <= set(r)
+        assert r["mesh"] == "3x3x3" and r["wall_time_s"] > 0
         assert r["steps"] == (20 if r["kernel"] == "numba" else 2)
     text = format_bench(d)
-    assert "hybmss-cf/hybmss-fd" in text and "ns/spr/step" in text
+    assert "f32/f64" in text and "/hybmss-fd" in text and "load average" in text
+
+
+def test_bench_times_one_configuration_from_the_command_line():
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "hybmss.cli", "bench", "--model", "hybmss-cf", "--mesh", "3x3x3",
+                          "--precision", "f32", "--threads", "1", "--steps", "10", "--quick", "--json"],
+                         capture_output=True, text=True, check=True).stdout
+    d = json.loads(out)
+    (row,) = d["explicit"]
+    assert (row["model"], row["mesh"], row["precision"], row["threads"], row["steps"]) == ("hybmss-cf", "3x3x3", "f32", 1, 10)
