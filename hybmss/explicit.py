@@ -44,7 +44,9 @@ import numpy as np
 from .forces import energy_forces, hessian, internal_forces
 from .result import Result, reaction_from_nodal
 from .scene import Scene
+from .baudet import Corrections, GridCorrections
 from .system import System, build
+from .terms import DeadLoad
 
 SOLVER = "mss-explicit"
 KERNELS = ("numba", "numpy")
@@ -288,23 +290,27 @@ class Stencil:
 
 
 def _external_forces(system: System):
-    """(dead loads (n, 3) or None, [B09] corrections or None) of ``system``; ValueError for
-    forces the generated kernel cannot hold."""
-    extras = system.extras
-    dead = extras.get("dead_load")
-    corr = extras.get("baudet")
-    if extras.get("forces") is not None and dead is None and corr is None:
-        raise ValueError("the numba kernel holds springs, volume term, gravity, dead loads and the "
-                         "[B09] corrections; this system has other forces (system.extras['forces']); "
-                         "use kernel='numpy'")
+    """(dead loads (n, 3) or None, the [B09] correction term or None) of ``system.terms``;
+    ValueError for a term the generated kernel cannot hold."""
+    dead, corr, other = None, None, []
+    for t in system.terms:
+        if isinstance(t, DeadLoad):  # constant forces: the explicit run applies them whole
+            dead = t.f if dead is None else dead + t.f
+        elif t.name == Corrections.name:
+            corr = t
+        else:
+            other.append(t.name)
+    if other:
+        raise ValueError(f"the numba kernel holds springs, volume term, gravity, dead loads and the [B09] "
+                         f"corrections, not the force terms {', '.join(other)}; use kernel='numpy'")
     return dead, corr
 
 
 def stencil(system: System, dt: float, ramp_time: float, precision: str = "f64", threads: int = 1,
             damping: float | None = None) -> Stencil:
     """Lay ``system`` out on its grid.  Raises ``ValueError`` for what the stencil cannot hold
-    (forces other than springs, volume, gravity, dead loads and [B09] corrections; non-regular
-    rest lengths; baudet2009 in float32)."""
+    (force terms other than dead loads and the [B09] corrections; non-regular rest lengths;
+    baudet2009 in float32)."""
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
     dead, corr = _external_forces(system)
@@ -363,11 +369,7 @@ def stencil(system: System, dt: float, ramp_time: float, precision: str = "f64",
     if dead is not None:
         F0 = np.zeros((3, N))
         F0[:, flat] = np.asarray(dead, dtype=float).T
-    gcorr = None
-    if corr is not None:
-        from .baudet import GridCorrections
-
-        gcorr = GridCorrections.from_system(system)
+    gcorr = GridCorrections.from_system(system) if corr is not None else None
 
     nodes, U1, ptr, mask, kind, disp, axis, center, angle = [], [], [0], [], [], [], [], [], []
     for plate, ps in zip(scene.plates, system.plates):
@@ -524,9 +526,9 @@ def force_scale(system: System, f_int: np.ndarray) -> float:
         scale = max(scale, float(np.linalg.norm(f[p.particles].sum(axis=0))))
     if system.gravity is not None:
         scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
-    dead = system.extras.get("dead_load")
-    if dead is not None:
-        scale = max(scale, float(np.linalg.norm(np.asarray(dead).sum(axis=0))))
+    for t in system.terms:
+        if isinstance(t, DeadLoad):
+            scale = max(scale, float(np.linalg.norm(t.f.sum(axis=0))))
     return max(scale, 1e-12 * system.scene.material.E * system.scene.body.le**2)
 
 

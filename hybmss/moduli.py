@@ -21,8 +21,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from .forces import internal_forces
 from .scene import Body, Material, Model, Motion, Plate, Region, Scene
-from .solvers import solve_static
+from .solvers import check_nu, solve_static
+from .system import build
+
+STRAIN_RANGE = (1e-6, 1e-2)
+"""Strains at which :func:`measure_moduli` measures: a modulus is the response to a nonzero
+strain (0 has the rest state as its answer and no modulus); below 1e-6 the plate reactions
+near ν = ½ sink into round-off, above 1 % the finite-strain terms left by the Richardson step
+exceed 1e-4 of E (ν = 0.3)."""
 
 
 def uniaxial_scene(model: Model, material: Material, strain: float = 1e-4, n: int = 2, le: float = 1.0) -> Scene:
@@ -57,9 +65,6 @@ def shear_stress_from_reactions(scene: Scene, result) -> float:
     """Mean shear stress σ̄_xz (Pa) of a body held by plates, from the forces R_a the plates
     exert on their particles (average-stress theorem for a body in equilibrium:
     ``σ̄ = (1/V) Σ_a R_a ⊗ x_a``), symmetrized.  Valid for any force law, conservative or not."""
-    from .forces import internal_forces
-    from .system import build
-
     S = build(scene)
     x = result.x
     R = -internal_forces(S, x)
@@ -69,7 +74,13 @@ def shear_stress_from_reactions(scene: Scene, result) -> float:
 
 
 def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: int = 2) -> dict:
-    """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``."""
+    """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``.  ``ValueError`` for a
+    strain outside :data:`STRAIN_RANGE` or ν outside :data:`hybmss.solvers.NU_RANGE`."""
+    lo, hi = STRAIN_RANGE
+    if not (lo <= strain <= hi):
+        raise ValueError(f"strain={strain!r} is outside [{lo:g}, {hi:g}]: moduli are measured from the response "
+                         "to a small nonzero tension")
+    check_nu(material.nu)
     le = 1.0
     H = n * le
     A = H * H

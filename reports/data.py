@@ -205,7 +205,8 @@ def paper_source(name: str) -> str:
     try:
         from studies.paper import source
 
-        return source(name)
+        text = source(name)
+        return text[len("Source:"):].strip() if text.startswith("Source:") else text
     except (FileNotFoundError, OSError, ModuleNotFoundError):
         return ""
 

@@ -7,7 +7,8 @@
 - ``bending``: tip deflection (m) against Euler–Bernoulli and the FEM.
 - ``differences``: nodal displacement difference of each MSS run against its FEM reference
   (linear at ≤ 5 %, Neo-Hookean above) and the reference's model-form spread (|NH − SVK|).
-- ``eform_check``: which spring calibration reproduces the publication's hybmss column.
+- ``eform_check``: which spring calibration reproduces the publication's hybmss column (each
+  calibration from its own run; failed or missing runs say so).
 - ``moduli``: effective E, ν, G per variant (homogeneous static tests).
 """
 
@@ -118,17 +119,21 @@ def differences_table(df: pd.DataFrame, store: Store) -> pd.DataFrame:
         if "u" not in a or "u" not in b:
             continue
         d = diff_metrics(a["X"], a["u"], b["u"])
-        spread = np.nan
+        spread = mid_svk = np.nan
         if law != "linear":
             other = _reference_row(fem, row, "svk" if law == "neo-hookean" else "neo-hookean")
             if other is not None and "u" in store.arrays(other["key"]):
                 uo = store.arrays(other["key"])["u"]
                 spread = float(np.linalg.norm(uo - b["u"]) / np.linalg.norm(b["u"]))
+                if law == "neo-hookean":  # the same layer against the St Venant–Kirchhoff reference
+                    mid_svk = diff_metrics(a["X"], a["u"], uo)["mid_layer_mean"]
         out.append({
             "experiment": row["scene_experiment"], "mesh": row["scene_mesh"], "nu": row["scene_nu"],
             "E": row["scene_E"], "d": row["scene_deformation"], "angle_deg": row["scene_angle_deg"],
             "method": row["method"], "reference": ref["solver"],
             "mean_m": d["mean"], "max_m": d["max"], "rel_l2": d["rel_l2"], "mid_layer_mean_m": d["mid_layer_mean"],
+            "mid_layer_mean_xy_m": d["mid_layer_mean_xy"], "mid_layer_rms_m": d["mid_layer_rms"],
+            "mid_layer_n": d["mid_layer_n"], "mid_layer_mean_svk_m": mid_svk,
             "ref_nh_svk_rel_l2": spread,
             "e_mss_pct": 100 * row["volume_change"], "e_fem_pct": 100 * ref["volume_change"],
             "mss_key": row["key"], "fem_key": ref["key"],
@@ -136,29 +141,60 @@ def differences_table(df: pd.DataFrame, store: Store) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+#: the publication prints e with two decimals: two values closer than this cannot be told apart
+PAPER_E_PRECISION_PCT = 0.01
+
+
+def _run_value(grp: pd.DataFrame) -> tuple[float, str]:
+    """(e in %, state) of the single run in ``grp``: state "ok", "missing" or "failed (reason)"."""
+    if grp.empty:
+        return np.nan, "missing"
+    r = grp.iloc[0]
+    if r["status"] != "ok":
+        reason = " ".join(str(r.get("message") or "").split())[:80]
+        return np.nan, f"failed ({r['status']}{': ' + reason if reason else ''})"
+    return 100 * abs(float(r["volume_change"])), "ok"
+
+
 def eform_check(df: pd.DataFrame) -> pd.DataFrame:
     """Distance of the publication's hybmss and hybmss-fd columns to our static equilibria built
     with the G-form (right) and the E-form of [G20] eq. 5.12 (E = 5G/2) spring constants.
-    ``closer`` says which one the published value is nearer to ("same" at ν = 1/4 or on a tie)."""
+
+    Each calibration's value comes from its own run: a run that failed or was not stored is
+    reported as such (``G_form_state``, ``E_form_state``), never replaced by the other's value.
+    At ν = 1/4 the two calibrations are the same constants and no E-form run is made
+    (``E_form_state`` = "identical to G-form (ν = 1/4)").  ``closer`` names the calibration
+    nearer to the published value; "undecided (...)" when a run is missing or failed, or when the
+    two values differ by no more than the publication's printed precision (0.01 pp), so that the
+    row cannot tell them apart (``decisive`` False)."""
     out = []
     for exp, paper_name in (("compression", "g20_table2_compression"), ("tension", "g20_table3_tension")):
         paper = load_paper(paper_name)
         for model in ("hybmss", "hybmss-fd"):
-            sub = _ok(df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
-                         & (df["scene_model"] == model) & (df["study"] == exp)])
+            sub = df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
+                     & (df["scene_model"] == model) & (df["study"] == exp)]
             for _, p in paper.iterrows():
                 sel = sub[np.isclose(sub["scene_nu"], p["nu"]) & np.isclose(sub["scene_deformation"], p["deformation"])]
                 for mesh, grp in sel.groupby("scene_mesh"):
-                    g = grp[~grp["scene_e_form"].astype(bool)]
-                    e = grp[grp["scene_e_form"].astype(bool)]
-                    gval = 100 * abs(g["volume_change"].iloc[0]) if len(g) else np.nan
-                    eval_ = 100 * abs(e["volume_change"].iloc[0]) if len(e) else gval  # identical at ν = 1/4
-                    ref = p[model]
-                    dg, de = abs(gval - ref), abs(eval_ - ref)
+                    eform = grp["scene_e_form"].fillna(False).astype(bool)
+                    gval, gstate = _run_value(grp[~eform])
+                    if np.isclose(p["nu"], 0.25):
+                        eval_, estate = gval, "identical to G-form (ν = 1/4)"
+                    else:
+                        eval_, estate = _run_value(grp[eform])
+                    ref = float(p[model])
+                    if gstate != "ok" or not (estate == "ok" or estate.startswith("identical")):
+                        closer = "undecided (" + ("G-form " + gstate if gstate != "ok" else "E-form " + estate) + ")"
+                        decisive = False
+                    elif abs(gval - eval_) <= PAPER_E_PRECISION_PCT:
+                        closer, decisive = "same (differ by ≤ 0.01 pp)", False
+                    else:
+                        dg, de = abs(gval - ref), abs(eval_ - ref)
+                        closer = "E-form" if de < dg else "G-form"
+                        decisive = True
                     out.append({"experiment": exp, "model": model, "mesh": mesh, "nu": p["nu"], "d": p["deformation"],
-                                "paper_pct": ref, "G_form_pct": gval, "E_form_pct": eval_,
-                                "closer": ("same" if np.isclose(dg, de, atol=5e-3) or np.isnan(dg) or np.isnan(de)
-                                           else "E-form" if de < dg else "G-form")})
+                                "paper_pct": ref, "G_form_pct": gval, "G_form_state": gstate,
+                                "E_form_pct": eval_, "E_form_state": estate, "closer": closer, "decisive": decisive})
     return pd.DataFrame(out)
 
 

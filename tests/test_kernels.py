@@ -164,9 +164,18 @@ def test_stencil_holds_every_spring_once():
     assert np.count_nonzero(st.kv[0]) == len(system.vol_cells)
 
 
+class _ZeroTerm:
+    """A non-conservative force term of zero force."""
+
+    name, conservative, scaled = "zero", False, False
+
+    def forces(self, x):
+        return np.zeros_like(x)
+
+
 def test_numba_kernel_refuses_unknown_forces():
     scene = CASES["hybmss-cf"]
-    system = dataclasses.replace(build(scene), extras={"forces": lambda x: np.zeros_like(x)})
+    system = dataclasses.replace(build(scene), terms=(_ZeroTerm(),))
     with pytest.raises(ValueError, match="kernel='numpy'"):
         simulate_explicit(scene, steps=1, system=system, kernel="numba", compute_dt_crit=False)
     r = simulate_explicit(scene, steps=1, system=system, kernel="numpy", compute_dt_crit=False)
