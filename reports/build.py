@@ -36,6 +36,9 @@ STUDY_SECTIONS = (
     ("baudet", "[B09]'s experiments at [B09]'s parameters", ("study_b09",),
      ("baudet_cantilever", "baudet_lshape", "baudet_moduli", "baudet_volume")),
 )
+#: study figures printed at a third of the page height, so that a section's figures and short table share a page
+HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability", "study_damping",
+                "study_limit_stretch", "study_b09"}
 OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", *OPTIONAL_TABLES}
@@ -224,7 +227,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         s = Section(f"study_{sid}", title, intro)
         for fid in fig_ids:
             if fid in figs:
-                s.items.append(("figure", _fig(figs[fid])))
+                item = _fig(figs[fid])
+                if fid in HALF_FIGURES:
+                    item["css"] = "study"
+                s.items.append(("figure", item))
         if short is not None:
             s.items.append(("table", short))
         for name in names:

@@ -228,6 +228,17 @@ def _methods_in(table: pd.DataFrame) -> list[str]:
     return [c for c in table.columns if c not in skip and not c.startswith("paper")]
 
 
+NO_RESULT = "no result (failed or missing: see the table)"
+
+
+def _mark_no_result(ax, t: pd.DataFrame, m: str) -> None:
+    """A method's ν without a value: a cross at the foot of the axis, never a borrowed value."""
+    gone = t[t[m].isna()]
+    if len(gone) and t[m].notna().any():
+        ax.plot(gone["nu"], [0.03] * len(gone), transform=ax.get_xaxis_transform(), ls="none", marker="x", ms=6,
+                mew=1.4, color=palette.color(m), label=NO_RESULT, clip_on=False)
+
+
 def volume_change(results: Results, path: Path) -> Figure | None:
     panels = []
     for exp, name in (("compression", "table2_compression"), ("tension", "table3_tension")):
@@ -250,6 +261,7 @@ def volume_change(results: Results, path: Path) -> Figure | None:
                 if t[m].notna().any():
                     ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
                             lw=1.0, label=m.replace(" static", ""))
+                _mark_no_result(ax, t, m)
             for m, mk in (("paper hybmss", "o"), ("paper hybmss-fd", "s"), ("paper FEM (LS-Dyna)", "h")):
                 if m in t and t[m].notna().any():
                     base = m.replace("paper ", "").replace(" (LS-Dyna)", "-linear")
@@ -266,7 +278,8 @@ def volume_change(results: Results, path: Path) -> Figure | None:
     return Figure("fig_e", "Relative volume change against ν (Tables 2, 3)", Path(path),
                   "e = |V′ − V0|/V0 (%) of the static equilibria, E = 10⁴ Pa; filled markers: this "
                   "reproduction; hollow markers: the publication's values ([G20] Tables 2, 3, 10×10×10 cube and "
-                  "4×4×24 beam, LS-Dyna FEM). hybmss-cf is ν-blind (always ν = 1/4).")
+                  "4×4×24 beam, LS-Dyna FEM). hybmss-cf is ν-blind (always ν = 1/4). A cross at the foot of a panel: "
+                  "that method has no result at that ν (failed or missing; Tables 2, 3 give the reason).")
 
 
 def reactions(results: Results, path: Path) -> Figure | None:
@@ -296,6 +309,7 @@ def reactions(results: Results, path: Path) -> Figure | None:
                 if t[m].notna().any():
                     ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
                             lw=1.0, label=m.replace(" static", ""))
+                _mark_no_result(ax, t, m)
             lab = f"θ = {v:g}°" if col == "angle_deg" else f"d = {100 * v:g} %"
             ax.set_title(f"{exp}, {lab}\nmesh {mesh}")
             _nu_axis(ax)
@@ -307,7 +321,9 @@ def reactions(results: Results, path: Path) -> Figure | None:
     return Figure("fig_reactions", "Top-plate reactions against ν (Tables 4, 5)", Path(path),
                   "Shear: reaction force F_x (N) on the top plate; torsion: reaction torque T_z (N·m) about the "
                   "vertical axis; E = 10⁴ Pa, static equilibria. FEM at 5 % / 1° is linear (small strain); at 20 % / 45° the "
-                  "finite-strain laws (Neo-Hookean, SVK) are shown and linear FEM is left out (see Tables 4, 5).")
+                  "finite-strain laws (Neo-Hookean, SVK) are shown and linear FEM is left out (see Tables 4, 5). A cross "
+                  "at the foot of a panel: that method has no result at that ν (failed or missing; the tables give "
+                  "the reason).")
 
 
 def differences(results: Results, path: Path) -> Figure | None:
@@ -742,7 +758,7 @@ def b09_errors(results: Results, path: Path) -> Figure | None:
             ax.set_yscale("log")
             ax.set_xlabel("cells")
             ax.set_ylabel("mean nodal error (%)")
-            ax.set_title(exp)
+            ax.set_title(findings.EXPERIMENT_NAMES.get(exp, exp))
         _shared_legend(fig, axes, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.0), fontsize=7)
         fig.tight_layout()
         _save(plt, fig, path)

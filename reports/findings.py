@@ -205,6 +205,10 @@ def damping_sentence(damping: pd.DataFrame | None) -> str:
 
 
 # ------------------------------------------------------------------ [B09]
+EXPERIMENT_NAMES = {"lshape": "L-shape", "cantilever": "cantilever"}
+"""Reader-facing names of [B09]'s experiments."""
+
+
 def b09_frame(cantilever: pd.DataFrame | None, lshape: pd.DataFrame | None, paper: pd.DataFrame | None) -> pd.DataFrame:
     """Rows ``experiment, mesh, model, state`` with our error statistics (``err_*``: normalized by
     the largest reference displacement; ``rel_*``: nodal relative error) and [B09]'s (``b09_*``)."""
@@ -235,6 +239,7 @@ def b09_sentence(df: pd.DataFrame) -> str:
     parts = []
     for exp, g in df.groupby("experiment", sort=False):
         b = g[(g["model"] == "baudet2009") & (g["state"] == "ok")].sort_values("cells")
+        exp = EXPERIMENT_NAMES.get(exp, exp)
         if b.empty:
             parts.append(f"{exp}: baudet2009 has no successful run")
             continue
@@ -245,4 +250,5 @@ def b09_sentence(df: pd.DataFrame) -> str:
         best = fine.set_index("model")["err_mean_pct"].sort_values()
         parts.append(f"{exp} ({meshes}): baudet2009 mean error {ours} % against [B09]'s {theirs} %; on the finest "
                      f"mesh here the lowest mean error is {best.index[0]}'s ({best.iloc[0]:.3g} %)")
-    return "; ".join(parts) + "."
+    s = "; ".join(parts) + "."
+    return s[0].upper() + s[1:]

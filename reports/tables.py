@@ -331,6 +331,10 @@ def differences_table(results: Results) -> Table | None:
     return tab
 
 
+FAILURE_CHARS = 120
+"""Characters of a failure message printed in the failures table."""
+
+
 def failures_table(results: Results) -> Table:
     df = results.rows
     bad = df[df["status"] != "ok"] if not df.empty else df
@@ -339,13 +343,13 @@ def failures_table(results: Results) -> Table:
         return Table("table_failures", "Runs that did not reach a result", "Every stored run reached status ok.",
                      list(cols.values()), [])
     bad = bad.sort_values(["study", "label"]).copy()
-    bad["message"] = [" ".join(str(m).split())[:160] + ("…" if len(" ".join(str(m).split())) > 160 else "")
-                      for m in bad["message"]]
+    bad["message"] = [" ".join(str(m).split())[:FAILURE_CHARS] + ("…" if len(" ".join(str(m).split())) > FAILURE_CHARS
+                                                                    else "") for m in bad["message"]]
     tab = frame_table(bad, "table_failures", "Runs that did not reach a result",
                       f"{len(bad)} of {len(df)} stored runs have a status other than ok; they are reported, not "
                       "hidden: 'unstable' = the static equilibrium was lost (limit point, Hessian no longer positive "
                       "definite), 'diverged' = explicit integration blew up, 'error' = an exception in a solver. "
-                      "Messages shortened to 160 characters (the HTML list of runs links every run).",
+                      f"Messages shortened to {FAILURE_CHARS} characters (the HTML list of runs links every run).",
                       cols, lambda r, c: "fail" if c == "status" else "")
     other = [i for i, k in enumerate(bad["key"]) if not results.is_publication_run(k)]
     if other:
@@ -381,11 +385,15 @@ def runs_table(results: Results, vtu_files: dict) -> Table | None:
 
 #: rows of a table printed in the PDF: the rest stay in the HTML page (one page of A4 landscape)
 PRINT_ROWS = 30
+#: the same for tables whose rows carry a message of a few lines
+PRINT_ROWS_LONG = {"table_failures": 16, "table_explicit": 16}
 
 
-def cap_printed_rows(tab: Table, limit: int = PRINT_ROWS) -> Table:
+def cap_printed_rows(tab: Table, limit: int | None = None) -> Table:
     """Keep at most ``limit`` rows of ``tab`` in print (rows already screen-only do not count);
-    the others are marked screen-only and the caption says so."""
+    the others are marked screen-only and the caption says so.  The default limit is
+    :data:`PRINT_ROWS_LONG` for the tables listed there, else :data:`PRINT_ROWS`."""
+    limit = limit if limit is not None else PRINT_ROWS_LONG.get(tab.id, PRINT_ROWS)
     printed = [i for i in range(tab.n_rows) if tab.row_classes.get(i) != "screen-only"]
     if len(printed) <= limit:
         return tab
@@ -652,7 +660,7 @@ def b09_table(results: Results) -> Table | None:
     rows = []
     for _, r in df.iterrows():
         is_b09 = r["model"] == "baudet2009"
-        row = [(r["experiment"], ""), (r["mesh"], ""), (r["model"], "")]
+        row = [(findings.EXPERIMENT_NAMES.get(r["experiment"], r["experiment"]), ""), (r["mesh"], ""), (r["model"], "")]
         for c in ("b09_mean_pct", "b09_sd_pct", "b09_max_pct"):
             v = r.get(c, np.nan)
             row.append((fmt(v, 3), "paper") if is_b09 and pd.notna(v) else ("–" if not is_b09 else "missing", ""))

@@ -327,7 +327,7 @@ def test_new_tables_have_their_rows_and_published_columns(report):
     m = b.columns.index("[B09] M")
     rows = {(r[0][0], r[1][0], r[2][0]): r for r in b.rows}
     assert rows[("cantilever", "4x1x1", "baudet2009")][m][0] == "16.3"
-    assert rows[("lshape", "2x2x2", "baudet2009")][m][0] == "6.99"
+    assert rows[("L-shape", "2x2x2", "baudet2009")][m][0] == "6.99"
     ours = b.columns.index("ours M")
     assert all(float(r[ours][0]) > 0 for r in b.rows if r[ours][0] not in ("–",) and not r[ours][0].startswith("failed"))
 
