@@ -11,11 +11,12 @@ import os
 
 import numpy as np
 
+from hybmss import models
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
 
 MESHES = os.environ.get("HYBMSS_ASV_MESHES", "10x10x10,20x20x20,30x30x30,beam-8x8x48").split(",")
 """The meshes of every benchmark; ``HYBMSS_ASV_MESHES`` (comma-separated) selects fewer (``make bench``)."""
-MODELS = ["hybmss", "hybmss-fd", "hybmss-cf", "baudet2009"]
+MODELS = models.names()
 
 
 def scene(mesh: str, model: str = "hybmss", nu: float = 0.3, d: float = 0.05) -> Scene:

@@ -2,11 +2,13 @@
 
 The scene: n×n×n cells of 0.5 m, E = 10⁴ Pa, ρ = 1000 kg/m³, bottom clamped, top plate moved
 down by 5 % (ramp 1 s), dt = 1 ms.  :func:`time_config` times one configuration (model, ν,
-mesh, kernel, threads, precision); :func:`run_bench` a matrix of them: every model of
-:data:`hybmss.scene.MODELS` at ν = 0.499 plus hybmss at ν = 1/4 (no volume term: it must cost
-what hybmss-cf costs), float64 and float32, one and two threads, on the 10³ and 30³ cubes.
-The NumPy twin runs fewer steps (its row says how many; ``s_per_10k_steps`` scales it).
-baudet2009 has no float32 kernel (its row is absent).
+mesh, kernel, threads, precision); :func:`run_bench` a matrix of them: every model of the
+registry (:mod:`hybmss.models`) at ν = 0.499 plus the first ``performance`` model (hybmss) at
+ν = 1/4 (no volume term: it must cost what hybmss-cf costs), float64 and float32, one and two
+threads, on the 10³ and 30³ cubes (scenes built by :mod:`hybmss.experiments`).  The NumPy twin
+runs fewer steps (its row says how many; ``s_per_10k_steps`` scales it).  A configuration a
+model does not support (a kernel it does not list; float32 for baudet2009, whose corrections run
+in float64) has no row.
 
 JIT compilation is excluded (a short warm-up run first); each figure is the best of
 ``repeats`` runs, since other processes on the machine only ever add time, and configurations
@@ -20,34 +22,34 @@ times the static Newton solve of the 10³ cube (:func:`static_bench`).
 from __future__ import annotations
 
 import os
+import time
 
+from . import models
+from .experiments import SceneSpec
 from .explicit import dt_crit, simulate_explicit
-from .scene import MODELS, Body, Material, Model, Motion, Plate, Region, Scene
+from .scene import Scene
+from .solvers import solve_static
 from .system import build
 
 MESH = (10, 10, 10)
 LE = 0.5
 DT = 1e-3
 NU = 0.499
-VARIANTS = tuple((m, NU) for m in MODELS) + (("hybmss", 0.25),)
 MESHES = ((10, 10, 10), (30, 30, 30))
 STEPS = {(10, 10, 10): 10_000, (20, 20, 20): 2_000, (30, 30, 30): 1_000}
 """Numba steps per timed run by mesh (figures are scaled to 10,000 steps)."""
 
 
+def default_variants() -> list[tuple[str, float]]:
+    """(model, ν) of the explicit rows: every registered model at ν = 0.499, the first
+    ``performance`` model at ν = 1/4 too."""
+    perf = models.in_role("performance")
+    return [(m, NU) for m in models.names()] + [(perf[0], 0.25)]
+
+
 def compression_scene(model: str, nu: float, mesh=MESH, le: float = LE, d: float = 0.05) -> Scene:
-    """SPEC §6 compression: bottom clamped, top plate moved down by d·H."""
-    H = mesh[2] * le
-    return Scene(
-        Body.box(*mesh, le),
-        Material(1e4, nu, 1000.0),
-        Model(model),
-        plates=(
-            Plate("bottom", Region("z-")),
-            Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -d * H))),
-        ),
-        name=f"compression-{model}-nu{nu}",
-    )
+    """SPEC §6 compression (:mod:`hybmss.experiments`): bottom clamped, top plate moved down by d·H."""
+    return SceneSpec.default("compression", mesh=tuple(mesh), le=le, nu=nu, model=model, deformation=d).build()
 
 
 def mesh_label(mesh) -> str:
@@ -115,7 +117,7 @@ def time_config(model: str = "hybmss", nu: float = NU, mesh=MESH, threads: int =
 
 def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool = False,
               threads=(1, 2), numpy_steps: int = 500, repeats: int | None = None,
-              meshes=None, precisions=("f64", "f32"), variants=VARIANTS, static: bool = True) -> dict:
+              meshes=None, precisions=("f64", "f32"), variants=None, static: bool = True) -> dict:
     """Time the explicit kernels; returns ``{"explicit": [row, ...], "static": [...]}``.
 
     Each row: ``model, nu, mesh, kernel, precision, threads, steps`` (steps actually run),
@@ -127,9 +129,19 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
     one repeat (a smoke run of the whole matrix in about a minute, not a measurement).
     """
     meshes = tuple(tuple(m) for m in (meshes or MESHES))
+    variants = tuple(variants) if variants is not None else tuple(default_variants())
     if repeats is None:
         repeats = 1 if quick else 3
     configs = []
+
+    def add(*cfg):
+        if not models.get(cfg[0]).supports("explicit", cfg[3]):
+            return
+        try:
+            configs.append(_Config(*cfg))
+        except ValueError:  # a precision or kernel the model's forces do not have
+            pass
+
     for mesh in meshes:
         n_nb = steps or STEPS.get(mesh, 1000)
         if quick:
@@ -139,13 +151,11 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
                 if kernel == "numpy":
                     if mesh != meshes[0]:
                         continue
-                    configs.append(_Config(model, nu, mesh, "numpy", 1, "f64", min(n_nb, numpy_steps)))
+                    add(model, nu, mesh, "numpy", 1, "f64", min(n_nb, numpy_steps))
                     continue
                 for prec in precisions:
-                    if prec == "f32" and model == "baudet2009":
-                        continue
                     for th in threads:
-                        configs.append(_Config(model, nu, mesh, kernel, th, prec, n_nb))
+                        add(model, nu, mesh, kernel, th, prec, n_nb)
     for _ in range(repeats):
         for cfg in configs:
             cfg.time_once()
@@ -154,18 +164,19 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
             "cores": os.cpu_count()}
 
 
-STATIC_CASES = (("hybmss", 0.25, 0.05), ("hybmss", 0.499, 0.05), ("hybmss-fd", 0.3, 0.05), ("hybmss", 0.25, 0.20))
+def static_cases() -> list[tuple[str, float, float]]:
+    """(model, ν, d) of the static rows: the first ``performance`` model at ν = 1/4 and 0.499 (5 %)
+    and at 20 %, every other one at ν = 0.3 (5 %)."""
+    names = models.in_role("performance")
+    return ([(names[0], 0.25, 0.05), (names[0], 0.499, 0.05)] + [(m, 0.3, 0.05) for m in names[1:]]
+            + [(names[0], 0.25, 0.20)])
 
 
 def static_bench(quick: bool = False, repeats: int | None = None) -> list[dict]:
     """Wall time of the static Newton solve of the compression cube (best of ``repeats``, after a
     warm-up of the sparsity pattern cache)."""
-    import time
-
-    from .solvers import solve_static
-
     reps = repeats or (1 if quick else 3)
-    cases = STATIC_CASES[:1] if quick else STATIC_CASES
+    cases = static_cases()[:1] if quick else static_cases()
     rows = []
     for model, nu, d in cases:
         scene = compression_scene(model, nu, d=d)

@@ -103,6 +103,9 @@ def dt_crit(system_or_scene: System | Scene) -> float:
     import scipy.sparse as sp
 
     system = system_or_scene if isinstance(system_or_scene, System) else build(system_or_scene)
+    own = system.scene.model.spec.dt_crit(system)
+    if own is not None:  # the model's own limit (hybmss.models.base)
+        return float(own)
     m3 = np.repeat(system.mass, 3)
     free = (~system.fixed).ravel() & (m3 > 0)
     if not free.any():
@@ -631,6 +634,15 @@ def simulate_explicit(
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
+    model = scene.model.spec
+    if kernel not in model.kernels:
+        raise ValueError(f"model {model.name} has no {kernel} kernel (its kernels: {', '.join(model.kernels)}); "
+                         f"use kernel={model.kernels[0]!r}")
+    if model.simulate_explicit is not None:  # a model with its own integrator (hybmss.models.base)
+        return model.simulate_explicit(scene, dt=dt, steps=steps, kernel=kernel, ramp_time=ramp_time,
+                                       threads=threads, record_every=record_every, system=system, x0=x0, v0=v0,
+                                       dt_crit_value=dt_crit_value, compute_dt_crit=compute_dt_crit,
+                                       check_every=check_every)
     dt = float(dt)
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be > 0 s, got {dt}")

@@ -9,8 +9,8 @@
   state is a saddle of the energy).
 - Simple shear: every boundary particle follows ``u = γ (z − z0) e_x``; interior particles are
   free.  For a homogeneous state the stored energy is ``W = ½ G γ² V`` (det F = 1 exactly), so
-  ``G_eff = 2 W / (γ² V)``.  ``baudet2009`` has non-conservative corrections and no energy:
-  its G_eff is the mean shear stress from the plate reactions over γ
+  ``G_eff = 2 W / (γ² V)``.  A non-conservative model (``baudet2009``'s corrections) has no
+  energy: its G_eff is the mean shear stress from the plate reactions over γ
   (:func:`shear_stress_from_reactions`).
 
 For ``hybmss`` and ``hybmss-fd`` these equal E, ν and E/(2(1+ν)) for every ν in (−1, ½)
@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .experiments import shear_scene, uniaxial_scene
 from .forces import internal_forces
-from .scene import Body, Material, Model, Motion, Plate, Region, Scene
+from .scene import Material, Model, Scene
 from .solvers import check_nu, solve_static
 from .system import build
 
@@ -31,24 +32,6 @@ STRAIN_RANGE = (1e-6, 1e-2)
 strain (0 has the rest state as its answer and no modulus); below 1e-6 the plate reactions
 near ν = ½ sink into round-off, above 1 % the finite-strain terms left by the Richardson step
 exceed 1e-4 of E (ν = 0.3)."""
-
-
-def uniaxial_scene(model: Model, material: Material, strain: float = 1e-4, n: int = 2, le: float = 1.0) -> Scene:
-    H = n * le
-    plates = (
-        Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
-        Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, strain * H), components=(2,))),
-        Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0)), Motion("slide", components=(0, 1))),
-        Plate("pin_x", Region(lo=(H, 0, 0), hi=(H, 0, 0)), Motion("slide", components=(1,))),
-    )
-    return Scene(Body.box(n, n, n, le), material, model, plates, name="uniaxial")
-
-
-def shear_scene(model: Model, material: Material, gamma: float = 1e-4, n: int = 3, le: float = 1.0) -> Scene:
-    grad = (0.0, 0.0, gamma, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    motion = Motion("affine", gradient=grad)
-    plates = tuple(Plate(f, Region(f), motion) for f in ("x-", "x+", "y-", "y+", "z-", "z+"))
-    return Scene(Body.box(n, n, n, le), material, model, plates, name="simple-shear")
 
 
 def _uniaxial(scene: Scene):
@@ -91,7 +74,7 @@ def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: in
     nu_eff = -(4.0 * lat1 - lat2) / (2.0 * strain)
     shear = shear_scene(model, material, strain, 3, le)
     sh = solve_static(shear)
-    if model.name == "baudet2009":  # non-conservative: no energy, G from the plate reactions
+    if not model.conservative:  # no energy: G from the plate reactions
         G_eff = shear_stress_from_reactions(shear, sh) / strain
     else:
         W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)

@@ -488,6 +488,11 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     force is conservative, in residual mode when the system has non-conservative terms
     (``baudet2009``).  Energy mode then certifies stability from the inertia of the constrained
     Hessian and leaves saddles; residual mode returns the equilibrium without that certificate."""
+    model = scene.model.spec
+    if "static" not in model.solvers:
+        raise ValueError(f"model {model.name} has no static solver (its solvers: {', '.join(model.solvers)})")
+    if model.solve_static is not None:  # a model with its own static solver (hybmss.models.base)
+        return model.solve_static(scene, options, system)
     opts = options or StaticOptions()
     t0 = time.perf_counter()
     check_nu(scene.material.nu)

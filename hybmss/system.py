@@ -2,7 +2,9 @@
 
 :func:`build` keeps only the force terms the scene needs (SPEC "model only what a scene
 needs"): springs of zero stiffness are dropped (no face diagonals when A = 0), the volume term
-is built only when κ ≠ 0 (not at ν = 1/4 nor for ``hybmss-cf``), gravity only when g ≠ 0.
+is built only when κ ≠ 0 (not at ν = 1/4 nor for a model without one), gravity only when g ≠ 0.
+The model (:mod:`hybmss.models`) gives the spring constants, κ, the volume-energy form and the
+force terms it adds.
 """
 
 from __future__ import annotations
@@ -11,8 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .baudet import Corrections
-from .calibrate import Constants, constants
+from .calibrate import Constants
 from .lattice import CORNERS, Lattice
 from .scene import Scene
 from .terms import DeadLoad, ForceTerm, all_conservative
@@ -93,7 +94,8 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     """Assemble ``scene`` into a :class:`System`."""
     lat = lattice if lattice is not None else Lattice.from_body(scene.body)
     le = scene.body.le
-    c = constants(scene.model, scene.material, le)
+    model, params = scene.model.spec, scene.model.params
+    c = model.constants(params, scene.material, le)
     X = lat.X.astype(float)
     mass = scene.material.rho * lat.masses_per_density
 
@@ -103,7 +105,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     a, b = lat.springs[keep, 0], lat.springs[keep, 1]
     l0 = np.linalg.norm(X[b] - X[a], axis=1)
 
-    if c.kappa != 0.0 and scene.model.name != "baudet2009":
+    if c.kappa != 0.0:
         vol_cells = lat.cells
         vol_V0 = lat.cell_volumes(X)
     else:
@@ -124,7 +126,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         fixed[np.ix_(sel, np.flatnonzero(cons))] = True
 
     return System(
-        terms=_model_terms(scene, lat, c),
+        terms=_terms(scene, lat, model.terms(params, scene, lat, c)),
         scene=scene,
         lattice=lat,
         consts=c,
@@ -138,22 +140,20 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         vol_cells=vol_cells,
         vol_V0=vol_V0,
         kappa=float(c.kappa),
-        volume_energy=scene.model.volume_energy,
+        volume_energy=model.volume_energy(params),
         gravity=gravity,
         plates=tuple(plates),
         fixed=fixed,
     )
 
 
-def _model_terms(scene: Scene, lat: Lattice, consts: Constants) -> tuple[ForceTerm, ...]:
+def _terms(scene: Scene, lat: Lattice, model_terms) -> tuple[ForceTerm, ...]:
     """``System.terms`` of a scene: the dead loads of ``Scene.loads`` (:class:`DeadLoad`) and the
-    [B09] correction forces of ``baudet2009`` (non-conservative, :class:`hybmss.baudet.Corrections`)."""
+    force terms its model adds (:meth:`hybmss.models.ModelBase.terms`)."""
     terms: list[ForceTerm] = []
     if scene.loads:
         terms.append(DeadLoad(dead_loads(scene, lat)))
-    if scene.model.name == "baudet2009":
-        terms.append(Corrections.for_system(consts, scene.material, lat))
-    return tuple(terms)
+    return tuple(terms) + tuple(model_terms)
 
 
 def dead_loads(scene: Scene, lat: Lattice) -> np.ndarray:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import figures as figmod
+from . import palette
 from . import render as rendermod
 from . import findings, summary, tables, vtu
 from .data import Results
@@ -86,8 +87,6 @@ def _fingerprint(results: Results, *modules) -> str:
 
 def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list) -> dict:
     """matplotlib figures, reused when neither the results nor the drawing code changed."""
-    from . import palette
-
     key = _fingerprint(results, figmod, palette)
     manifest = cache / f"figures-{key}.json"
     if manifest.exists():
@@ -142,14 +141,15 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     warnings: list[str] = []
     vtu_files = vtu.export_all(results, out / "vtu")
     log(f"{len(vtu_files)} VTU files")
-    figs = _cached_figures(results, fig_dir, cache, warnings)
+    with palette.models(results.table("models")):  # the models' own plot styles, as stored
+        figs = _cached_figures(results, fig_dir, cache, warnings)
+        render_key = _fingerprint(results, rendermod)
+        try:
+            renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
+        except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
+            warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
+            renders = []
     log(f"{len(figs)} figures")
-    render_key = _fingerprint(results, rendermod)
-    try:
-        renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
-    except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
-        warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
-        renders = []
     log(f"{len(renders)} renders")
     for w in warnings:
         print(f"warning: {w}", flush=True)

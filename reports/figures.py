@@ -19,10 +19,8 @@ import numpy as np
 import pandas as pd
 
 from . import findings, palette
-from .data import Results, mesh_size, paper_table, reference_law
+from .data import Results, mesh_size, paper_table
 
-BEAM_WIDTH = 0.4  # m, [G20] §6 (the tension and bending beam is 0.4 × 0.4 × 2.4 m)
-NUS = (0.0, 0.25, 0.499)
 MSS_METHODS = ("hybmss-fd static", "hybmss static")
 
 
@@ -46,11 +44,11 @@ def _shared_legend(fig, axes, ncol=None, **kw):
     fig.legend(handles, labels, ncol=ncol or max(1, len(labels)), frameon=False, **kw)
 
 
-def _nu_axis(ax):
-    """The publication's three Poisson ratios on the x axis."""
+def _nu_axis(ax, nus):
+    """The Poisson ratios of the results on the x axis."""
     ax.set_xlabel("ν")
-    ax.set_xticks(list(NUS))
-    ax.set_xticklabels(["0", "0.25", "0.499"])
+    ax.set_xticks(list(nus))
+    ax.set_xticklabels([f"{v:g}" for v in nus])
 
 def _save(plt, fig, path: Path) -> Path:
     path = Path(path)
@@ -61,25 +59,12 @@ def _save(plt, fig, path: Path) -> Path:
 
 
 # ----------------------------------------------------------------------------- beam (Fig 5)
-def neutral_axis(X: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(z, u_y) along the particles nearest to the beam's centre line (averaged per z)."""
-    cx, cy = 0.5 * (X[:, 0].min() + X[:, 0].max()), 0.5 * (X[:, 1].min() + X[:, 1].max())
-    d = np.hypot(X[:, 0] - cx, X[:, 1] - cy)
-    sel = np.flatnonzero(d <= d.min() + 1e-9)
-    z = np.round(X[sel, 2], 12)
-    zs = np.unique(z)
-    return zs - X[:, 2].min(), np.array([u[sel][z == v, 1].mean() for v in zs])
-
-
-def euler_bernoulli(z: np.ndarray, L: float, E: float, rho: float, g: float, width=BEAM_WIDTH, height=BEAM_WIDTH):
-    """[G20]: ``y(z) = ρ g l h /(24 E I) (4 L z³ − 6 L² z² − z⁴)``, ``I = l h³/12`` (m)."""
-    I = width * height**3 / 12.0
-    return rho * g * width * height / (24.0 * E * I) * (4 * L * z**3 - 6 * L**2 * z**2 - z**4)
-
-
 def beam_deflection(results: Results, path: Path) -> Figure | None:
+    """Centre lines and Euler–Bernoulli as the studies stored them (``bending_curves``,
+    ``euler_bernoulli`` tables)."""
     df = results.find("bending")
-    if df.empty:
+    curves, theory = results.table("bending_curves"), results.table("euler_bernoulli")
+    if df.empty or curves is None:
         return None
     meshes = sorted(df["scene_mesh"].astype(str).unique(), key=mesh_size)
     Es = sorted(df["scene_E"].astype(float).unique(), reverse=True)
@@ -92,24 +77,17 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
         for i, mesh in enumerate(meshes):
             for j, E in enumerate(Es):
                 ax = axes[i, j]
-                sub = df[(df["scene_mesh"] == mesh) & np.isclose(df["scene_E"], E)]
-                L = rho = g = None
+                sub = df[(df["scene_mesh"] == mesh) & (df["scene_E"] == E)]
                 for m in methods:
                     s = sub[sub["method"] == m]
-                    if s.empty:
+                    c = curves[curves["key"] == s.iloc[0]["key"]] if not s.empty else curves.iloc[:0]
+                    if c.empty:
                         continue
-                    r = s.iloc[0]
-                    a = results.arrays(r["key"])
-                    if "u" not in a:
-                        continue
-                    z, uy = neutral_axis(a["X"], a["u"])
-                    L = float(a["X"][:, 2].max() - a["X"][:, 2].min())
-                    rho, g = float(r["scene_rho"]), float(r["scene_gravity"])
-                    ax.plot(z, uy, color=palette.color(m), ls=palette.linestyle(m), marker=palette.marker(m),
-                            markevery=max(1, len(z) // 8), label=m.replace(" static", ""))
-                if L is not None:
-                    zz = np.linspace(0.0, L, 200)
-                    ax.plot(zz, euler_bernoulli(zz, L, E, rho, g), color=palette.COLORS["Euler-Bernoulli"],
+                    ax.plot(c["z"], c["u_y"], color=palette.color(m), ls=palette.linestyle(m), marker=palette.marker(m),
+                            markevery=max(1, len(c) // 8), label=m.replace(" static", ""))
+                eb = theory[(theory["mesh"] == mesh) & (theory["E"] == E)] if theory is not None else None
+                if eb is not None and not eb.empty:
+                    ax.plot(eb["z"], eb["u_y"], color=palette.COLORS["Euler-Bernoulli"],
                             ls="-.", lw=1.2, label="Euler–Bernoulli")
                 ax.set_title(f"mesh {mesh}, E = {E / 1e6:g} MPa")
                 if i == len(meshes) - 1:
@@ -167,11 +145,12 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
         axis, a, b, names = 1, 0, 2, ("x (m)", "z (m)")
     diffs = results.table("differences")
     with palette.style() as plt:
-        fig, axes = plt.subplots(len(loads), 3, figsize=(7.2, 2.55 * len(loads) + 0.5), squeeze=False)
+        nus = results.nus(experiment)
+        fig, axes = plt.subplots(len(loads), len(nus), figsize=(2.4 * len(nus), 2.55 * len(loads) + 0.5), squeeze=False)
         level = None
         for i, load in enumerate(loads):
             ref = None
-            for j, nu in enumerate(NUS):
+            for j, nu in enumerate(nus):
                 ax = axes[i, j]
                 ref = results.reference(experiment, mesh=mesh, nu=nu, **load)
                 txt = []
@@ -269,7 +248,7 @@ def volume_change(results: Results, path: Path) -> Figure | None:
                             color=palette.color(base if base != "FEM-linear" else "fem"),
                             label=m.replace("paper", "[G20]"))
             ax.set_title(f"{exp}, d = {100 * d:g} %\nmesh {mesh}")
-            _nu_axis(ax)
+            _nu_axis(ax, sorted(t["nu"].unique()))
         for r in range(nrow):
             axes[r, 0].set_ylabel("relative volume change e (%)")
         _shared_legend(fig, axes, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.0))
@@ -302,7 +281,7 @@ def reactions(results: Results, path: Path) -> Figure | None:
         for ax in axes.flat[len(panels):]:
             ax.set_visible(False)
         for ax, (exp, mesh, col, v, unit, q, t) in zip(axes.flat, panels):
-            law = reference_law(exp, v if col == "deformation" else 0.0, v if col == "angle_deg" else 0.0)
+            law = results.reference_law(exp, v if col == "deformation" else 0.0, v if col == "angle_deg" else 0.0)
             for m in _methods_in(t):
                 if m.startswith("fem") and law != "linear" and m.endswith("linear"):
                     continue  # small-strain FEM is no reference at large load
@@ -312,7 +291,7 @@ def reactions(results: Results, path: Path) -> Figure | None:
                 _mark_no_result(ax, t, m)
             lab = f"θ = {v:g}°" if col == "angle_deg" else f"d = {100 * v:g} %"
             ax.set_title(f"{exp}, {lab}\nmesh {mesh}")
-            _nu_axis(ax)
+            _nu_axis(ax, sorted(t["nu"].unique()))
             ax.set_ylabel(f"{q} ({unit})")
             ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
         _shared_legend(fig, axes, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.0))
@@ -354,7 +333,7 @@ def differences(results: Results, path: Path) -> Figure | None:
                             lw=1.0, label=f"{m.replace(' static', '')}, {lab}")
             ax.set_yscale("log")
             ax.set_title(f"{exp}, mesh {mesh}")
-            _nu_axis(ax)
+            _nu_axis(ax, sorted(sub["nu"].unique()))
         axes[0, 0].set_ylabel("‖u_MSS − u_FEM‖ / ‖u_FEM‖ (%)")
         from matplotlib.lines import Line2D
 

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from . import findings
-from .data import Results, mesh_counts, paper_source, paper_table, reference_law
+from .data import Results, mesh_counts, paper_source, paper_table
 
 #: |Δe| thresholds, percentage points (Tables 2, 3 against the publication and FEM)
 E_DIFF_PP = (1.0, 3.0)
@@ -89,8 +89,8 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
              "Δ hybmss − FEM ref (pp)"]
     rows = []
     for _, r in t.iterrows():
-        law = reference_law(experiment, r["d"])
-        ref_col = next((m for m in methods if m.startswith("fem") and m.endswith(law)), None)
+        law = results.reference_law(experiment, r["d"])
+        ref_col = next((m for m in methods if law and m.startswith("fem") and m.endswith(law)), None)
         ref = r.get(ref_col, np.nan) if ref_col else np.nan
         row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (fmt(100 * r["d"], 3), "")]
         for m in methods:
@@ -138,9 +138,9 @@ def reaction_table(results: Results, name: str, experiment: str, number: int, lo
                  if c not in ("nu", "deformation", "angle_deg")]
     rows = []
     for _, r in t.iterrows():
-        law = reference_law(experiment, r[load] if load == "deformation" else 0.0,
-                            r[load] if load == "angle_deg" else 0.0)
-        ref_col = next((m for m in methods if m.startswith("fem") and m.endswith(law)), None)
+        law = results.reference_law(experiment, r[load] if load == "deformation" else 0.0,
+                                    r[load] if load == "angle_deg" else 0.0)
+        ref_col = next((m for m in methods if law and m.startswith("fem") and m.endswith(law)), None)
         ref = r.get(ref_col, np.nan) if ref_col else np.nan
         lv = fmt(r[load], 3) if load == "angle_deg" else fmt(100 * r[load], 3)
         row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (lv, "")]

@@ -257,9 +257,23 @@ def test_cell_volume_change_of_a_stretched_lattice():
     ("Euler-Bernoulli", "Euler-Bernoulli")])
 def test_one_colour_per_model(method, family):
     from reports import palette
+    from studies.tables import models_table
 
-    assert palette.family(method) == family
-    assert palette.color(method) == palette.COLORS[family]
+    with palette.models(models_table()) as styles:
+        assert palette.family(method) == family
+        assert palette.color(method) == (palette.COLORS[family] if family in palette.COLORS else styles[family][0])
+
+
+def test_unknown_model_is_not_coloured_as_another():
+    """A method of no stored model gets the neutral 'other' style, never a model's colour."""
+    from reports import palette
+    from studies.tables import models_table
+
+    with palette.models(models_table()) as styles:
+        assert palette.family("hybmss-xyz static") == palette.OTHER
+        assert palette.color("hybmss-xyz static") not in {c for c, _, _ in styles.values()}
+        assert palette.family("hybmss static") == "hybmss"
+    assert palette.family("hybmss static") == palette.OTHER  # outside the block: no stored styles
 
 
 def test_the_command_reads_results_only(report, results):
