@@ -68,6 +68,10 @@ CASES = {
     "baudet2009": _scene("baudet2009", 0.35),
     "baudet2009-l-shape-dead-load": _scene("baudet2009", 0.3, body=_l_shape(), plates="clamped",
                                            loads=(Load(Region("x+"), (0.0, 0.0, -50.0)),)),
+    # one cell across: grid offsets that share a flat offset ((1, -1, k) and (0, 1, k); (0, 0, 1)
+    # and (0, 1, -1)) share one row of partial sums
+    "thin-beam": _scene("hybmss", 0.3, body=Body.box(1, 1, 5, 0.5)),
+    "thin-plate": _scene("hybmss-fd", 0.45, body=Body.box(3, 2, 1, 0.5), plates="slide"),
     "dead-load": _scene("hybmss", 0.3, plates="clamped", loads=(Load(Region("x+"), (0.0, 0.0, -50.0)),)),
 }
 CASES.update({f"model-{m}": _scene(m, 0.3) for m in models.names() if models.get(m).supports("explicit", "numba")})
