@@ -202,8 +202,8 @@ def _pick(rows, **key):
 
 def format_bench(d: dict) -> str:
     """Readable table of :func:`run_bench`'s result, with the ratios measured in the same run:
-    float32 / float64, two threads / one, each model / hybmss-fd ([G20] C++: cf/fd 1.4,
-    hybmss/fd 2.1), hybmss at ν = 1/4 / hybmss-cf, and Numba / NumPy."""
+    float32 / float64, two threads / one, Numba / NumPy, and each model over the fastest one
+    (float64, one thread; [G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)."""
     rows = d.get("explicit", [])
     out = ["explicit dynamics, compression cube (dt = 1 ms; time per 10,000 steps, best of the repeats)", ""]
     head = (f"{'model':<10} {'nu':>6} {'mesh':>9} {'kernel':>6} {'prec':>4} {'thr':>3} {'steps':>6} "
@@ -224,6 +224,9 @@ def format_bench(d: dict) -> str:
     out += ["", "ratios in this run (time per step)"]
     meshes = sorted({r["mesh"] for r in rows}, key=lambda m: int(m.split("x")[0]))
     for mesh in meshes:
+        own = [(r["s_per_10k_steps"], r["model"], r["nu"]) for r in rows if r["mesh"] == mesh
+               and (r["kernel"], r.get("precision", "f64"), r["threads"]) == ("numba", "f64", 1)]
+        fastest = min(own) if own else None
         for model, nu in sorted({(r["model"], r["nu"]) for r in rows if r["mesh"] == mesh}):
             base = dict(mesh=mesh, model=model, nu=nu, kernel="numba")
             parts = []
@@ -239,12 +242,8 @@ def format_bench(d: dict) -> str:
             b = _pick(rows, mesh=mesh, model=model, nu=nu, kernel="numpy")
             if a and b:
                 parts.append(f"numba/numpy {a['s_per_10k_steps'] / b['s_per_10k_steps']:.3f}")
-            fd = _pick(rows, mesh=mesh, model="hybmss-fd", nu=NU, kernel="numba", precision="f64", threads=1)
-            if a and fd and model != "hybmss-fd":
-                parts.append(f"/hybmss-fd {a['s_per_10k_steps'] / fd['s_per_10k_steps']:.2f}")
-            cf = _pick(rows, mesh=mesh, model="hybmss-cf", nu=NU, kernel="numba", precision="f64", threads=1)
-            if a and cf and (model, nu) == ("hybmss", 0.25):
-                parts.append(f"/hybmss-cf {a['s_per_10k_steps'] / cf['s_per_10k_steps']:.2f}")
+            if a and fastest and (model, nu) != fastest[1:]:
+                parts.append(f"/{fastest[1]}(nu={fastest[2]:g}) {a['s_per_10k_steps'] / fastest[0]:.2f}")
             if parts:
                 out.append(f"  {mesh} {model} nu={nu:g}: " + ";  ".join(parts))
     static = d.get("static", [])

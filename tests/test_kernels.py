@@ -188,11 +188,11 @@ def test_numba_kernel_refuses_unknown_forces():
 
 
 def test_bench_rows_and_table():
-    from hybmss.bench import format_bench, run_bench
+    from hybmss.bench import format_bench, run_bench, static_cases
 
     variants = (("hybmss-fd", 0.499), ("hybmss", 0.499))
     d = run_bench(steps=20, numpy_steps=2, repeats=1, threads=(1,), meshes=((3, 3, 3),), variants=variants)
-    assert [set(r) >= {"scene", "mesh", "wall_time_s"} for r in d["static"]] == [True] * 4
+    assert [set(r) >= {"scene", "mesh", "wall_time_s"} for r in d["static"]] == [True] * len(static_cases())
     rows = d["explicit"]
     assert {(r["model"], r["precision"], r["kernel"]) for r in rows} == {
         (m, p, "numba") for m, _ in variants for p in ("f64", "f32")} | {(m, "f64", "numpy") for m, _ in variants}
@@ -201,7 +201,7 @@ def test_bench_rows_and_table():
         assert r["mesh"] == "3x3x3" and r["wall_time_s"] > 0
         assert r["steps"] == (20 if r["kernel"] == "numba" else 2)
     text = format_bench(d)
-    assert "f32/f64" in text and "/hybmss-fd" in text and "load average" in text
+    assert "f32/f64" in text and "/hybmss-fd(nu=0.499)" in text and "load average" in text
 
 
 def test_bench_times_one_configuration_from_the_command_line():
