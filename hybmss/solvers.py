@@ -225,7 +225,8 @@ class _Factorizer:
     for every Newton iteration, shift and load step: it is computed once per pattern and every
     factorization after it is numeric only.  A failed factorization (``ArithmeticError``: a
     pivot ≤ 0) is CHOLMOD's proof that the matrix is not positive definite; the caller then uses
-    SuperLU.  Without cvxopt every call returns None."""
+    SuperLU, and the symbolic analysis serves the next factorization.  Without cvxopt every call
+    returns None."""
 
     def __init__(self):
         self._indptr = self._indices = None
@@ -249,9 +250,8 @@ class _Factorizer:
         self.numeric += 1
         try:
             cholmod.numeric(self._A, self._F)
-        except ArithmeticError:  # not positive definite
+        except ArithmeticError:  # not positive definite (the analysis stays valid for the next one)
             self.failed += 1
-            self._F = None  # start the next one from a fresh analysis
             return None
         return _CholeskyFactor(self._F)
 
@@ -311,6 +311,9 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
         return False, x, f, np.inf, _force_scale(system, f)
     best, e_best, stalled = np.inf, np.inf, 0
     mu_last, lu_mu = 0.0, 0.0
+    # once the unshifted Hessian has proved not positive definite in this call (a failed
+    # Cholesky), the next unshifted ones go to SuperLU directly instead of failing again
+    indefinite = False
     if residual:
         lu = None
     for it in range(max_iter + 1):
@@ -358,7 +361,13 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                 A = Jff if mu == 0.0 else (Jff + sp.identity(Jff.shape[0], format="csc") * (mu * diag_mean))
                 try:
                     with np.errstate(all="ignore"):
-                        lu = _factor_general(A) if residual else _factor(A, fac)
+                        if residual:
+                            lu = _factor_general(A)
+                        else:
+                            failed = fac.failed if fac is not None else 0
+                            lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
+                            if mu == 0.0 and fac is not None and fac.failed > failed:
+                                indefinite = True
                         dx = lu.solve(r)
                     ok = np.all(np.isfinite(dx)) and (residual or float(r @ dx) > 0.0)
                 except RuntimeError:  # exactly singular
