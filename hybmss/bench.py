@@ -125,9 +125,11 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
     threads), ``s_per_10k_steps``, ``springs``, ``ns_per_spring_step``, ``dt_crit_s`` and
     ``load_avg`` (the 1-minute load average at the best run).  ``steps`` overrides the Numba
     steps of every mesh (default :data:`STEPS`); the NumPy twin runs ``numpy_steps`` on the
-    first mesh only, one thread, float64.  ``quick``: 10³ and 30³ with a tenth of the steps,
-    one repeat (a smoke run of the whole matrix in about a minute, not a measurement).
+    first mesh only, one thread, float64.  ``quick``: the 10³ cube only, float64, one thread, a
+    tenth of the steps, one repeat (a smoke run, not a measurement).
     """
+    if quick:  # one mesh, one thread, float64: each configuration compiles a kernel of its own
+        meshes, threads, precisions = meshes or (MESH,), (1,), ("f64",)
     meshes = tuple(tuple(m) for m in (meshes or MESHES))
     variants = tuple(variants) if variants is not None else tuple(default_variants())
     if repeats is None:
