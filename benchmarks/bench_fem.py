@@ -20,22 +20,14 @@ import time
 
 import numpy as np
 
-from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
+from hybmss.experiments import SceneSpec
+from hybmss.scene import Scene
 
 
 def _scene(kind: str, mesh, le: float, nu: float, d: float) -> Scene:
-    nx, ny, nz = mesh
-    H = nz * le
-    sign = -1.0 if kind == "cube" else 1.0
-    return Scene(
-        Body.box(nx, ny, nz, le),
-        Material(1e4, nu, 1000.0),
-        plates=(
-            Plate("bottom", Region("z-")),
-            Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, sign * d * H))),
-        ),
-        name=f"{'compression' if kind == 'cube' else 'tension'} {nx}x{ny}x{nz}",
-    )
+    """The cube's compression or the beam's tension (:mod:`hybmss.experiments`), E = 1e4 Pa."""
+    experiment = "compression" if kind == "cube" else "tension"
+    return SceneSpec.default(experiment, mesh=mesh, le=le, E=1e4, nu=nu, deformation=d).build()
 
 
 def cases(quick: bool = False):
@@ -59,10 +51,7 @@ def cases(quick: bool = False):
 
 
 def _bending(mesh, le: float) -> Scene:
-    nx, ny, nz = mesh
-    return Scene(Body.box(nx, ny, nz, le), Material(2e6, 0.25, 1000.0),
-                 plates=(Plate("clamp", Region("z-")),), gravity=(0.0, -10.0, 0.0),
-                 name=f"bending {nx}x{ny}x{nz}")
+    return SceneSpec.default("bending", mesh=mesh, le=le, E=2e6, nu=0.25, gravity=10.0).build()
 
 
 def run(quick: bool = False, only=None, progress=None) -> dict:
@@ -76,7 +65,7 @@ def run(quick: bool = False, only=None, progress=None) -> dict:
         t0, c0 = time.perf_counter(), time.process_time()
         res = solve(scene, **kw)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        top = res.reactions["top"].force[2] if "top" in res.reactions else res.reactions["clamp"].force[1]
+        top = res.reactions["top"].force[2] if "top" in res.reactions else res.reactions["bottom"].force[1]
         rows.append({
             "case": name,
             "mesh": "x".join(map(str, scene.body.shape)),

@@ -5,14 +5,9 @@
 (:meth:`Result.summary` plus the scene); ``--convergence 1,2,3`` solves on those refinements
 and reports each output's observed order and Richardson error estimate instead.  ``--scene-json FILE`` solves any stored Scene
 (``Scene.to_dict`` format) instead.  The scenes built here are minimal loadings of a box
-(the publication's named scenes live in ``studies``):
-
-- ``compression``: bottom (z−) clamped, top (z+) moved by −d·H along z;
-- ``tension``: bottom clamped, top moved by +d·H along z;
-- ``shear``: bottom clamped, top moved by d·H along x;
-- ``torsion``: bottom clamped, top rotated by θ = d·√2 rad about the vertical axis through its
-  centre (the top corners of a square cube move by about d·side);
-- ``bending``: bottom clamped, gravity ``--gravity`` m/s² along −y.
+are the experiments of :mod:`hybmss.experiments` (the same builder as ``hybmss compare`` and the
+studies, so equal arguments give the same scene); options left out take the experiment's
+defaults (mesh, E, ν, d, torsion angle, gravity) and the cell edge follows from the body's size.
 
 ``register(subparsers)`` adds the subcommand to a parser (``studies.cli`` assembles the
 ``hybmss`` command); ``python -m fem_reference`` runs it alone.  Bad arguments exit with status 2
@@ -23,18 +18,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 
 from hybmss.cli import OneLineParser, mesh_arg, positive_int
+from hybmss.experiments import EXPERIMENTS, SceneSpec
+from hybmss.scene import Scene
 
-SCENES = ("compression", "tension", "shear", "torsion", "bending")
+SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
 
 
 def build_scene(args):
-    """The Scene described by the parsed arguments."""
-    from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
-
+    """The Scene described by the parsed arguments (:class:`hybmss.experiments.SceneSpec`)."""
     if args.scene_json:
         try:
             with open(args.scene_json) as fh:
@@ -43,29 +37,8 @@ def build_scene(args):
             raise ValueError(f"cannot read --scene-json: {exc.strerror}: {args.scene_json}") from None
         except (KeyError, TypeError, json.JSONDecodeError) as exc:
             raise ValueError(f"--scene-json is not a scene: {exc}") from None
-    if args.le <= 0:
-        raise ValueError(f"--le must be > 0 m, got {args.le}")
-    nx, ny, nz = args.mesh
-    body = Body.box(nx, ny, nz, args.le)
-    mat = Material(args.E, args.nu, args.rho)
-    H = nz * args.le
-    d = args.deformation
-    bottom = Plate("bottom", Region("z-"), Motion("clamped"))
-    gravity = (0.0, 0.0, 0.0)
-    if args.scene == "compression":
-        plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -d * H))))
-    elif args.scene == "tension":
-        plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, d * H))))
-    elif args.scene == "shear":
-        plates = (bottom, Plate("top", Region("z+"), Motion("translate", (d * H, 0.0, 0.0))))
-    elif args.scene == "torsion":
-        center = (nx * args.le / 2, ny * args.le / 2, H)
-        plates = (bottom, Plate("top", Region("z+"), Motion("rotate", angle=d * math.sqrt(2.0), center=center)))
-    else:
-        plates = (bottom,)
-        gravity = (0.0, -args.gravity, 0.0)
-    name = f"{args.scene} {nx}x{ny}x{nz} E={args.E:g} nu={args.nu:g} d={d:g}"
-    return Scene(body, mat, plates=plates, gravity=gravity, name=name)
+    return SceneSpec.default(args.scene, mesh=args.mesh, le=args.le, E=args.E, nu=args.nu, rho=args.rho,
+                             deformation=args.deformation, angle_deg=args.angle, gravity=args.gravity).build()
 
 
 def format_result(res) -> str:
@@ -130,14 +103,15 @@ def register(subparsers) -> argparse.ArgumentParser:
     q = subparsers.add_parser("fem", help="FEM reference (scikit-fem) of a simple scene")
     q.add_argument("--scene", choices=SCENES, default="compression", help="loading (default compression)")
     q.add_argument("--scene-json", default=None, metavar="FILE", help="solve a stored Scene (JSON) instead")
-    q.add_argument("--mesh", type=mesh_arg, default=(10, 10, 10), help="NXxNYxNZ cells (default 10x10x10)")
-    q.add_argument("--le", type=float, default=0.5, help="cell edge, m (default 0.5)")
-    q.add_argument("--E", type=float, default=10_000.0, help="Young's modulus, Pa (default 1e4)")
-    q.add_argument("--nu", type=float, default=0.25, help="Poisson ratio in (-1, 0.5) (default 0.25)")
-    q.add_argument("--rho", type=float, default=1000.0, help="density, kg/m^3 (default 1000)")
-    q.add_argument("--deformation", "-d", type=float, default=0.05,
-                   help="plate displacement / height d (torsion: angle d*sqrt(2) rad; default 0.05)")
-    q.add_argument("--gravity", type=float, default=10.0, help="bending: gravity, m/s^2 (default 10)")
+    q.add_argument("--mesh", type=mesh_arg, default=None, help="NXxNYxNZ cells (default: the experiment's)")
+    q.add_argument("--le", type=float, default=None, help="cell edge, m (default: body size / mesh)")
+    q.add_argument("--E", type=float, default=None, help="Young's modulus, Pa (default: the experiment's)")
+    q.add_argument("--nu", type=float, default=None, help="Poisson ratio in (-1, 0.5) (default 0.25)")
+    q.add_argument("--rho", type=float, default=None, help="density, kg/m^3 (default 1000)")
+    q.add_argument("--deformation", "-d", type=float, default=None,
+                   help="plate displacement / height d (default 0.05)")
+    q.add_argument("--angle", type=float, default=None, help="torsion angle, degrees (default 1)")
+    q.add_argument("--gravity", type=float, default=None, help="bending: gravity, m/s^2 (default 10)")
     q.add_argument("--element", choices=ELEMENT_CHOICES, default="auto",
                    help="hex1, hex2, mixed (Hex2 x Hex1 u-p) or auto (mixed for nu >= 0.45; default)")
     q.add_argument("--law", choices=LAW_CHOICES, default="linear", help="material law (default linear)")

@@ -1,5 +1,5 @@
-"""The cubic-cell MSS of [B09] (variant ``baudet2009``): lateral correction forces and their
-equilibrium solver.
+"""The cubic-cell MSS of [B09] (variant ``baudet2009``): its lateral correction forces, a
+non-conservative :class:`hybmss.terms.ForceTerm`.
 
 Springs ([B09], SPEC §4)
 ------------------------
@@ -65,9 +65,10 @@ diagonals' response to non-affine motions), but the j-face motion does not enter
 in the transposed way: the Jacobian ``∂f/∂x`` of the corrections is not symmetric, so the forces
 have a non-zero curl and do work around closed loops (``tests/test_baudet.py`` measures both).
 There is no potential energy: :func:`hybmss.solvers.solve_static` cannot minimize one and
-dispatches this variant to :func:`solve_equilibrium`, a Newton method on the force residual.
+solves this variant in its residual mode (Newton on the force residual, see
+:mod:`hybmss.solvers`), with :meth:`Corrections.stiffness` as the term's Jacobian.
 
-What :func:`solve_equilibrium` guarantees: a configuration where the total force (springs,
+What the residual mode guarantees: a configuration where the total force (springs,
 corrections, gravity, loads) on every free degree of freedom is below ``rtol`` times the
 largest plate reaction or applied load, reached by continuation from rest over load steps.  It
 does not guarantee stability (without an energy there is no minimum to certify; a dynamic run
@@ -86,12 +87,10 @@ another zero-residual state 5 % away.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .lattice import CORNERS, VOLUME_SIGNS
 
@@ -113,16 +112,21 @@ def coefficient(nu: float) -> float:
     return 0.5 * (1.0 - 4.0 * nu)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Corrections:
-    """Parameters of the correction forces of one system: per-cell spring shares ``kx``, ``kd``
-    (N/m), rest edge ``le`` (m), coefficient ``c``, and the cells (m, 8) they act on."""
+    """The correction forces of one system as a non-conservative :class:`hybmss.terms.ForceTerm`:
+    per-cell spring shares ``kx``, ``kd`` (N/m), rest edge ``le`` (m), coefficient ``c``, and the
+    cells (m, 8) they act on.  Internal forces: they do not follow the load factor."""
 
     cells: np.ndarray
     kx: float
     kd: float
     le: float
     c: float
+
+    name = "baudet2009_corrections"
+    conservative = False
+    scaled = False
 
     @classmethod
     def for_system(cls, consts, material, lattice) -> "Corrections":
@@ -134,6 +138,13 @@ class Corrections:
     def forces(self, x: np.ndarray) -> np.ndarray:
         """Correction forces (n, 3) at positions ``x`` (NumPy reference)."""
         return correction_forces(x, self.cells, self.kx, self.kd, self.le, self.c)
+
+    def energy(self, x: np.ndarray) -> float:
+        raise TypeError("the baudet2009 correction forces are not the gradient of an energy")
+
+    def stiffness(self, x: np.ndarray) -> sp.csr_matrix:
+        """``∂(−f_corr)/∂x``: minus :func:`correction_jacobian` (not symmetric)."""
+        return -correction_jacobian(x, self)
 
 
 # ------------------------------------------------------------------------- NumPy reference
@@ -204,189 +215,6 @@ def correction_jacobian(x, corr: Corrections) -> sp.csr_matrix:
     return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(N, N))
 
 
-# ------------------------------------------------------------------------- equilibrium
-class EquilibriumError(RuntimeError):
-    """The force-residual Newton solver could not reach an equilibrium."""
-
-
-@dataclass(frozen=True)
-class EquilibriumOptions:
-    rtol: float = 1e-8
-    max_iter: int = 30
-    initial_steps: int = 1
-    min_step: float = 1.0 / 1024
-
-
-def _parts(system):
-    corr = system.extras["baudet"]
-    dead = system.extras.get("dead_load")
-    return corr, dead
-
-
-def total_forces(system, x, s: float = 1.0):
-    """Springs + corrections + s·(gravity + dead loads): the residual (n, 3) at load factor s."""
-    from .forces import spring_energy_forces
-
-    corr, dead = _parts(system)
-    e, f = spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
-    f += corr.forces(x)
-    if system.gravity is not None:
-        f += s * system.mass[:, None] * system.gravity[None, :]
-    if dead is not None:
-        f += s * dead
-    return e, f
-
-
-def _scale(system, f):
-    """Force scale of the convergence test: the same as the conservative static solver's."""
-    from .solvers import _force_scale
-
-    return _force_scale(system, f)
-
-
-def _newton(system, x, free, s, rtol, max_iter, stats):
-    from .forces import cell_volumes, hessian
-    from .solvers import _force_floor
-
-    corr = system.extras["baudet"]
-    floor = _force_floor(system)
-    if np.any(cell_volumes(x, system.lattice.cells) <= 0.0):
-        return False, x, None, np.inf  # an inverted start (e.g. a plate moved through a layer)
-    _, f = total_forces(system, x, s)
-    rnorm = np.inf
-    for it in range(max_iter + 1):
-        r = f.ravel()[free]
-        rnorm = float(np.linalg.norm(r))
-        scale = _scale(system, f)
-        if not np.isfinite(rnorm):
-            return False, x, f, rnorm
-        if rnorm <= max(rtol * scale, floor):
-            return True, x, f, rnorm
-        if it == max_iter:
-            break
-        # Jacobian of −f: spring Hessian (symmetric) minus the correction Jacobian (not symmetric)
-        J = (hessian(system, x) - correction_jacobian(x, corr)).tocsr()[free][:, free].tocsc()
-        diag = float(np.abs(J.diagonal()).mean())
-        I = sp.identity(J.shape[0], format="csc")
-        accepted = False
-        # Newton step first; where zero-stiffness (hourglass) modes make it useless, the
-        # Levenberg–Marquardt shift μ·mean(diag J)·I shortens it towards a damped step.
-        for mu in (0.0, 1e-8, 1e-6, 1e-4, 1e-2, 1.0):
-            try:
-                with np.errstate(all="ignore"):
-                    dx = spla.splu(J if mu == 0.0 else J + I * (mu * diag)).solve(r)
-            except RuntimeError:  # exactly singular
-                continue
-            if not np.all(np.isfinite(dx)):
-                continue
-            step = np.zeros(x.size)
-            step[free] = dx
-            step = step.reshape(x.shape)
-            alpha = 1.0
-            for _ in range(12 if mu == 1.0 else 4):  # backtracking on the residual norm
-                xt = x + alpha * step
-                if np.all(cell_volumes(xt, system.lattice.cells) > 0.0):
-                    _, ft = total_forces(system, xt, s)
-                    rt = float(np.linalg.norm(ft.ravel()[free]))
-                    if rt <= (1.0 - 1e-4 * alpha) * rnorm:
-                        accepted = True
-                        break
-                alpha *= 0.5
-            if accepted:
-                stats["regularized"] += int(mu > 0.0)
-                break
-        if not accepted:
-            return False, x, f, rnorm
-        stats["iterations"] += 1
-        x, f = xt, ft
-    return False, x, f, rnorm
-
-
-def _predictor(system, x, target, free, s):
-    """First-order guess for a load step: prescribed dofs to ``target``, free dofs by the linear
-    response ``δ_f = J_ff⁻¹ (f_f − J_fc δ_c)`` (J shifted by 1e-8·mean diag against hourglass
-    modes).  ``None`` if it fails."""
-    from .forces import hessian
-
-    J = (hessian(system, x) - correction_jacobian(x, system.extras["baudet"])).tocsr()
-    delta = (target - x).ravel().copy()
-    delta[free] = 0.0
-    _, f = total_forces(system, x, s)
-    rhs = f.ravel()[free] - (J @ delta)[free]
-    Jff = J[free][:, free].tocsc()
-    shift = sp.identity(Jff.shape[0], format="csc") * (1e-8 * float(np.abs(Jff.diagonal()).mean()))
-    try:
-        with np.errstate(all="ignore"):
-            d_f = spla.splu(Jff + shift).solve(rhs)
-    except RuntimeError:
-        return None
-    if not np.all(np.isfinite(d_f)):
-        return None
-    delta[free] = d_f
-    return x + delta.reshape(x.shape)
-
-
-def solve_equilibrium(scene, options: EquilibriumOptions | None = None, system=None):
-    """Static equilibrium of a ``baudet2009`` scene (solver name ``mss-static``).
-
-    Newton's method on the force residual with the exact Jacobian (spring Hessian plus the
-    complex-step Jacobian of the corrections, not symmetric), a backtracking line search on the
-    residual norm and load steps ``s ∈ (0, 1]`` that scale the plates' motion, gravity and
-    loads together (halved on failure), each started from the linear (tangent) predictor; a
-    state with an inverted cell is never accepted (an inverted lattice can have zero forces).  See the module docstring for what the result
-    guarantees: zero net force, not stability."""
-    from .forces import cell_volumes
-    from .solvers import _force_floor, _result
-    from .system import build
-
-    opts = options or EquilibriumOptions()
-    t0 = time.perf_counter()
-    S = system if system is not None else build(scene)
-    if "baudet" not in S.extras:
-        raise ValueError(f"solve_equilibrium is for model baudet2009, got {scene.model.name!r}")
-    free = ~S.fixed.ravel()
-    stats = {"iterations": 0, "regularized": 0}
-    x = S.X.copy()
-    s, ds = 0.0, 1.0 / max(1, opts.initial_steps)
-    load_steps = 0
-    while s < 1.0 - 1e-14:
-        s_new = min(1.0, s + ds)
-        target = S.prescribed(s_new)
-        guess = _predictor(S, x, target, free, s_new)
-        if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
-            guess = x.copy()
-        guess[S.fixed] = target[S.fixed]
-        ok, x_new, f, rnorm = _newton(S, guess, free, s_new, opts.rtol, opts.max_iter, stats)
-        if ok:
-            x, s = x_new, s_new
-            load_steps += 1
-            ds = min(1.0, 1.5 * ds)
-            continue
-        ds *= 0.5
-        if ds < opts.min_step:
-            raise EquilibriumError(
-                f"baudet2009 equilibrium of scene {scene.name or '(unnamed)'} not reached at load factor "
-                f"s={s_new:.6g} (last converged s={s:.6g}); residual {rnorm:.3g} N: the non-conservative "
-                "corrections have no energy to certify a stable state; the equilibrium path may be lost")
-    e_spr, f = total_forces(S, x, 1.0)
-    parts = {"springs": float(e_spr)}
-    if S.gravity is not None:
-        parts["gravity"] = -float(np.dot(S.mass, x @ S.gravity))
-    r = float(np.linalg.norm(f.ravel()[free]))
-    info = {
-        "equilibrium": "force-residual Newton (non-conservative corrections, no energy)",
-        "load_steps": load_steps,
-        "regularized_steps": stats["regularized"],
-        "residual": r,
-        "relative_residual": r / _scale(S, f) if _scale(S, f) > 0 else 0.0,
-        "residual_floor": _force_floor(S),
-        "kappa": 0.0,
-        "springs": int(len(S.spring_k)),
-        "correction_c": float(S.extras["baudet"].c),
-    }
-    return _result(S, "mss-static", x, f, parts, stats["iterations"], t0, True, info)
-
-
 # ------------------------------------------------------------------------- stencil layout
 @dataclass(frozen=True, eq=False)
 class GridCorrections:
@@ -404,7 +232,9 @@ class GridCorrections:
 
     @classmethod
     def from_system(cls, system) -> "GridCorrections":
-        corr = system.extras["baudet"]
+        corr = system.term(Corrections.name)
+        if corr is None:
+            raise ValueError(f"model {system.scene.model.name!r} has no baudet2009 correction forces")
         lat = system.lattice
         shape = tuple(int(n) + 1 for n in system.scene.body.shape)
         strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)

@@ -1,10 +1,12 @@
 """Speed of the explicit kernels on the compression cube of SPEC §6 (issue 2, "Speed").
 
 The scene: 10×10×10 cells of 0.5 m, E = 10⁴ Pa, ρ = 1000 kg/m³, bottom clamped, top plate moved
-down by 5 % (ramp 1 s), dt = 1 ms.  Variants: hybmss-fd, hybmss-cf and hybmss at ν = 0.499
-(hybmss-cf ignores ν: its springs alone give ν = 1/4), and hybmss at ν = 1/4 (no volume term:
-it must cost what hybmss-cf costs).  Each runs with the Numba kernel on 1 and 2 threads and with
-the NumPy twin, which runs fewer steps (its row says how many; ``s_per_10k_steps`` scales it).
+down by 5 % (ramp 1 s), dt = 1 ms, built by :mod:`hybmss.experiments`.  Variants: every model of
+the ``performance`` role of the registry at ν = 0.499 (hybmss-cf ignores ν: its springs alone give
+ν = 1/4), and the first of them (hybmss) at ν = 1/4 (no volume term: it must cost what hybmss-cf
+costs).  Each runs with the Numba kernel on 1 and 2 threads and with the NumPy twin (the kernels
+the model supports), the twin running fewer steps (its row says how many; ``s_per_10k_steps``
+scales it).
 
 JIT compilation is excluded (a short warm-up run first); each figure is the best of
 ``repeats`` runs, since other processes on the machine only ever add time.  ``ns_per_spring_step``
@@ -14,29 +16,30 @@ The ``static`` list times the static Newton solve of the same cube (:func:`stati
 
 from __future__ import annotations
 
+import os
+import time
+
+from . import models
+from .experiments import SceneSpec
 from .explicit import dt_crit, simulate_explicit
-from .scene import Body, Material, Model, Motion, Plate, Region, Scene
+from .scene import Scene
+from .solvers import solve_static
 from .system import build
 
 MESH = (10, 10, 10)
 LE = 0.5
 DT = 1e-3
-VARIANTS = (("hybmss-fd", 0.499), ("hybmss-cf", 0.499), ("hybmss", 0.499), ("hybmss", 0.25))
+
+
+def variants() -> list[tuple[str, float]]:
+    """(model, ν) of the explicit rows: the ``performance`` models at ν = 0.499, the first at 1/4."""
+    names = models.in_role("performance")
+    return [(m, 0.499) for m in names] + [(names[0], 0.25)]
 
 
 def compression_scene(model: str, nu: float, mesh=MESH, le: float = LE, d: float = 0.05) -> Scene:
-    """SPEC §6 compression: bottom clamped, top plate moved down by d·H."""
-    H = mesh[2] * le
-    return Scene(
-        Body.box(*mesh, le),
-        Material(1e4, nu, 1000.0),
-        Model(model),
-        plates=(
-            Plate("bottom", Region("z-")),
-            Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -d * H))),
-        ),
-        name=f"compression-{model}-nu{nu}",
-    )
+    """SPEC §6 compression (:mod:`hybmss.experiments`): bottom clamped, top plate moved down by d·H."""
+    return SceneSpec.default("compression", mesh=mesh, le=le, nu=nu, model=model, deformation=d).build()
 
 
 def _run(cfg):
@@ -58,19 +61,17 @@ def run_bench(steps: int = 10_000, kernels=("numba", "numpy"), quick: bool = Fal
     processes does not fall on one of them only.  ``quick`` runs 1,000 Numba and 50 NumPy steps
     once (a smoke run, not a measurement).
     """
-    import os
-
     if quick:
         steps, numpy_steps = min(steps, 1000), min(numpy_steps, 50)
     if repeats is None:
         repeats = 1 if quick else 3
     mesh = "x".join(str(n) for n in MESH)
     configs, meta = [], []
-    for model, nu in VARIANTS:
+    for model, nu in variants():
         scene = compression_scene(model, nu)
         system = build(scene)
         dc = dt_crit(system)
-        for kernel in kernels:
+        for kernel in [k for k in kernels if models.get(model).supports("explicit", k)]:
             n = steps if kernel == "numba" else min(steps, numpy_steps)
             for th in (threads if kernel == "numba" else (1,)):
                 # warm-up: compiles (or loads from cache) the kernel outside the timings
@@ -105,18 +106,19 @@ def run_bench(steps: int = 10_000, kernels=("numba", "numpy"), quick: bool = Fal
     return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats)}
 
 
-STATIC_CASES = (("hybmss", 0.25, 0.05), ("hybmss", 0.499, 0.05), ("hybmss-fd", 0.3, 0.05), ("hybmss", 0.25, 0.20))
+def static_cases() -> list[tuple[str, float, float]]:
+    """(model, ν, d) of the static rows: the first ``performance`` model at ν = 1/4 and 0.499 (5 %)
+    and at 20 %, every other one at ν = 0.3 (5 %)."""
+    names = models.in_role("performance")
+    return ([(names[0], 0.25, 0.05), (names[0], 0.499, 0.05)] + [(m, 0.3, 0.05) for m in names[1:]]
+            + [(names[0], 0.25, 0.20)])
 
 
 def static_bench(quick: bool = False, repeats: int | None = None) -> list[dict]:
     """Wall time of the static Newton solve of the compression cube (best of ``repeats``, after a
     warm-up of the sparsity pattern cache)."""
-    import time
-
-    from .solvers import solve_static
-
     reps = repeats or (1 if quick else 3)
-    cases = STATIC_CASES[:1] if quick else STATIC_CASES
+    cases = static_cases()[:1] if quick else static_cases()
     rows = []
     for model, nu, d in cases:
         scene = compression_scene(model, nu, d=d)
@@ -160,23 +162,24 @@ def format_bench(d: dict) -> str:
             f"{r.get('dt_crit_s', float('nan')):>9.4g}"
         )
     if rows and "load_avg" in rows[0]:
-        import os
-
         out.append(f"(1-min load average {rows[0]['load_avg']:.2f} on {os.cpu_count()} cores at the end)")
     combos = sorted({(r["kernel"], r["threads"]) for r in rows})
+    seen = {(r["model"], r["nu"]) for r in rows}
+    pairs = [v for v in variants() if v in seen]
     if combos:
-        out += ["", "ratios (time per step; [G20] C++: cf/fd 1.4, hybmss/fd 2.1)"]
+        out += ["", "ratios of the time per step to the fastest variant of each kernel "
+                    "([G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)"]
         for kernel, th in combos:
-            cf = _ratio(rows, kernel, th, ("hybmss-cf", 0.499), ("hybmss-fd", 0.499))
-            hy = _ratio(rows, kernel, th, ("hybmss", 0.499), ("hybmss-fd", 0.499))
-            q = _ratio(rows, kernel, th, ("hybmss", 0.25), ("hybmss-cf", 0.499))
+            own = [(r["s_per_10k_steps"], r["model"], r["nu"]) for r in rows
+                   if (r["kernel"], r["threads"]) == (kernel, th)]
+            base = min(own)
             parts = [f"  {kernel} {th} thread(s):"]
-            for label, val in (("hybmss-cf/hybmss-fd", cf), ("hybmss/hybmss-fd", hy),
-                               ("hybmss(nu=0.25)/hybmss-cf", q)):
+            for model, nu in pairs:
+                val = _ratio(rows, kernel, th, (model, nu), base[1:])
                 if val is not None:
-                    parts.append(f"{label} {val:.2f}")
+                    parts.append(f"{model}(nu={nu:g})/{base[1]}(nu={base[2]:g}) {val:.2f}")
             out.append("  ".join(parts))
-        for model, nu in VARIANTS:
+        for model, nu in pairs:
             pick = {}
             for r in rows:
                 if (r["model"], r["nu"]) == (model, nu):

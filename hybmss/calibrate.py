@@ -1,4 +1,5 @@
-"""Spring constants and volume stiffness of each model variant (SPEC §2–4).
+"""Spring constants and volume stiffness of the cubic spring lattices (SPEC §2–4): the formulas
+the models of :mod:`hybmss.models` calibrate with.
 
 Hybrid model ([G20] §5.2–5.3).  Linearized springs give the stiffness tensor
 ``C_ijkl = (1/Vc) Σ_α (k_α/l_α²) r_αi r_αj r_αk r_αl``, which obeys the Cauchy relations
@@ -13,7 +14,7 @@ The per-cell volume energy ``W_v = Vc κ/2 ((V'−Vc)/Vc)²`` adds κ to λ, so 
 
 **[G20] eq. 5.12** also writes ``kc = 6 E le/(5(4+3A))``, ``ke = 2 E le (8+3A)/(5(4+3A))``.
 That form assumes E = 5G/2, true only for a pure spring lattice (ν = 1/4); combined with κ it
-gives wrong moduli at any other ν.  It is available as ``Model(e_form=True)`` only to test how
+gives wrong moduli at any other ν.  It is available as ``Model("hybmss", e_form=True)`` only to test how
 the publication's tables were produced.
 
 ``hybmss-cf`` has springs only, so its Poisson ratio is 1/4 whatever ν is asked; its springs are
@@ -35,8 +36,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .scene import Material, Model
-
 
 @dataclass(frozen=True)
 class Constants:
@@ -54,36 +53,42 @@ class Constants:
         return (self.ke, self.kf, self.kc)
 
 
-def kappa_from(material: Material) -> float:
+def kappa_from(material) -> float:
     """κ = G (4ν − 1)/(1 − 2ν) = E (4ν − 1)/(2(1+ν)(1−2ν)) (SPEC §3)."""
     nu = material.nu
     return material.G * (4.0 * nu - 1.0) / (1.0 - 2.0 * nu)
 
 
-def constants(model: Model, material: Material, le: float) -> Constants:
-    """Spring constants and κ of ``model`` for ``material`` on cells of edge ``le``."""
-    A = float(model.A)
-    if model.name == "baudet2009":
-        E, nu = material.E, material.nu
-        kx = E * le * (4.0 * nu + 1.0) / (8.0 * (1.0 + nu))
-        kd = 3.0 * E * le / (8.0 * (1.0 + nu))
-        # [B09] gives per-cell constants: each cell contributes kx to each of its 12 edges,
-        # i.e. a family constant of 4 kx for an interior edge (weight 1 = four cells × 1/4).
-        return Constants(ke=4.0 * kx, kf=0.0, kc=kd, kappa=0.0, G_springs=float("nan"))
+def kappa_e_form(material) -> float:
+    """κ written in terms of E, ``E (4ν − 1)/(2(1+ν)(1−2ν))`` (the E-form's volume stiffness)."""
+    nu = material.nu
+    return material.E * (4.0 * nu - 1.0) / (2.0 * (1.0 + nu) * (1.0 - 2.0 * nu))
 
-    if model.e_form or model.name == "hybmss-cf":
-        G = 2.0 * material.E / 5.0  # [G20] eq. 5.12: E = 5G/2 (exact only for springs alone)
-    else:
-        G = material.G
+
+def G_e_form(material) -> float:
+    """G = 2E/5 of [G20] eq. 5.12 (E = 5G/2: exact only for springs alone, ν = 1/4)."""
+    return 2.0 * material.E / 5.0
+
+
+def hybrid_springs(G: float, A: float, le: float, kappa: float) -> Constants:
+    """Isotropic cubic-cell springs for shear modulus ``G`` and ratio ``A = kf/kc``:
+    ``kc = 3 G le/(4 + 3A)``, ``kf = A kc``, ``ke = G le (8 + 3A)/(4 + 3A)``."""
     kc = 3.0 * G * le / (4.0 + 3.0 * A)
     kf = A * kc
     ke = G * le * (8.0 + 3.0 * A) / (4.0 + 3.0 * A)
-    if model.name == "hybmss-cf":
-        kappa = 0.0
-    elif model.e_form:
-        kappa = material.E * (4.0 * material.nu - 1.0) / (
-            2.0 * (1.0 + material.nu) * (1.0 - 2.0 * material.nu)
-        )
-    else:
-        kappa = kappa_from(material)
     return Constants(ke=ke, kf=kf, kc=kc, kappa=kappa, G_springs=G)
+
+
+def b09_springs(material, le: float) -> Constants:
+    """[B09]'s per-cell edges ``kx`` and inner diagonals ``kd`` as family constants: an interior
+    edge is shared by four cells, each giving ``kx`` (weight 1 = four cells × 1/4): ``ke = 4 kx``."""
+    E, nu = material.E, material.nu
+    kx = E * le * (4.0 * nu + 1.0) / (8.0 * (1.0 + nu))
+    kd = 3.0 * E * le / (8.0 * (1.0 + nu))
+    return Constants(ke=4.0 * kx, kf=0.0, kc=kd, kappa=0.0, G_springs=float("nan"))
+
+
+def constants(model, material, le: float) -> Constants:
+    """Spring constants and κ of the scene model ``model`` (:class:`hybmss.scene.Model`) for
+    ``material`` on cells of edge ``le``: the model's own calibration."""
+    return model.spec.constants(model.params, material, le)

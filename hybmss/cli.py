@@ -13,7 +13,8 @@ import argparse
 import json
 import sys
 
-from .scene import MODELS, Body, Material, Model, parse_mesh
+from . import models
+from .scene import Body, Material, Model, parse_mesh
 
 
 class CliError(Exception):
@@ -51,7 +52,7 @@ def add_material_args(p: argparse.ArgumentParser, E=10_000.0, nu=0.25, rho=1000.
 
 
 def add_model_args(p: argparse.ArgumentParser, default="hybmss") -> None:
-    p.add_argument("--model", choices=MODELS, default=default, help=f"model variant (default {default})")
+    p.add_argument("--model", choices=models.names(), default=default, help=f"model variant (default {default})")
     p.add_argument("--A", type=float, default=None, help="face/inner diagonal ratio kf/kc (default: variant's)")
     p.add_argument("--e-form", action="store_true", help="spring constants from [G20] eq. 5.12 (E = 5G/2)")
 
@@ -89,13 +90,15 @@ def cmd_info(args) -> int:
 def cmd_moduli(args) -> int:
     from .moduli import measure_moduli
 
-    model = Model(args.model, A=args.A, e_form=args.e_form)
+    given = {k: v for k, v in (("A", args.A), ("e_form", args.e_form or None)) if v is not None}
+    model = Model(args.model, **given)  # a parameter the model does not have: exit 2
     mat = Material(args.E, args.nu, args.rho)
     m = measure_moduli(model, mat, strain=args.strain)
     G = mat.G
     table = "\n".join([
-        f"model {model.name}{'' if model.name == 'baudet2009' else f' (A = {model.A:g})'}"
-        f"{', E-form' if model.e_form else ''}, E = {mat.E:g} Pa, nu = {mat.nu:g}",
+        f"model {model.variant}"
+        f"{''.join(f', {k} = {v}' for k, v in model.to_dict().items() if k not in ('name', 'e_form'))}"
+        f", E = {mat.E:g} Pa, nu = {mat.nu:g}",
         f"  E_eff  = {m['E_eff']:.6g} Pa   (input {mat.E:g}, rel. error {m['E_eff'] / mat.E - 1:+.2e})",
         f"  nu_eff = {m['nu_eff']:.6g}      (input {mat.nu:g}, error {m['nu_eff'] - mat.nu:+.2e})",
         f"  G_eff  = {m['G_eff']:.6g} Pa   (E/(2(1+nu)) = {G:.6g}, rel. error {m['G_eff'] / G - 1:+.2e})",

@@ -98,6 +98,9 @@ def dt_crit(system_or_scene: System | Scene) -> float:
     import scipy.sparse as sp
 
     system = system_or_scene if isinstance(system_or_scene, System) else build(system_or_scene)
+    own = system.scene.model.spec.dt_crit(system)
+    if own is not None:  # the model's own limit (hybmss.models.base)
+        return float(own)
     m3 = np.repeat(system.mass, 3)
     free = (~system.fixed).ravel() & (m3 > 0)
     if not free.any():
@@ -172,10 +175,10 @@ class Stencil:
 
 def stencil(system: System, dt: float, ramp_time: float) -> Stencil:
     """Lay ``system`` out on its grid.  Raises ``ValueError`` for what the stencil cannot hold
-    (variant correction forces in ``system.extras``, non-regular rest lengths)."""
-    if system.extras.get("forces") is not None:
+    (force terms of ``system.terms``, non-regular rest lengths)."""
+    if system.terms:
         raise ValueError(
-            "the numba kernel has no variant correction forces (system.extras['forces']); "
+            f"the numba kernel has no force terms ({', '.join(t.name for t in system.terms)}); "
             "use kernel='numpy'"
         )
     lat = system.lattice
@@ -413,6 +416,15 @@ def simulate_explicit(
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
+    model = scene.model.spec
+    if kernel not in model.kernels:
+        raise ValueError(f"model {model.name} has no {kernel} kernel (its kernels: {', '.join(model.kernels)}); "
+                         f"use kernel={model.kernels[0]!r}")
+    if model.simulate_explicit is not None:  # a model with its own integrator (hybmss.models.base)
+        return model.simulate_explicit(scene, dt=dt, steps=steps, kernel=kernel, ramp_time=ramp_time,
+                                       threads=threads, record_every=record_every, system=system, x0=x0, v0=v0,
+                                       dt_crit_value=dt_crit_value, compute_dt_crit=compute_dt_crit,
+                                       check_every=check_every)
     dt = float(dt)
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be > 0 s, got {dt}")

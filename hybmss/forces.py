@@ -130,10 +130,13 @@ _SIGN_PAIRS = np.einsum("pd,qe->pqde", VOLUME_SIGNS, VOLUME_SIGNS).reshape(64, 9
 
 
 # ------------------------------------------------------------------------------------ totals
-def energy_forces(system: System, x: np.ndarray):
-    """Total internal + gravity energy and forces.
+def energy_forces(system: System, x: np.ndarray, load: float = 1.0):
+    """Total energy and forces at load factor ``load``: springs + volume + ``load`` · gravity +
+    every term of ``system.terms`` (a ``scaled`` term times ``load``).
 
-    Returns ``(energy, forces, parts)`` where ``parts`` holds each term's energy.
+    Returns ``(energy, forces, parts)``: ``parts`` holds each energy (``springs``, ``volume``,
+    ``gravity`` and each conservative term under its name) and ``energy`` is their sum; a
+    non-conservative term adds forces only, so ``energy`` is then not a potential of them.
     """
     e_s, f = spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
     parts = {"springs": e_s}
@@ -142,20 +145,35 @@ def energy_forces(system: System, x: np.ndarray):
         f += f_v
         parts["volume"] = e_v
     if system.gravity is not None:
-        parts["gravity"] = -float(np.dot(system.mass, x @ system.gravity))
-        f += system.mass[:, None] * system.gravity[None, :]
-    extra = system.extras.get("forces")
-    if extra is not None:  # non-conservative correction forces of a variant (no energy)
-        f += extra(x)
+        parts["gravity"] = -load * float(np.dot(system.mass, x @ system.gravity))
+        f += load * (system.mass[:, None] * system.gravity[None, :])
+    for t in system.terms:
+        w = load if t.scaled else 1.0
+        f += w * t.forces(x)
+        if t.conservative:
+            parts[t.name] = w * t.energy(x)
     return sum(parts.values()), f, parts
 
 
 def internal_forces(system: System, x: np.ndarray) -> np.ndarray:
-    """Springs + volume (+ variant corrections) forces, without gravity."""
+    """Every force but gravity: springs + volume + the terms (dead loads and corrections)."""
     _, f, _ = energy_forces(system, x)
     if system.gravity is not None:
         f -= system.mass[:, None] * system.gravity[None, :]
     return f
+
+
+def stiffness(system: System, x: np.ndarray, load: float = 1.0) -> sp.csr_matrix:
+    """``∂(−forces)/∂x`` of :func:`energy_forces` at load factor ``load``: the exact Hessian of the
+    springs and volume energy plus each term's stiffness (symmetric iff every term is conservative)."""
+    H = hessian(system, x)
+    for t in system.terms:
+        w = load if t.scaled else 1.0
+        if w != 0.0:
+            K = t.stiffness(x)
+            if K.nnz:
+                H = H + (w * K if w != 1.0 else K)
+    return H.tocsr()
 
 
 @lru_cache(maxsize=8)

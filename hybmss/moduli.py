@@ -9,8 +9,8 @@
   state is a saddle of the energy).
 - Simple shear: every boundary particle follows ``u = γ (z − z0) e_x``; interior particles are
   free.  For a homogeneous state the stored energy is ``W = ½ G γ² V`` (det F = 1 exactly), so
-  ``G_eff = 2 W / (γ² V)``.  ``baudet2009`` has non-conservative corrections and no energy:
-  its G_eff is the mean shear stress from the plate reactions over γ
+  ``G_eff = 2 W / (γ² V)``.  A non-conservative model (``baudet2009``'s corrections) has no
+  energy: its G_eff is the mean shear stress from the plate reactions over γ
   (:func:`shear_stress_from_reactions`).
 
 For ``hybmss`` and ``hybmss-fd`` these equal E, ν and E/(2(1+ν)) for every ν in (−1, ½)
@@ -21,26 +21,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import Body, Material, Model, Motion, Plate, Region, Scene
-from .solvers import solve_static
+from .experiments import shear_scene, uniaxial_scene
+from .forces import internal_forces
+from .scene import Material, Model, Scene
+from .solvers import check_nu, solve_static
+from .system import build
 
-
-def uniaxial_scene(model: Model, material: Material, strain: float = 1e-4, n: int = 2, le: float = 1.0) -> Scene:
-    H = n * le
-    plates = (
-        Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
-        Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, strain * H), components=(2,))),
-        Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0)), Motion("slide", components=(0, 1))),
-        Plate("pin_x", Region(lo=(H, 0, 0), hi=(H, 0, 0)), Motion("slide", components=(1,))),
-    )
-    return Scene(Body.box(n, n, n, le), material, model, plates, name="uniaxial")
-
-
-def shear_scene(model: Model, material: Material, gamma: float = 1e-4, n: int = 3, le: float = 1.0) -> Scene:
-    grad = (0.0, 0.0, gamma, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    motion = Motion("affine", gradient=grad)
-    plates = tuple(Plate(f, Region(f), motion) for f in ("x-", "x+", "y-", "y+", "z-", "z+"))
-    return Scene(Body.box(n, n, n, le), material, model, plates, name="simple-shear")
+STRAIN_RANGE = (1e-6, 1e-2)
+"""Strains at which :func:`measure_moduli` measures: a modulus is the response to a nonzero
+strain (0 has the rest state as its answer and no modulus); below 1e-6 the plate reactions
+near ν = ½ sink into round-off, above 1 % the finite-strain terms left by the Richardson step
+exceed 1e-4 of E (ν = 0.3)."""
 
 
 def _uniaxial(scene: Scene):
@@ -57,9 +48,6 @@ def shear_stress_from_reactions(scene: Scene, result) -> float:
     """Mean shear stress σ̄_xz (Pa) of a body held by plates, from the forces R_a the plates
     exert on their particles (average-stress theorem for a body in equilibrium:
     ``σ̄ = (1/V) Σ_a R_a ⊗ x_a``), symmetrized.  Valid for any force law, conservative or not."""
-    from .forces import internal_forces
-    from .system import build
-
     S = build(scene)
     x = result.x
     R = -internal_forces(S, x)
@@ -69,7 +57,13 @@ def shear_stress_from_reactions(scene: Scene, result) -> float:
 
 
 def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: int = 2) -> dict:
-    """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``."""
+    """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``.  ``ValueError`` for a
+    strain outside :data:`STRAIN_RANGE` or ν outside :data:`hybmss.solvers.NU_RANGE`."""
+    lo, hi = STRAIN_RANGE
+    if not (lo <= strain <= hi):
+        raise ValueError(f"strain={strain!r} is outside [{lo:g}, {hi:g}]: moduli are measured from the response "
+                         "to a small nonzero tension")
+    check_nu(material.nu)
     le = 1.0
     H = n * le
     A = H * H
@@ -80,7 +74,7 @@ def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: in
     nu_eff = -(4.0 * lat1 - lat2) / (2.0 * strain)
     shear = shear_scene(model, material, strain, 3, le)
     sh = solve_static(shear)
-    if model.name == "baudet2009":  # non-conservative: no energy, G from the plate reactions
+    if not model.conservative:  # no energy: G from the plate reactions
         G_eff = shear_stress_from_reactions(shear, sh) / strain
     else:
         W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)

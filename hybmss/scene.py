@@ -2,7 +2,7 @@
 
 A :class:`Scene` says everything both solvers (the mass-spring system and the FEM reference)
 need: the body (a set of cubic cells of edge ``le`` on a regular grid), the material
-(E, ν, ρ), the mass-spring model variant, the plates (particle sets with a prescribed motion),
+(E, ν, ρ), the model (by name, with its parameters), the plates (particle sets with a prescribed motion),
 gravity and damping.  It holds no arrays that could be mutated: a voxel mask is stored as packed
 bytes, so a scene is hashable and has a stable :meth:`Scene.digest`.
 
@@ -20,12 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009")
-"""Known mass-spring model variants (SPEC §4)."""
-
-VOLUME_ENERGIES = ("quadratic", "squared")
-"""Volume-energy forms: ``quadratic`` is κ/2 Vc ((V'−Vc)/Vc)² ([G20] eq. 5.8);
-``squared`` is κ/2 Vc ((V'²−Vc²)/(2Vc²))², the alternative [G20] mentions."""
+from . import models as registry
 
 MOTIONS = ("clamped", "translate", "rotate", "slide", "affine")
 
@@ -200,41 +195,61 @@ class Material:
         return self.E / (3.0 * (1.0 - 2.0 * self.nu))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Model:
-    """A mass-spring model variant (SPEC §4).
+    """The model of a scene: its registry ``name`` and its parameters under their own names.
 
-    - ``name``: one of :data:`MODELS`.
-    - ``A``: face-diagonal to inner-diagonal stiffness ratio kf/kc (SPEC §2).  ``None`` takes the
-      variant's default: 1 for ``hybmss`` and ``hybmss-cf``, 0 for ``hybmss-fd`` (which requires
-      0), unused by ``baudet2009``.
-    - ``e_form``: build spring constants from [G20] eq. 5.12 in terms of E (assumes E = 5G/2,
-      exact only at ν = 1/4).  Kept to test how the publication's tables were produced;
-      the default builds them from G = E/(2(1+ν)), which is right at every ν.
-    - ``volume_energy``: ``quadratic`` ([G20]) or ``squared`` (the alternative it mentions).
+    ``Model("hybmss-fd")``, ``Model("hybmss", A=3.0, e_form=True)``: the parameters are validated
+    by the model (:mod:`hybmss.models`) and missing or ``None`` ones take its defaults, so that
+    ``to_dict`` (and the scene digest) records every parameter.  ``model.A`` reads a parameter;
+    ``model.spec`` is the registered model object (name, style, solvers, calibration, ...).
     """
 
-    name: str = "hybmss"
-    A: float | None = None
-    e_form: bool = False
-    volume_energy: str = "quadratic"
+    name: str
+    params: object
 
-    def __post_init__(self):
-        if self.name not in MODELS:
-            raise ValueError(f"model must be one of {', '.join(MODELS)}; got {self.name!r}")
-        A = self.A
-        if A is None:
-            A = 0.0 if self.name == "hybmss-fd" else 1.0
-        A = _finite("A", A)
-        if A < 0:
-            raise ValueError(f"A (face/inner diagonal stiffness ratio) must be >= 0, got {A}")
-        if self.name == "hybmss-fd" and A != 0.0:
-            raise ValueError(f"A must be 0 for model hybmss-fd (no face diagonals), got {A}")
-        object.__setattr__(self, "A", A)
-        if self.volume_energy not in VOLUME_ENERGIES:
-            raise ValueError(
-                f"volume_energy must be one of {', '.join(VOLUME_ENERGIES)}; got {self.volume_energy!r}"
-            )
+    def __init__(self, name: str = "hybmss", **params):
+        spec = registry.get(name)
+        object.__setattr__(self, "name", spec.name)
+        object.__setattr__(self, "params", spec.parameters(**params))
+
+    @property
+    def spec(self):
+        return registry.get(self.name)
+
+    def __getattr__(self, key):
+        params = self.__dict__.get("params")
+        if params is not None and not key.startswith("_") and hasattr(params, key):
+            return getattr(params, key)
+        raise AttributeError(f"model {self.__dict__.get('name')!r} has no parameter or attribute {key!r}")
+
+    @property
+    def variant(self) -> str:
+        """Name of this model and parameter set in tables and legends."""
+        return self.spec.variant(self.params)
+
+    @property
+    def conservative(self) -> bool:
+        return self.spec.conservative
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, **dataclasses.asdict(self.params)}
+
+    def replace(self, **kw) -> "Model":
+        """A copy with ``kw`` changed; a new ``name`` keeps the parameters that model also has."""
+        name = kw.pop("name", self.name)
+        keep = registry.get(name).parameter_names()
+        carried = {k: v for k, v in dataclasses.asdict(self.params).items() if k in keep} \
+            if name != self.name else dataclasses.asdict(self.params)
+        if name != self.name:
+            # parameters equal to the old model's defaults are not carried: they take the new one's
+            defaults = dataclasses.asdict(self.spec.parameters())
+            carried = {k: v for k, v in carried.items() if v != defaults.get(k)}
+        return Model(name, **{**carried, **kw})
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in dataclasses.asdict(self.params).items())
+        return f"Model({self.name!r}{', ' if args else ''}{args})"
 
 
 # --------------------------------------------------------------------------------------------
@@ -450,6 +465,7 @@ class Scene:
         """JSON-ready nested dict (stable key order)."""
         d = dataclasses.asdict(self)
         d["body"] = self.body.to_dict()
+        d["model"] = self.model.to_dict()
         if not self.loads:
             del d["loads"]
         return d
@@ -490,7 +506,7 @@ class Scene:
         return dataclasses.replace(self, material=dataclasses.replace(self.material, **kw))
 
     def with_model(self, **kw) -> "Scene":
-        return dataclasses.replace(self, model=dataclasses.replace(self.model, **kw))
+        return dataclasses.replace(self, model=self.model.replace(**kw))
 
 
 def parse_mesh(text: str) -> tuple[int, int, int]:

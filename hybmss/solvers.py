@@ -7,6 +7,12 @@ over the free degrees of freedom, with a sparse direct solve and a backtracking 
   loads (gravity, dead loads) are applied together in load steps ``s ∈ (0, 1]`` whose size adapts (halved when Newton fails, grown when it converges
   quickly).  Converged when ``‖f_free‖₂ ≤ rtol · max(|R|, |m g|)`` with R the largest plate
   reaction (``rtol = 1e-8``).
+- static with non-conservative terms (:mod:`hybmss.terms`, the [B09] corrections of
+  ``baudet2009``): no potential exists, so the same Newton, predictor, load stepping and shifts
+  run in **residual mode**: the exact nonsymmetric Jacobian ``∂(−f)/∂x`` (general sparse LU), the
+  merit ``½‖f_free‖²`` with a line search on ``‖f_free‖``, a shift retried when that search
+  fails, and no stability certificate (the LDLᵀ inertia needs a symmetric Hessian): the result is
+  an equilibrium with no inverted cell, its stability is not checked (``info['stability']``).
 - implicit Euler with mass-proportional damping c (1/s): ``M (1 + c dt)(x − x_n)/dt² − M v_n/dt =
   f(x)``, i.e. the minimizer of the incremental potential
   ``Φ(x) = (1 + c dt)/(2 dt²) (x − x̃)ᵀ M (x − x̃) + Π(x)``, ``x̃ = x_n + dt v_n/(1 + c dt)``.
@@ -34,7 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .forces import cell_volumes, energy_forces, hessian
+from .forces import cell_volumes, energy_forces, hessian, stiffness
 from .result import Reaction, Result, reaction_from_nodal
 from .scene import Scene
 from .system import System, build
@@ -42,6 +48,21 @@ from .system import System, build
 
 class StaticSolveError(RuntimeError):
     """The static solver could not reach equilibrium; the message says where and why."""
+
+
+NU_RANGE = (-0.99, 0.49999)
+"""Poisson ratios for which the Newton solvers reach equilibrium in float64 and the moduli come out
+right (tests/test_moduli.py).  Beyond ν = 0.49999 the volume term (κ > 1.6e4 E) drowns the plate
+reactions in its round-off; below ν = −0.99 the shear springs (k > 50 E le) do, and finite-strain
+terms amplified by G/K make the measured E wrong by more than 1 % at a strain of 1e-4."""
+
+
+def check_nu(nu: float) -> None:
+    """Raise ``ValueError`` for a Poisson ratio outside :data:`NU_RANGE`."""
+    lo, hi = NU_RANGE
+    if not (lo <= nu <= hi):
+        raise ValueError(f"nu={nu!r} is outside [{lo}, {hi}], the range in which the static and implicit "
+                         "solvers reach an equilibrium in float64")
 
 
 @dataclass(frozen=True)
@@ -106,15 +127,18 @@ def plate_reactions(system: System, x: np.ndarray, f_total: np.ndarray) -> dict[
 
 
 def _force_scale(system: System, f_total: np.ndarray) -> float:
+    """Force scale of the convergence test: the largest plate reaction or applied load (gravity,
+    scaled terms such as dead loads, at their full value), never below :func:`_force_floor`
+    (a zero load has the rest state as its answer: the residual is then judged on the floor)."""
     scale = 0.0
     for p in system.plates:
-        scale = max(scale, float(np.linalg.norm(f_total[p.particles].sum(axis=0))))
+        scale = max(scale, _norm(f_total[p.particles].sum(axis=0)))
     if system.gravity is not None:
-        scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
-    dead = system.extras.get("dead_load")
-    if dead is not None:
-        scale = max(scale, float(np.linalg.norm(dead.sum(axis=0))))
-    return scale
+        scale = max(scale, _norm(system.mass.sum() * system.gravity))
+    for t in system.terms:
+        if t.scaled:
+            scale = max(scale, _norm(t.forces(system.X).sum(axis=0)))
+    return max(scale, _force_floor(system))
 
 
 def _force_floor(system: System) -> float:
@@ -122,6 +146,22 @@ def _force_floor(system: System) -> float:
     error is ≈ 1e-16 k le with k ≈ E le, so this floor sits ~4 orders above round-off and far
     below ``rtol`` times any plate reaction of a loaded body."""
     return 1e-12 * system.scene.material.E * system.scene.body.le**2 * np.sqrt(3 * system.n)
+
+
+def _norm(v: np.ndarray) -> float:
+    """Euclidean norm without overflow or underflow of the squares (forces of E = 1e300 Pa)."""
+    a = float(np.max(np.abs(v), initial=0.0))
+    if a == 0.0 or not np.isfinite(a):
+        return a
+    return a * float(np.linalg.norm(v / a))
+
+
+def _inertia_floor(w: np.ndarray, x: np.ndarray) -> float:
+    """Round-off level of the inertia force ``w (x − x̃)`` of implicit Euler: positions carry a
+    relative error of one ulp, so its rounding is ≈ eps · max|x| · max w per dof; the floor is 10×
+    that over the 3n dofs.  At small dt (w = m (1 + c dt)/dt² large) it exceeds the static floor,
+    and a residual at this level is as converged as positions stored in float64 allow."""
+    return 10.0 * np.finfo(float).eps * float(np.abs(x).max()) * float(w.max()) * np.sqrt(x.size)
 
 
 @dataclass
@@ -132,37 +172,85 @@ class _NewtonStats:
     history: list = field(default_factory=list)
 
 
+_RESIDUAL_SHIFTS = (0.0, 1e-8, 1e-6, 1e-4, 1e-2, 1.0)
+"""Levenberg–Marquardt shifts μ tried in residual mode, in order, until the line search accepts."""
+
+
+def _energy_shifts(mu_last: float):
+    """Shifts tried in energy mode: from a tenth of the last one that worked (0 after an unshifted
+    step), ×100 (the first nonzero one 1e-6), five in all."""
+    mu = 0.0 if mu_last < 1e-6 else mu_last / 10.0
+    for _ in range(5):
+        yield mu
+        mu = 1e-6 if mu == 0.0 else mu * 100.0
+
+
+def _factor(A):
+    """Sparse LU of a symmetric matrix: symmetric mode with a minimum-degree ordering of A+Aᵀ
+    (3× faster than the default COLAMD on the lattice Hessians)."""
+    return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+
+
+def _factor_general(A):
+    """Sparse LU with partial pivoting of a nonsymmetric Jacobian (residual mode)."""
+    return spla.splu(A)
+
+
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
             inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True,
             lu=None, load: float = 1.0):
-    """Minimize Π (+ inertia term) over the free dofs starting from ``x`` (modified in place).
+    """Newton's method over the free dofs from ``x`` at load factor ``load``, in one of two modes:
 
-    ``inertia = (w, x_tilde)`` adds ``½ Σ w_a |x_a − x̃_a|²`` (w per particle).
-    ``lu``: a factorization of a nearby Hessian (the predictor's).  A factorization is reused for
+    - **energy** (every force conservative): minimize Π (+ the inertia term ``½ Σ w_a |x_a − x̃_a|²``
+      when ``inertia = (w, x̃)``) with the exact symmetric Hessian; a step is a descent direction of
+      Π and the backtracking line search asks Π to decrease (Armijo);
+    - **residual** (non-conservative terms, no energy; ``inertia`` must be None): find a zero of the
+      force residual r with the exact nonsymmetric Jacobian ``∂(−f)/∂x`` (general LU); the merit
+      is ``‖r‖``, a line search asks it to decrease (Armijo on the norm), and a step the
+      search rejects is retried with the next Levenberg–Marquardt shift of ``_RESIDUAL_SHIFTS``.
+
+    Both share the shifts ``μ·mean(diag)·I`` against zero-energy modes, the rejection of inverted
+    cells (also of an inverted start: an inverted lattice can have zero forces) and the
+    convergence test ``‖r‖ ≤ max(rtol · scale, floor)`` on the unshifted residual.
+
+    ``lu`` (energy mode): a factorization of a nearby Hessian (the predictor's).  It is reused for
     the next step (a chord step) as long as it reduced the residual at least 5-fold and gives a
     descent direction; otherwise the exact Hessian at the current point is factorized.  The
     converged state does not depend on this (the residual test uses the exact forces).
     Returns (converged, x, f_total, residual_norm, scale).
     """
+    residual = not system.conservative
+    if residual and inertia is not None:
+        raise ValueError("the residual mode has no incremental potential for an inertia term")
     n = system.n
     cells = system.lattice.cells
+    le = system.scene.body.le
 
-    def potential(xx):
-        e, f = _loaded(system, xx, load)
+    def evaluate(xx):
+        """(merit, forces): Π (+ inertia) in energy mode, ‖r_free‖ in residual mode."""
+        e, f, _ = energy_forces(system, xx, load)
         if inertia is not None:
             w, xt = inertia
             d = xx - xt
             e += 0.5 * float(np.sum(w[:, None] * d * d))
             f = f - w[:, None] * d
+        if residual:
+            e = _norm(f.ravel()[free])
         return e, f
 
-    e, f = potential(x)
+    e, f = evaluate(x)
     floor = _force_floor(system)
+    if inertia is not None:
+        floor = max(floor, _inertia_floor(inertia[0], x))
+    if np.any(cell_volumes(x, cells) <= 0.0):
+        return False, x, f, np.inf, _force_scale(system, f)
     best, e_best, stalled = np.inf, np.inf, 0
-    mu_last = 0.0
+    mu_last, lu_mu = 0.0, 0.0
+    if residual:
+        lu = None
     for it in range(max_iter + 1):
         r = f.ravel()[free]
-        rnorm = float(np.linalg.norm(r))
+        rnorm = _norm(r)
         # the reaction scale uses the static forces: remove the inertia term (derivable, no re-evaluation)
         scale = _force_scale(system, f if inertia is None else f + inertia[0][:, None] * (x - inertia[1]))
         stats.history.append(rnorm / scale)
@@ -172,134 +260,119 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             return True, x, f, rnorm, scale
         if it == max_iter:
             break
-        # give up early when for 6 iterations neither the residual has halved nor the energy
-        # dropped by more than 1e-8 of the potential's scale (no progress toward a minimum)
-        progress = rnorm < 0.5 * best or e < e_best - 1e-8 * max(abs(e_best), floor * system.scene.body.le)
+        # give up early when for 6 iterations neither the residual has halved nor the merit
+        # dropped by more than 1e-8 of its scale (no progress toward a solution)
+        progress = rnorm < 0.5 * best or e < e_best - 1e-8 * max(abs(e_best), floor * le)
         best, e_best = min(best, rnorm), min(e_best, e)
         stalled = 0 if progress else stalled + 1
         if stalled >= 6:
             break
-        dx = None
+        chord = None
         if lu is not None:
             with np.errstate(all="ignore"):
                 cand = lu.solve(r)
             if np.all(np.isfinite(cand)) and float(r @ cand) > 0.0:
-                dx = cand
+                chord = cand
             else:
                 lu = None
-        fresh = dx is None
-        # the shift starts from a tenth of the last one that worked (0 after an unshifted step)
-        mu = 0.0 if mu_last < 1e-6 else mu_last / 10.0
+        fresh = chord is None
         if fresh:
-            H = hessian(system, x)
+            J = stiffness(system, x, load)
             if inertia is not None:
-                H = H + sp.diags(np.repeat(inertia[0], 3))
-            Hff = H[free][:, free].tocsc()
-            diag_mean = float(np.abs(Hff.diagonal()).mean())
-        for attempt in range(5 if fresh else 0):
-            A = Hff if mu == 0.0 else (Hff + sp.identity(Hff.shape[0], format="csc") * (mu * diag_mean))
-            try:
-                with np.errstate(all="ignore"):
-                    lu = _factor(A)
-                    cand = lu.solve(r)
-                ok = np.all(np.isfinite(cand)) and float(r @ cand) > 0.0
-            except RuntimeError:  # exactly singular
-                ok, lu = False, None
-            if ok:
-                dx = cand
+                J = J + sp.diags(np.repeat(inertia[0], 3))
+            Jff = J[free][:, free].tocsc()
+            diag_mean = float(np.abs(Jff.diagonal()).mean())
+            shifts = _RESIDUAL_SHIFTS if residual else _energy_shifts(mu_last)
+        else:
+            shifts = (None,)
+        accepted = False
+        for mu in shifts:
+            if mu is None:
+                dx = chord
+            else:
+                A = Jff if mu == 0.0 else (Jff + sp.identity(Jff.shape[0], format="csc") * (mu * diag_mean))
+                try:
+                    with np.errstate(all="ignore"):
+                        lu = _factor_general(A) if residual else _factor(A)
+                        dx = lu.solve(r)
+                    ok = np.all(np.isfinite(dx)) and (residual or float(r @ dx) > 0.0)
+                except RuntimeError:  # exactly singular
+                    ok = False
+                if not ok:
+                    lu = None
+                    continue
+                mu_last, lu_mu = mu, mu
+            # backtracking line search on the merit, rejecting inverted cells
+            step = np.zeros(3 * n)
+            step[free] = dx
+            step = step.reshape(n, 3)
+            alpha = 1.0
+            slope = float(r @ dx)
+            for _ in range((12 if mu == 1.0 else 4) if residual else 12):
+                xt = x + alpha * step
+                if np.all(cell_volumes(xt, cells) > 0.0):
+                    et, ft = evaluate(xt)
+                    rt = _norm(ft.ravel()[free])
+                    if residual:
+                        accepted = rt <= (1.0 - 1e-4 * alpha) * rnorm
+                    else:
+                        accepted = (not line_search) or et <= e - 1e-4 * alpha * slope or (
+                            rt < rnorm and abs(et - e) <= 1e-10 * max(abs(e), floor * le))
+                    if accepted:
+                        break
+                alpha *= 0.5
+                stats.line_search_cuts += 1
+            if accepted or not residual:
                 break
-            lu = None
-            mu = 1e-6 if mu == 0.0 else mu * 100.0
-        if dx is None:
-            return False, x, f, rnorm, scale
-        if fresh:
-            mu_last = mu
-        if mu > 0.0:
-            stats.regularized += 1
-        stats.iterations += 1
-        # backtracking line search on the potential, rejecting inverted cells
-        step = np.zeros(3 * n)
-        step[free] = dx
-        step = step.reshape(n, 3)
-        alpha, accepted = 1.0, False
-        slope = float(r @ dx)
-        for _ in range(12):
-            xt = x + alpha * step
-            if np.all(cell_volumes(xt, cells) > 0.0):
-                et, ft = potential(xt)
-                rt = float(np.linalg.norm(ft.ravel()[free]))
-                if (not line_search) or et <= e - 1e-4 * alpha * slope or (
-                    rt < rnorm and abs(et - e) <= 1e-10 * max(abs(e), floor * system.scene.body.le)
-                ):
-                    accepted = True
-                    break
-            alpha *= 0.5
-            stats.line_search_cuts += 1
         if not accepted:
             if not fresh:  # the chord direction failed: retry with the exact Hessian
                 lu = None
                 continue
             return False, x, f, rnorm, scale
-        if alpha < 1.0 or rt > 0.2 * rnorm:
-            lu = None  # slow contraction: refactorize at the new point
+        stats.iterations += 1
+        if lu_mu > 0.0:
+            stats.regularized += 1
+        if residual or alpha < 1.0 or rt > 0.2 * rnorm:
+            lu = None  # slow contraction (or residual mode): refactorize at the new point
         x, e, f = xt, et, ft
     return False, x, f, rnorm, scale
-
-
-def _loaded(system: System, x: np.ndarray, load: float = 1.0):
-    """Potential and forces with the body loads (gravity, dead loads of ``Scene.loads``) scaled by
-    the load factor ``load`` (the static solver ramps them with the plates)."""
-    e, f, parts = energy_forces(system, x)
-    if load != 1.0:
-        if system.gravity is not None:
-            e += (load - 1.0) * parts["gravity"]
-            f = f + (load - 1.0) * system.mass[:, None] * system.gravity[None, :]
-        dead = system.extras.get("dead_load")
-        if dead is not None:
-            f = f + (load - 1.0) * dead
-    return e + load * dead_load_energy(system, x), f
-
-
-def dead_load_energy(system: System, x: np.ndarray) -> float:
-    """Potential ``−Σ f·x`` of the dead loads of ``Scene.loads`` (their forces reach
-    :func:`energy_forces` through ``system.extras['forces']``, their energy is added here)."""
-    dead = system.extras.get("dead_load")
-    return 0.0 if dead is None else -float(np.sum(dead * x))
-
-
-def _factor(A):
-    """Sparse LU of a symmetric matrix: symmetric mode with a minimum-degree ordering of A+Aᵀ
-    (3× faster than the default COLAMD on the lattice Hessians)."""
-    return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
 def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray,
                        load: float = 1.0):
     """First-order guess for a new load step: move the prescribed dofs to ``target`` and the free
-    dofs by the linear response ``δ_f = H_ff⁻¹ (f_f − H_fc δ_c)``.  Returns ``(guess, lu)`` (the
-    factorization of H_ff at ``x``, reusable by Newton), or ``(None, None)`` if it fails."""
-    H = hessian(system, x).tocsr()
+    dofs by the linear response ``δ_f = J_ff⁻¹ (f_f − J_fc δ_c)``, J = ∂(−f)/∂x at ``x``.  Energy
+    mode: J is the Hessian, factorized as is; returns ``(guess, lu)`` (the factorization, reusable
+    by Newton).  Residual mode: J is shifted by 1e-8 · mean diag against zero-stiffness modes and
+    ``lu`` is None.  ``(None, None)`` if it fails."""
+    residual = not system.conservative
+    J = stiffness(system, x, load)
     delta = (target - x).ravel().copy()
     delta[free] = 0.0
-    _, f = _loaded(system, x, load)
-    rhs = f.ravel()[free] - (H @ delta)[free]
+    _, f, _ = energy_forces(system, x, load)
+    rhs = f.ravel()[free] - (J @ delta)[free]
+    Jff = J[free][:, free].tocsc()
     try:
         with np.errstate(all="ignore"):
-            lu = _factor(H[free][:, free].tocsc())
+            if residual:
+                shift = sp.identity(Jff.shape[0], format="csc") * (1e-8 * float(np.abs(Jff.diagonal()).mean()))
+                lu = _factor_general(Jff + shift)
+            else:
+                lu = _factor(Jff)
             d_f = lu.solve(rhs)
     except RuntimeError:
         return None, None
     if not np.all(np.isfinite(d_f)):
         return None, None
     delta[free] = d_f
-    return x + delta.reshape(x.shape), lu
+    return x + delta.reshape(x.shape), (None if residual else lu)
 
 
 def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray]:
     """Smallest eigenvalue (N/m) of the constrained Hessian at ``x`` and its eigenvector
     (over the free dofs)."""
     free = ~system.fixed.ravel()
-    Hff = hessian(system, x)[free][:, free]
+    Hff = stiffness(system, x)[free][:, free]
     if Hff.shape[0] <= 600:
         w, v = np.linalg.eigh(Hff.toarray())
         return float(w[0]), v[:, 0]
@@ -321,7 +394,7 @@ def _stability(S: System, x: np.ndarray, free: np.ndarray):
     """``(stable, lam, vec)`` at ``x``.  The inertia of the constrained Hessian comes for free
     from its symmetric LU (no pivoting: the pivots are the D of LDLᵀ, Sylvester's law); only when
     a pivot is negative is the smallest eigenpair computed."""
-    Hff = hessian(S, x)[free][:, free].tocsc()
+    Hff = stiffness(S, x)[free][:, free].tocsc()
     tol = 1e-9 * float(np.abs(Hff.diagonal()).mean())
     try:
         with np.errstate(all="ignore"):
@@ -337,7 +410,7 @@ def _stability(S: System, x: np.ndarray, free: np.ndarray):
 def _escape_saddle(S: System, x: np.ndarray, free: np.ndarray, vec: np.ndarray):
     """The point of lowest energy along the unstable eigenvector ``vec`` (both signs, amplitudes
     from 1e-3 to 3 le for the largest particle displacement); None if none is lower."""
-    e0 = energy_forces(S, x)[0] + dead_load_energy(S, x)
+    e0 = energy_forces(S, x)[0]
     step = np.zeros(x.size)
     step[free] = vec / np.abs(vec).max()
     step = step.reshape(x.shape)
@@ -347,7 +420,7 @@ def _escape_saddle(S: System, x: np.ndarray, free: np.ndarray, vec: np.ndarray):
             xt = x + sign * amp * S.scene.body.le * step
             if np.any(cell_volumes(xt, S.lattice.cells) <= 0.0):
                 continue
-            et = energy_forces(S, xt)[0] + dead_load_energy(S, xt)
+            et = energy_forces(S, xt)[0]
             if et < best_e:
                 best, best_e = xt, et
     return best
@@ -400,19 +473,31 @@ def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, 
     return head + "; the Hessian stays positive definite: Newton failed to converge (try more load steps)"
 
 
+def _residual_failure_message(S: System, scene: Scene, s: float, s_new: float, rnorm: float) -> str:
+    """Why a residual-mode solve could not increase the load past ``s``."""
+    return (f"static solve of scene {scene.name or '(unnamed)'} (model {scene.model.name}) failed at load "
+            f"factor s={s_new:.6g} (last converged s={s:.6g}); residual {rnorm:.3g} N: its non-conservative "
+            "forces have no energy to certify a stable state, so the equilibrium path may be lost; "
+            "remedy: a smaller load (or more initial load steps)")
+
+
 def solve_static(scene: Scene, options: StaticOptions | None = None, system: System | None = None) -> Result:
-    """Static equilibrium of ``scene`` (solver name ``mss-static``)."""
+    """Static equilibrium of ``scene`` (solver name ``mss-static``).
+
+    Load steps with a tangent predictor and Newton (:func:`_newton`) in energy mode when every
+    force is conservative, in residual mode when the system has non-conservative terms
+    (``baudet2009``).  Energy mode then certifies stability from the inertia of the constrained
+    Hessian and leaves saddles; residual mode returns the equilibrium without that certificate."""
+    model = scene.model.spec
+    if "static" not in model.solvers:
+        raise ValueError(f"model {model.name} has no static solver (its solvers: {', '.join(model.solvers)})")
+    if model.solve_static is not None:  # a model with its own static solver (hybmss.models.base)
+        return model.solve_static(scene, options, system)
     opts = options or StaticOptions()
     t0 = time.perf_counter()
+    check_nu(scene.material.nu)
     S = system if system is not None else build(scene)
-    if "baudet" in S.extras:  # [B09] corrections: no energy, force-residual Newton instead
-        from .baudet import solve_equilibrium
-
-        return solve_equilibrium(scene, system=S)
-    if S.extras.get("non_conservative"):
-        raise StaticSolveError(
-            f"model {scene.model.name!r} has non-conservative forces: use its own equilibrium solver"
-        )
+    residual = not S.conservative
     free = ~S.fixed.ravel()
     stats = _NewtonStats()
     x = S.X.copy()
@@ -423,6 +508,15 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     while s < 1.0 - 1e-14:
         s_new = min(1.0, s + ds)
         target = S.prescribed(s_new)
+        # a step that changes nothing (a zero load: no plate motion, no body load) is already in
+        # equilibrium: the rest state is the answer, exactly
+        trial = x.copy()
+        trial[S.fixed] = target[S.fixed]
+        if _newton(S, trial, free, opts.rtol, 0, None, stats, load=s_new)[0]:
+            x_prev, s_prev, x, s = x, s, trial, s_new
+            load_steps += 1
+            ds = min(opts.max_step, ds * 1.5)
+            continue
         guess, lu = _tangent_predictor(S, x, target, free, s_new)
         if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
             guess, lu = x.copy(), None
@@ -440,12 +534,15 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             continue
         ds *= 0.5
         if ds < opts.min_step:
-            raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_new))
+            raise StaticSolveError(_residual_failure_message(S, scene, s, s_new, rnorm) if residual
+                                   else _failure_message(S, scene, x, guess, s, s_new))
     # Stability of the equilibrium found: Newton converges to any stationary point, so check the
     # smallest eigenvalue of the constrained Hessian and, at a saddle (e.g. the buckled zero-energy
     # modes of hybmss-fd under compression), descend along the unstable mode and solve again.
+    # Residual mode has no such certificate (no energy, nonsymmetric Jacobian): its result is an
+    # equilibrium with no inverted cell, and info['stability'] says that stability is not checked.
     escapes, lam, stable, warning = 0, None, True, ""
-    if opts.check_stability:
+    if opts.check_stability and not residual:
         for escapes in range(opts.max_escapes + 1):
             stable, lam, vec = _stability(S, x, free)
             if stable or escapes == opts.max_escapes:
@@ -462,28 +559,49 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
                 break
             x = x_new
     e, f, parts = energy_forces(S, x)
-    if "dead_load" in S.extras:
-        parts = dict(parts, loads=dead_load_energy(S, x))
-    r = float(np.linalg.norm(f.ravel()[free]))
-    info = {
-        "min_eigenvalue": lam if lam is not None else float("nan"),
-        "saddle_escapes": int(escapes) if lam is not None else 0,
-        "stable": bool(stable),
-        "warning": warning,
+    r = _norm(f.ravel()[free])
+    if residual:
+        info = {
+            "equilibrium": "force-residual Newton (non-conservative terms, no energy)",
+            "stability": "not certified: no energy to minimize and a nonsymmetric Jacobian",
+        }
+    else:
+        info = {
+            "min_eigenvalue": lam if lam is not None else float("nan"),
+            "saddle_escapes": int(escapes) if lam is not None else 0,
+            "stable": bool(stable),
+            "warning": warning,
+        }
+    info.update({
         "load_steps": load_steps,
         "regularized_steps": stats.regularized,
         "line_search_cuts": stats.line_search_cuts,
         "residual": r,
-        "relative_residual": r / fscale if (fscale := _force_scale(S, f)) > 0 else 0.0,
+        "relative_residual": r / _force_scale(S, f),
         "residual_floor": _force_floor(S),
         "kappa": S.kappa,
         "springs": int(len(S.spring_k)),
         "volume_cells": int(len(S.vol_cells)),
-    }
+    })
     return _result(S, "mss-static", x, f, parts, stats.iterations, t0, True, info)
 
 
 # --------------------------------------------------------------------------------- implicit
+def _implicit_failure_message(S: System, n: int, t: float, dt: float, rnorm: float, scale: float) -> str:
+    """Why Newton failed in step ``n``: a residual already small against the step's forces
+    stalled at round-off (the inertia term M/dt² dwarfs the elastic forces: a larger dt helps); a
+    large one is a step too big for Newton or a lost equilibrium (a smaller dt helps if not κ < 0)."""
+    head = (f"implicit Euler step {n} (t={t:.4g} s) did not converge: residual {rnorm:.3g} N vs "
+            f"scale {scale:.3g} N")
+    if np.isfinite(rnorm) and rnorm <= 1e-3 * scale:
+        return head + (f"; Newton stalled at round-off of the inertia term M/dt^2: increase dt={dt:g} s "
+                       "(or use solve_static for the rest state)")
+    if S.kappa < 0:
+        return head + (f"; kappa={S.kappa:.4g} Pa < 0 (nu < 1/4): the equilibrium may be lost (check with "
+                       f"solve_static); otherwise reduce dt={dt:g} s")
+    return head + f"; the step is too large for Newton: reduce dt={dt:g} s"
+
+
 def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
                       system: System | None = None) -> Result:
     """Backward Euler with Newton per step (solver name ``mss-implicit``).
@@ -492,8 +610,9 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
     once the ramp is over and every particle moves less than ``rest_tol · le`` in one step."""
     opts = options or ImplicitOptions()
     t0 = time.perf_counter()
+    check_nu(scene.material.nu)
     S = system if system is not None else build(scene)
-    if S.extras.get("non_conservative"):
+    if not S.conservative:
         raise StaticSolveError(
             f"implicit Euler minimizes an incremental potential and model {scene.model.name!r} has "
             "non-conservative forces (no energy): use simulate_explicit(kernel='numpy') or solve_static"
@@ -515,10 +634,7 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
         guess[S.fixed] = target[S.fixed]
         ok, x_new, _, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, (w, x_tilde), stats)
         if not ok:
-            raise StaticSolveError(
-                f"implicit Euler step {n} (t={t:.4g} s) did not converge: residual {rnorm:.3g} N "
-                f"vs scale {scale:.3g} N; reduce dt={dt} or check for instability (kappa={S.kappa:.4g})"
-            )
+            raise StaticSolveError(_implicit_failure_message(S, n, t, dt, rnorm, scale))
         v = (x_new - x) / dt
         x = x_new
         steps_done = n

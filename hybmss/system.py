@@ -2,18 +2,21 @@
 
 :func:`build` keeps only the force terms the scene needs (SPEC "model only what a scene
 needs"): springs of zero stiffness are dropped (no face diagonals when A = 0), the volume term
-is built only when κ ≠ 0 (not at ν = 1/4 nor for ``hybmss-cf``), gravity only when g ≠ 0.
+is built only when κ ≠ 0 (not at ν = 1/4 nor for a model without one), gravity only when g ≠ 0.
+The model (:mod:`hybmss.models`) gives the spring constants, κ, the volume-energy form and the
+force terms it adds.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .calibrate import Constants, constants
-from .lattice import Lattice
+from .calibrate import Constants
+from .lattice import CORNERS, Lattice
 from .scene import Scene
+from .terms import DeadLoad, ForceTerm, all_conservative
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +49,8 @@ class System:
     gravity: np.ndarray | None  # (3,) or None when g = 0
     plates: tuple[PlateSet, ...]
     fixed: np.ndarray  # (n, 3) bool: prescribed components
-    extras: dict = field(default_factory=dict)
+    terms: tuple[ForceTerm, ...] = ()
+    """What the model adds beyond springs and volume energy (:mod:`hybmss.terms`)."""
 
     @property
     def n(self) -> int:
@@ -55,6 +59,18 @@ class System:
     @property
     def has_volume(self) -> bool:
         return len(self.vol_cells) > 0
+
+    @property
+    def conservative(self) -> bool:
+        """True when every force has a potential (all ``terms`` conservative)."""
+        return all_conservative(self.terms)
+
+    def term(self, name: str) -> ForceTerm | None:
+        """The term called ``name``, or None."""
+        for t in self.terms:
+            if t.name == name:
+                return t
+        return None
 
     def prescribed(self, s: float = 1.0) -> np.ndarray:
         """Target positions (n, 3) of the prescribed components at load factor ``s``
@@ -78,7 +94,8 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     """Assemble ``scene`` into a :class:`System`."""
     lat = lattice if lattice is not None else Lattice.from_body(scene.body)
     le = scene.body.le
-    c = constants(scene.model, scene.material, le)
+    model, params = scene.model.spec, scene.model.params
+    c = model.constants(params, scene.material, le)
     X = lat.X.astype(float)
     mass = scene.material.rho * lat.masses_per_density
 
@@ -88,7 +105,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     a, b = lat.springs[keep, 0], lat.springs[keep, 1]
     l0 = np.linalg.norm(X[b] - X[a], axis=1)
 
-    if c.kappa != 0.0 and scene.model.name != "baudet2009":
+    if c.kappa != 0.0:
         vol_cells = lat.cells
         vol_V0 = lat.cell_volumes(X)
     else:
@@ -109,7 +126,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         fixed[np.ix_(sel, np.flatnonzero(cons))] = True
 
     return System(
-        extras=_variant_extras(scene, lat, c),
+        terms=_terms(scene, lat, model.terms(params, scene, lat, c)),
         scene=scene,
         lattice=lat,
         consts=c,
@@ -123,42 +140,25 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
         vol_cells=vol_cells,
         vol_V0=vol_V0,
         kappa=float(c.kappa),
-        volume_energy=scene.model.volume_energy,
+        volume_energy=model.volume_energy(params),
         gravity=gravity,
         plates=tuple(plates),
         fixed=fixed,
     )
 
 
-def _variant_extras(scene: Scene, lat: Lattice, consts: Constants) -> dict:
-    """``System.extras`` of a scene: ``forces(x)`` sums the dead loads of ``Scene.loads``
-    (``dead_load``, conservative: the static solver adds their potential ``−f·x``) and the [B09]
-    correction forces of ``baudet2009`` (``baudet``, non-conservative, see :mod:`hybmss.baudet`)."""
-    extras: dict = {}
-    terms = []
+def _terms(scene: Scene, lat: Lattice, model_terms) -> tuple[ForceTerm, ...]:
+    """``System.terms`` of a scene: the dead loads of ``Scene.loads`` (:class:`DeadLoad`) and the
+    force terms its model adds (:meth:`hybmss.models.ModelBase.terms`)."""
+    terms: list[ForceTerm] = []
     if scene.loads:
-        dead = dead_loads(scene, lat)
-        extras["dead_load"] = dead
-        terms.append(lambda x: dead)
-    if scene.model.name == "baudet2009":
-        from .baudet import Corrections
-
-        corr = Corrections.for_system(consts, scene.material, lat)
-        extras["baudet"] = corr
-        extras["non_conservative"] = True
-        terms.append(corr.forces)
-    if len(terms) == 1:
-        extras["forces"] = terms[0]
-    elif terms:
-        extras["forces"] = lambda x: terms[0](x) + terms[1](x)
-    return extras
+        terms.append(DeadLoad(dead_loads(scene, lat)))
+    return tuple(terms) + tuple(model_terms)
 
 
 def dead_loads(scene: Scene, lat: Lattice) -> np.ndarray:
     """Nodal forces (n, 3) of ``scene.loads``: each selected surface face of a cell gives
     ``traction · le²/4`` to each of its 4 vertices (consistent load of a bilinear face)."""
-    from .lattice import CORNERS
-
     f = np.zeros((lat.n_particles, 3))
     area = scene.body.le**2
     for load in scene.loads:

@@ -13,6 +13,12 @@ Every solver sees a scene's forces as the lattice's springs and volume energy (a
 loads do; internal forces do not): a scaled term contributes ``s · forces(x)`` and ``s · E(x)``.
 
 Positions ``x`` are (n, 3) arrays; forces are (n, 3); stiffness is a ``(3n, 3n)`` sparse matrix.
+A non-conservative term's ``energy`` raises ``TypeError`` (it has none).
+
+:class:`hybmss.system.System` holds its terms in ``System.terms``; :mod:`hybmss.forces` adds them
+to the springs and volume energy (:func:`hybmss.forces.energy_forces`,
+:func:`hybmss.forces.stiffness`), and :func:`all_conservative` tells a solver whether a total
+energy exists (energy minimization) or only a force residual (residual mode of the static Newton).
 """
 
 from __future__ import annotations
@@ -64,3 +70,8 @@ class DeadLoad:
     def stiffness(self, x: np.ndarray) -> sp.spmatrix:
         N = self.f.size
         return sp.csr_matrix((N, N))
+
+
+def all_conservative(terms) -> bool:
+    """True when every term of ``terms`` has an energy (the system then has a total potential)."""
+    return all(t.conservative for t in terms)

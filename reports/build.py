@@ -18,22 +18,29 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import figures as figmod
+from . import palette
 from . import render as rendermod
-from . import summary, tables, vtu
+from . import findings, summary, tables, vtu
 from .data import Results
 
 TEMPLATES = Path(__file__).parent / "templates"
-#: sections of the optional studies: (id, title, tables shown when present, tables plotted)
+#: study sections: (id, title, figures, stored tables kept in the HTML only, collapsed)
 STUDY_SECTIONS = (
-    ("performance", "Performance against the number of volumes (Figs 11, 12)",
-     ("performance_summary", "performance", "bandwidth"), ("performance",)),
-    ("pareto", "Speed against error (Pareto fronts)", ("pareto_front", "budget", "pareto_references", "pareto"),
-     ("pareto",)),
-    ("stability", "Stability", ("dt_stability", "stability", "limit_stretch", "damping_steps"), ("dt_stability",)),
+    ("pareto", "Speed against error: which method for which error budget", ("study_budget", "study_pareto"),
+     ("budget", "pareto_front", "pareto_references", "pareto")),
+    ("performance", "Performance against the number of volumes (Figs 11, 12)", ("study_performance",),
+     ("performance_summary", "performance", "bandwidth")),
+    ("stability", "Stability: time step and extreme loads", ("study_stability_map", "study_dt_stability"),
+     ("dt_stability", "stability_extreme", "stability", "stability_irregular")),
+    ("damping", "Damping: steps the explicit protocol needs", ("study_damping",), ("damping_steps",)),
+    ("limit", "Limit stretch", ("study_limit_stretch",), ("limit_stretch",)),
+    ("baudet", "[B09]'s experiments at [B09]'s parameters", ("study_b09",),
+     ("baudet_cantilever", "baudet_lshape", "baudet_moduli", "baudet_volume")),
 )
-#: full tables not printed when the summary next to them exists (the HTML keeps them)
-SCREEN_ONLY_WITH = {"pareto": "pareto_front", "performance": "performance_summary"}
-OPTIONAL_TABLES = tuple(t for _, _, names, _ in STUDY_SECTIONS for t in names)
+#: study figures printed at a third of the page height, so that a section's figures and short table share a page
+HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability", "study_damping",
+                "study_limit_stretch", "study_b09"}
+OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", *OPTIONAL_TABLES}
 
@@ -80,8 +87,6 @@ def _fingerprint(results: Results, *modules) -> str:
 
 def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list) -> dict:
     """matplotlib figures, reused when neither the results nor the drawing code changed."""
-    from . import palette
-
     key = _fingerprint(results, figmod, palette)
     manifest = cache / f"figures-{key}.json"
     if manifest.exists():
@@ -136,14 +141,15 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     warnings: list[str] = []
     vtu_files = vtu.export_all(results, out / "vtu")
     log(f"{len(vtu_files)} VTU files")
-    figs = _cached_figures(results, fig_dir, cache, warnings)
+    with palette.models(results.table("models")):  # the models' own plot styles, as stored
+        figs = _cached_figures(results, fig_dir, cache, warnings)
+        render_key = _fingerprint(results, rendermod)
+        try:
+            renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
+        except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
+            warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
+            renders = []
     log(f"{len(figs)} figures")
-    render_key = _fingerprint(results, rendermod)
-    try:
-        renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
-    except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
-        warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
-        renders = []
     log(f"{len(renders)} renders")
     for w in warnings:
         print(f"warning: {w}", flush=True)
@@ -157,7 +163,8 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     if not head.empty:
         s.items.append(("table", summary.headline_table(head)))
     if claims:
-        s.items.append(("table", summary.claims_table(claims)))
+        for t in summary.claims_tables(claims):
+            s.items.append(("table", t))
     sections.append(s)
 
     s = Section("tables", "Tables 2–6 of the publication, reproduced",
@@ -171,6 +178,9 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         s.items.append(("figure", _fig(figs["fig_e"])))
     for t in (tables.reaction_table(results, "table4_shear", "shear", 4, "deformation", "N", "reaction force F_x"),
               tables.reaction_table(results, "table5_torsion", "torsion", 5, "angle_deg", "N·m", "reaction torque T_z")):
+        if t is not None:
+            s.items.append(("table", t))
+    for t in (tables.published_reaction_table(results, 4), tables.published_reaction_table(results, 5)):
         if t is not None:
             s.items.append(("table", t))
     for fid in ("fig_reactions", "fig_torsion_sweep"):
@@ -190,11 +200,17 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             s.items.append(("figure", {"id": r.path.stem, "title": f"{r.experiment.capitalize()}, {r.load} (cf. Fig. {n})",
                                        "src": _b64(r.path), "caption": r.caption, "number": str(n),
                                        "file": f"figures/{r.path.name}",
-                                       "css": "half" if r.experiment in ("tension", "bending") else ""}))
+                                       "css": "half"}))
         sections.append(s)
 
     s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)")
-    for fid in ("fig8", "fig10", "fig5", "fig_diff"):
+    for fid in ("fig8", "fig10"):
+        if fid in figs:
+            s.items.append(("figure", _fig(figs[fid])))
+    t = tables.middle_layer_table(results)
+    if t is not None:
+        s.items.append(("table", t))
+    for fid in ("fig5", "fig_diff"):
         if fid in figs:
             s.items.append(("figure", _fig(figs[fid])))
     t = tables.differences_table(results)
@@ -204,33 +220,30 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         sections.append(s)
 
     present = set(results.table_names())
-    for sid, title, names, plotted in STUDY_SECTIONS:
+    for sid, title, fig_ids, names in STUDY_SECTIONS:
         if not present & set(names):
             continue
-        s = Section(f"study_{sid}", title)
-        if sid == "performance":
-            p = tables.paper_table("g20_performance")
-            if p is not None:
-                s.intro = ("Publication (single-thread C++, i7-4790K at 4 GHz): " + "; ".join(
-                    f"{r['quantity'].replace('_', ' ')} = {r['value']:g}{(' ' + r['unit']) if isinstance(r['unit'], str) else ''}"
-                    for _, r in p.iterrows()) + ".")
-        for name in plotted:
-            if f"study_{name}" in figs:
-                s.items.append(("figure", _fig(figs[f"study_{name}"])))
+        intro, short = _finding(sid, results)
+        s = Section(f"study_{sid}", title, intro)
+        for fid in fig_ids:
+            if fid in figs:
+                item = _fig(figs[fid])
+                if fid in HALF_FIGURES:
+                    item["css"] = "study"
+                s.items.append(("figure", item))
+        if short is not None:
+            s.items.append(("table", short))
         for name in names:
-            t = tables.extra_table(results, name)
+            t = tables.stored_table(results, name)
             if t is not None:
-                if SCREEN_ONLY_WITH.get(name) in present:
-                    t.screen_only = True
-                    t.caption += f" Not printed (see {SCREEN_ONLY_WITH[name]} above); shown in the HTML page."
                 s.items.append(("table", t))
         sections.append(s)
     others = [n for n in results.table_names() if n not in KNOWN_TABLES]
     if others:
         s = Section("study_other", "Other study tables",
-                    "Tables written by further studies, shown as stored (units in the column names).")
+                    "Tables written by further studies, as stored (HTML only).", screen_only=True)
         for name in others:
-            t = tables.extra_table(results, name)
+            t = tables.stored_table(results, name)
             if t is not None:
                 s.items.append(("table", t))
         sections.append(s)
@@ -257,6 +270,11 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                                 "<code>vtu/&lt;key&gt;.vtu</code> next to this page. This list is not printed.",
                                 [("table", t)], screen_only=True))
 
+    _copy_tables(results, out)
+    for sec in sections:  # a printed table never runs over a page: its excess rows stay in the HTML
+        for kind, item in sec.items:
+            if kind == "table" and not item.screen_only:
+                tables.cap_printed_rows(item)
     k = 0
     for sec in sections:
         for kind, item in sec.items:
@@ -297,6 +315,34 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     n_figs = sum(1 for sec in sections for kind, _ in sec.items if kind == "figure")
     return BuildResult(index, pdf_path, pages, time.perf_counter() - t0, n_figs, all_tables, len(vtu_files),
                        warnings, texts, anchors)
+
+
+def _copy_tables(results: Results, out: Path) -> None:
+    """The stored tables next to the page (``tables/<name>.csv``), for the links of the HTML."""
+    dst = out / "tables"
+    dst.mkdir(parents=True, exist_ok=True)
+    for name in results.table_names():
+        shutil.copyfile(results.tables_dir / f"{name}.csv", dst / f"{name}.csv")
+
+
+def _finding(sid: str, results: Results):
+    """(answer in one or two sentences, short table or None) of a study section."""
+    if sid == "pareto":
+        return findings.budget_sentence(findings.budget_answers(results.table("pareto"), results.table("budget"))), None
+    if sid == "performance":
+        return (findings.performance_sentence(results.table("performance_summary"), tables.paper_table("g20_performance")),
+                tables.performance_short(results))
+    if sid == "stability":
+        return findings.stability_sentence(results.table("stability_extreme"), results.table("dt_stability")), None
+    if sid == "damping":
+        return findings.damping_sentence(results.table("damping_steps")), tables.damping_short(results)
+    if sid == "limit":
+        return findings.limit_sentence(results.table("limit_stretch")), None
+    if sid == "baudet":
+        f = findings.b09_frame(results.table("baudet_cantilever"), results.table("baudet_lshape"),
+                               tables.paper_table("b09_errors"))
+        return findings.b09_sentence(f), tables.b09_table(results)
+    return "", None
 
 
 def _page_text(page) -> str:

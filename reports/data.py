@@ -10,7 +10,6 @@ import json
 from collections import Counter
 from functools import cached_property
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -23,14 +22,6 @@ EXPERIMENT_ORDER = ("compression", "tension", "shear", "torsion", "bending")
 
 def is_fem(solver: str) -> bool:
     return str(solver).startswith("fem")
-
-
-def reference_law(experiment: str, deformation: float = 0.0, angle_deg: float = 0.0) -> str:
-    """FEM law each MSS run is compared with (the rule of ``studies.compare.default_law``)."""
-    from studies.compare import default_law
-
-    return default_law(SimpleNamespace(experiment=experiment, deformation=float(deformation),
-                                       angle_deg=float(angle_deg)))
 
 
 class Results:
@@ -161,9 +152,31 @@ class Results:
             m &= df["study"] == study
         return df[m]
 
+    def reference_law(self, experiment: str, deformation: float = 0.0, angle_deg: float = 0.0) -> str | None:
+        """The FEM law the studies compare a scene load with (``tables/reference_laws.csv``)."""
+        t = self.table("reference_laws")
+        if t is None:
+            return None
+        m = t[(t["experiment"] == experiment) & (t["deformation"] == float(deformation or 0.0))
+              & (t["angle_deg"] == float(angle_deg or 0.0))]
+        return None if m.empty else str(m["law"].iloc[0])
+
+    def nus(self, experiment: str | None = None) -> tuple[float, ...]:
+        """The Poisson ratios of the stored runs (of an experiment's own study, if given)."""
+        df = self.rows
+        if df.empty:
+            return ()
+        if experiment is not None:
+            df = df[df["scene_experiment"] == experiment]
+            if "study" in df and (df["study"] == experiment).any():
+                df = df[df["study"] == experiment]
+        return tuple(sorted(float(v) for v in df["scene_nu"].dropna().unique()))
+
     def reference(self, experiment: str, **scene) -> pd.Series | None:
-        """The FEM reference run of a scene (law of :func:`reference_law`, refine 1)."""
-        law = reference_law(experiment, scene.get("deformation") or 0.0, scene.get("angle_deg") or 0.0)
+        """The FEM reference run of a scene (law of :meth:`reference_law`, refine 1)."""
+        law = self.reference_law(experiment, scene.get("deformation") or 0.0, scene.get("angle_deg") or 0.0)
+        if law is None:
+            return None
         sub = self.find(experiment, fem=True, law=law, **scene)
         if "solver_refine" in sub:
             sub = sub[sub["solver_refine"].fillna(1).astype(int) == 1]
@@ -205,7 +218,8 @@ def paper_source(name: str) -> str:
     try:
         from studies.paper import source
 
-        return source(name)
+        text = source(name)
+        return text[len("Source:"):].strip() if text.startswith("Source:") else text
     except (FileNotFoundError, OSError, ModuleNotFoundError):
         return ""
 

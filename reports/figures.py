@@ -18,11 +18,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import palette
-from .data import Results, mesh_size, reference_law
+from . import findings, palette
+from .data import Results, mesh_size, paper_table
 
-BEAM_WIDTH = 0.4  # m, [G20] §6 (the tension and bending beam is 0.4 × 0.4 × 2.4 m)
-NUS = (0.0, 0.25, 0.499)
 MSS_METHODS = ("hybmss-fd static", "hybmss static")
 
 
@@ -46,11 +44,11 @@ def _shared_legend(fig, axes, ncol=None, **kw):
     fig.legend(handles, labels, ncol=ncol or max(1, len(labels)), frameon=False, **kw)
 
 
-def _nu_axis(ax):
-    """The publication's three Poisson ratios on the x axis."""
+def _nu_axis(ax, nus):
+    """The Poisson ratios of the results on the x axis."""
     ax.set_xlabel("ν")
-    ax.set_xticks(list(NUS))
-    ax.set_xticklabels(["0", "0.25", "0.499"])
+    ax.set_xticks(list(nus))
+    ax.set_xticklabels([f"{v:g}" for v in nus])
 
 def _save(plt, fig, path: Path) -> Path:
     path = Path(path)
@@ -61,25 +59,12 @@ def _save(plt, fig, path: Path) -> Path:
 
 
 # ----------------------------------------------------------------------------- beam (Fig 5)
-def neutral_axis(X: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(z, u_y) along the particles nearest to the beam's centre line (averaged per z)."""
-    cx, cy = 0.5 * (X[:, 0].min() + X[:, 0].max()), 0.5 * (X[:, 1].min() + X[:, 1].max())
-    d = np.hypot(X[:, 0] - cx, X[:, 1] - cy)
-    sel = np.flatnonzero(d <= d.min() + 1e-9)
-    z = np.round(X[sel, 2], 12)
-    zs = np.unique(z)
-    return zs - X[:, 2].min(), np.array([u[sel][z == v, 1].mean() for v in zs])
-
-
-def euler_bernoulli(z: np.ndarray, L: float, E: float, rho: float, g: float, width=BEAM_WIDTH, height=BEAM_WIDTH):
-    """[G20]: ``y(z) = ρ g l h /(24 E I) (4 L z³ − 6 L² z² − z⁴)``, ``I = l h³/12`` (m)."""
-    I = width * height**3 / 12.0
-    return rho * g * width * height / (24.0 * E * I) * (4 * L * z**3 - 6 * L**2 * z**2 - z**4)
-
-
 def beam_deflection(results: Results, path: Path) -> Figure | None:
+    """Centre lines and Euler–Bernoulli as the studies stored them (``bending_curves``,
+    ``euler_bernoulli`` tables)."""
     df = results.find("bending")
-    if df.empty:
+    curves, theory = results.table("bending_curves"), results.table("euler_bernoulli")
+    if df.empty or curves is None:
         return None
     meshes = sorted(df["scene_mesh"].astype(str).unique(), key=mesh_size)
     Es = sorted(df["scene_E"].astype(float).unique(), reverse=True)
@@ -92,24 +77,17 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
         for i, mesh in enumerate(meshes):
             for j, E in enumerate(Es):
                 ax = axes[i, j]
-                sub = df[(df["scene_mesh"] == mesh) & np.isclose(df["scene_E"], E)]
-                L = rho = g = None
+                sub = df[(df["scene_mesh"] == mesh) & (df["scene_E"] == E)]
                 for m in methods:
                     s = sub[sub["method"] == m]
-                    if s.empty:
+                    c = curves[curves["key"] == s.iloc[0]["key"]] if not s.empty else curves.iloc[:0]
+                    if c.empty:
                         continue
-                    r = s.iloc[0]
-                    a = results.arrays(r["key"])
-                    if "u" not in a:
-                        continue
-                    z, uy = neutral_axis(a["X"], a["u"])
-                    L = float(a["X"][:, 2].max() - a["X"][:, 2].min())
-                    rho, g = float(r["scene_rho"]), float(r["scene_gravity"])
-                    ax.plot(z, uy, color=palette.color(m), ls=palette.linestyle(m), marker=palette.marker(m),
-                            markevery=max(1, len(z) // 8), label=m.replace(" static", ""))
-                if L is not None:
-                    zz = np.linspace(0.0, L, 200)
-                    ax.plot(zz, euler_bernoulli(zz, L, E, rho, g), color=palette.COLORS["Euler-Bernoulli"],
+                    ax.plot(c["z"], c["u_y"], color=palette.color(m), ls=palette.linestyle(m), marker=palette.marker(m),
+                            markevery=max(1, len(c) // 8), label=m.replace(" static", ""))
+                eb = theory[(theory["mesh"] == mesh) & (theory["E"] == E)] if theory is not None else None
+                if eb is not None and not eb.empty:
+                    ax.plot(eb["z"], eb["u_y"], color=palette.COLORS["Euler-Bernoulli"],
                             ls="-.", lw=1.2, label="Euler–Bernoulli")
                 ax.set_title(f"mesh {mesh}, E = {E / 1e6:g} MPa")
                 if i == len(meshes) - 1:
@@ -167,11 +145,12 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
         axis, a, b, names = 1, 0, 2, ("x (m)", "z (m)")
     diffs = results.table("differences")
     with palette.style() as plt:
-        fig, axes = plt.subplots(len(loads), 3, figsize=(7.2, 2.55 * len(loads) + 0.5), squeeze=False)
+        nus = results.nus(experiment)
+        fig, axes = plt.subplots(len(loads), len(nus), figsize=(2.4 * len(nus), 2.55 * len(loads) + 0.5), squeeze=False)
         level = None
         for i, load in enumerate(loads):
             ref = None
-            for j, nu in enumerate(NUS):
+            for j, nu in enumerate(nus):
                 ax = axes[i, j]
                 ref = results.reference(experiment, mesh=mesh, nu=nu, **load)
                 txt = []
@@ -228,6 +207,17 @@ def _methods_in(table: pd.DataFrame) -> list[str]:
     return [c for c in table.columns if c not in skip and not c.startswith("paper")]
 
 
+NO_RESULT = "no result (failed or missing: see the table)"
+
+
+def _mark_no_result(ax, t: pd.DataFrame, m: str) -> None:
+    """A method's ν without a value: a cross at the foot of the axis, never a borrowed value."""
+    gone = t[t[m].isna()]
+    if len(gone) and t[m].notna().any():
+        ax.plot(gone["nu"], [0.03] * len(gone), transform=ax.get_xaxis_transform(), ls="none", marker="x", ms=6,
+                mew=1.4, color=palette.color(m), label=NO_RESULT, clip_on=False)
+
+
 def volume_change(results: Results, path: Path) -> Figure | None:
     panels = []
     for exp, name in (("compression", "table2_compression"), ("tension", "table3_tension")):
@@ -250,6 +240,7 @@ def volume_change(results: Results, path: Path) -> Figure | None:
                 if t[m].notna().any():
                     ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
                             lw=1.0, label=m.replace(" static", ""))
+                _mark_no_result(ax, t, m)
             for m, mk in (("paper hybmss", "o"), ("paper hybmss-fd", "s"), ("paper FEM (LS-Dyna)", "h")):
                 if m in t and t[m].notna().any():
                     base = m.replace("paper ", "").replace(" (LS-Dyna)", "-linear")
@@ -257,7 +248,7 @@ def volume_change(results: Results, path: Path) -> Figure | None:
                             color=palette.color(base if base != "FEM-linear" else "fem"),
                             label=m.replace("paper", "[G20]"))
             ax.set_title(f"{exp}, d = {100 * d:g} %\nmesh {mesh}")
-            _nu_axis(ax)
+            _nu_axis(ax, sorted(t["nu"].unique()))
         for r in range(nrow):
             axes[r, 0].set_ylabel("relative volume change e (%)")
         _shared_legend(fig, axes, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.0))
@@ -266,7 +257,8 @@ def volume_change(results: Results, path: Path) -> Figure | None:
     return Figure("fig_e", "Relative volume change against ν (Tables 2, 3)", Path(path),
                   "e = |V′ − V0|/V0 (%) of the static equilibria, E = 10⁴ Pa; filled markers: this "
                   "reproduction; hollow markers: the publication's values ([G20] Tables 2, 3, 10×10×10 cube and "
-                  "4×4×24 beam, LS-Dyna FEM). hybmss-cf is ν-blind (always ν = 1/4).")
+                  "4×4×24 beam, LS-Dyna FEM). hybmss-cf is ν-blind (always ν = 1/4). A cross at the foot of a panel: "
+                  "that method has no result at that ν (failed or missing; Tables 2, 3 give the reason).")
 
 
 def reactions(results: Results, path: Path) -> Figure | None:
@@ -289,16 +281,17 @@ def reactions(results: Results, path: Path) -> Figure | None:
         for ax in axes.flat[len(panels):]:
             ax.set_visible(False)
         for ax, (exp, mesh, col, v, unit, q, t) in zip(axes.flat, panels):
-            law = reference_law(exp, v if col == "deformation" else 0.0, v if col == "angle_deg" else 0.0)
+            law = results.reference_law(exp, v if col == "deformation" else 0.0, v if col == "angle_deg" else 0.0)
             for m in _methods_in(t):
                 if m.startswith("fem") and law != "linear" and m.endswith("linear"):
                     continue  # small-strain FEM is no reference at large load
                 if t[m].notna().any():
                     ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
                             lw=1.0, label=m.replace(" static", ""))
+                _mark_no_result(ax, t, m)
             lab = f"θ = {v:g}°" if col == "angle_deg" else f"d = {100 * v:g} %"
             ax.set_title(f"{exp}, {lab}\nmesh {mesh}")
-            _nu_axis(ax)
+            _nu_axis(ax, sorted(t["nu"].unique()))
             ax.set_ylabel(f"{q} ({unit})")
             ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
         _shared_legend(fig, axes, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.0))
@@ -307,7 +300,9 @@ def reactions(results: Results, path: Path) -> Figure | None:
     return Figure("fig_reactions", "Top-plate reactions against ν (Tables 4, 5)", Path(path),
                   "Shear: reaction force F_x (N) on the top plate; torsion: reaction torque T_z (N·m) about the "
                   "vertical axis; E = 10⁴ Pa, static equilibria. FEM at 5 % / 1° is linear (small strain); at 20 % / 45° the "
-                  "finite-strain laws (Neo-Hookean, SVK) are shown and linear FEM is left out (see Tables 4, 5).")
+                  "finite-strain laws (Neo-Hookean, SVK) are shown and linear FEM is left out (see Tables 4, 5). A cross "
+                  "at the foot of a panel: that method has no result at that ν (failed or missing; the tables give "
+                  "the reason).")
 
 
 def differences(results: Results, path: Path) -> Figure | None:
@@ -338,7 +333,7 @@ def differences(results: Results, path: Path) -> Figure | None:
                             lw=1.0, label=f"{m.replace(' static', '')}, {lab}")
             ax.set_yscale("log")
             ax.set_title(f"{exp}, mesh {mesh}")
-            _nu_axis(ax)
+            _nu_axis(ax, sorted(sub["nu"].unique()))
         axes[0, 0].set_ylabel("‖u_MSS − u_FEM‖ / ‖u_FEM‖ (%)")
         from matplotlib.lines import Line2D
 
@@ -579,7 +574,185 @@ def dt_stability(df: pd.DataFrame, path: Path) -> Figure | None:
                   "compression scene without divergence, found by bisection (s, bars), per variant.")
 
 
+STATE_COLORS = {"converged": "#4daf4a", "unstable": "#ff7f00", "diverged": "#e41a1c", "inverted": "#984ea3",
+                "missing": "#d9d9d9"}
+
+
+def budget_chart(results: Results, path: Path) -> Figure | None:
+    """Experiment × error budget -> the fastest method that meets it, its time and its lead."""
+    ans = findings.budget_answers(results.table("pareto"), results.table("budget"))
+    if ans.empty:
+        return None
+    configs = list(dict.fromkeys(ans["config"]))
+    budgets = sorted(ans["budget"].unique())
+    with palette.style() as plt:
+        fig, ax = plt.subplots(figsize=(1.9 * len(budgets) + 2.2, 0.42 * len(configs) + 0.9))
+        for i, cfg in enumerate(configs):
+            for j, b in enumerate(budgets):
+                r = ans[(ans["config"] == cfg) & (ans["budget"] == b)].iloc[0]
+                none = r["method"] == "none"
+                ax.add_patch(plt.Rectangle((j, i), 0.96, 0.9, color="#eeeeee" if none else palette.color(r["method"]),
+                                           alpha=1.0 if none else 0.35, lw=0))
+                if none:
+                    txt = "no method meets it"
+                else:
+                    lead = "only method" if pd.isna(r["lead"]) else f"×{r['lead']:.2f} ahead of {r['next_method']}"
+                    txt = f"{r['method']} {r['mesh']}\n{1e3 * r['time_s']:.3g} ms, {lead}"
+                ax.text(j + 0.48, i + 0.45, txt, ha="center", va="center", fontsize=5.6)
+        ax.set_xlim(0, len(budgets))
+        ax.set_ylim(len(configs), 0)
+        ax.set_xticks([j + 0.48 for j in range(len(budgets))])
+        ax.set_xticklabels([f"error ≤ {100 * b:g} %" for b in budgets])
+        ax.set_yticks([i + 0.45 for i in range(len(configs))])
+        ax.set_yticklabels(configs, fontsize=7)
+        ax.grid(False)
+        for sp in ax.spines.values():
+            sp.set_visible(False)
+        ax.tick_params(length=0)
+        ax.xaxis.tick_top()
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("study_budget", "Which method for which error budget", Path(path),
+                  "From tables/pareto.csv: for each configuration (rows) and budget on the relative L2 nodal error "
+                  "against the converged reference (columns), the fastest candidate that meets the budget (colour "
+                  "= method family), its mesh and wall time, and its lead = time of the next fastest other method "
+                  "that meets it / its time.")
+
+
+def stability_map(results: Results, path: Path) -> Figure | None:
+    """One panel per model: ν × load, each cell coloured by the run's outcome (static, explicit)."""
+    g = findings.stability_grid(results.table("stability_extreme"))
+    if g.empty:
+        return None
+    variants = list(dict.fromkeys(g["variant"]))
+    loads = [(c, s) for c in dict.fromkeys(g["case"]) for s in sorted(g.loc[g["case"] == c, "solver"].unique())]
+    nus = sorted(g["nu"].unique())
+    with palette.style() as plt:
+        fig, axes = plt.subplots(1, len(variants), figsize=(2.0 * len(variants) + 1.6, 0.32 * len(loads) + 1.3),
+                                 squeeze=False, sharey=True)
+        for ax, var in zip(axes[0], variants):
+            sub = g[g["variant"] == var]
+            for i, (case, solver) in enumerate(loads):
+                for j, nu in enumerate(nus):
+                    m = sub[(sub["case"] == case) & (sub["solver"] == solver) & np.isclose(sub["nu"], nu)]
+                    st = m["outcome"].iloc[0] if len(m) else "missing"
+                    ax.add_patch(plt.Rectangle((j, i), 0.95, 0.9, color=STATE_COLORS[st], lw=0))
+            ax.set_xlim(0, len(nus))
+            ax.set_ylim(len(loads), 0)
+            ax.set_xticks([j + 0.47 for j in range(len(nus))])
+            ax.set_xticklabels([f"{v:g}" for v in nus])
+            ax.set_xlabel("ν")
+            ax.set_title(var)
+            ax.grid(False)
+            ax.tick_params(length=0)
+            for sp in ax.spines.values():
+                sp.set_visible(False)
+        axes[0, 0].set_yticks([i + 0.45 for i in range(len(loads))])
+        axes[0, 0].set_yticklabels([f"{c}, {s}" for c, s in loads], fontsize=7)
+        handles = [plt.Rectangle((0, 0), 1, 1, color=STATE_COLORS[k]) for k in findings.STATES]
+        fig.legend(handles, findings.STATES, ncol=len(handles), frameon=False, loc="upper center",
+                   bbox_to_anchor=(0.5, 0.0), fontsize=7)
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("study_stability_map", "Stability map per model", Path(path),
+                  "From tables/stability_extreme.csv: each run of the extreme-load study by model (panels), load and "
+                  "solver (rows) and ν (columns), coloured by outcome: converged; unstable (static equilibrium lost "
+                  "at a limit point); diverged (explicit integration blew up); inverted (a cell's volume turned "
+                  "negative); missing (not run).")
+
+
+def limit_stretch(results: Results, path: Path) -> Figure | None:
+    t = results.table("limit_stretch")
+    if t is None or not {"nu", "variant", "stretch_lo", "status"} <= set(t.columns):
+        return None
+    with palette.style() as plt:
+        fig, ax = plt.subplots(figsize=(4.8, 2.9))
+        energies = list(dict.fromkeys(t["volume_energy"])) if "volume_energy" in t else [None]
+        for (var, en), g in t.groupby(["variant", "volume_energy"] if "volume_energy" in t else ["variant", "variant"]):
+            g = g.sort_values("nu")
+            ls = "-" if en == energies[0] else ":"
+            lab = var + (f", {en} volume energy" if "volume_energy" in t and var != "hybmss-cf" else "")
+            held = g["status"] == "ok"
+            ax.plot(g["nu"], g["stretch_lo"], color=palette.color(var), marker=palette.marker(var), ls=ls, label=lab)
+            if held.any():
+                ax.plot(g.loc[held, "nu"], g.loc[held, "stretch_lo"], ls="none", marker="^", ms=8,
+                        color=palette.color(var), mfc="white")
+        ax.set_xlabel("ν")
+        ax.set_ylabel("stretch L/L0 at loss of equilibrium")
+        ax.legend(frameon=False, fontsize=6.5, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("study_limit_stretch", "Limit stretch against ν", Path(path),
+                  "From tables/limit_stretch.csv: tension of the beam to 100 %, static solver with load stepping; the "
+                  "last stretch L/L0 at which the equilibrium exists, per model and volume energy. Hollow triangles: "
+                  "the equilibrium held up to the largest stretch tried (a lower bound).")
+
+
+def damping(results: Results, path: Path) -> Figure | None:
+    c = findings.damping_curves(results.table("damping_steps"))
+    if c.empty:
+        return None
+    with palette.style() as plt:
+        fig, ax = plt.subplots(figsize=(4.2, 2.7))
+        for nu, g in c.groupby("nu"):
+            ax.plot(g["steps"], g["error"], marker="o", label=f"ν = {nu:g}")
+        t = results.table("damping_steps")
+        if "tol" in t:
+            ax.axhline(float(t["tol"].iloc[0]), color="k", lw=0.8, ls="--", label="tolerance")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("explicit steps (dt = 1 ms)")
+        ax.set_ylabel("rel. L2 distance to static")
+        ax.legend(frameon=False, fontsize=7)
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("study_damping", "Explicit protocol: distance to the static equilibrium against steps", Path(path),
+                  "From tables/damping_steps.csv: relative L2 difference of the explicit state (semi-implicit Euler, "
+                  "mass-proportional damping) from the static equilibrium of the same scene after n steps.")
+
+
+def b09_errors(results: Results, path: Path) -> Figure | None:
+    df = findings.b09_frame(results.table("baudet_cantilever"), results.table("baudet_lshape"),
+                            paper_table("b09_errors"))
+    if df.empty:
+        return None
+    exps = list(dict.fromkeys(df["experiment"]))
+    with palette.style() as plt:
+        fig, axes = plt.subplots(1, len(exps), figsize=(3.4 * len(exps) + 0.6, 2.8), squeeze=False)
+        for ax, exp in zip(axes[0], exps):
+            g = df[df["experiment"] == exp]
+            for model, m in g[g["state"] == "ok"].groupby("model", sort=False):
+                m = m.sort_values("cells")
+                ax.plot(m["cells"], m["err_mean_pct"], color=palette.color(model), marker=palette.marker(model),
+                        label=f"{model} (ours, mean)")
+            p = paper_table("b09_errors")
+            if p is not None:
+                p = p[p["experiment"] == exp]
+                cells = [int(np.prod([int(v) for v in str(ms).split("x")])) for ms in p["mesh"]]
+                if exp == "lshape":  # the L occupies 3/4 of its bounding grid
+                    cells = [3 * c // 4 for c in cells]
+                ax.plot(cells, p["mean_pct"], ls="none", marker="*", ms=9, color=palette.COLORS["paper"],
+                        label="[B09] baudet2009, mean")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel("cells")
+            ax.set_ylabel("mean nodal error (%)")
+            ax.set_title(findings.EXPERIMENT_NAMES.get(exp, exp))
+        _shared_legend(fig, axes, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.0), fontsize=7)
+        fig.tight_layout()
+        _save(plt, fig, path)
+    return Figure("study_b09", "[B09]'s experiments: mean nodal error against the number of cells", Path(path),
+                  "From tables/baudet_cantilever.csv and baudet_lshape.csv: mean over the particles of |u_MSS − u_FEM| "
+                  "/ max|u_FEM| (%) per model against a Hex2 reference, at [B09]'s stated parameters; stars: "
+                  "[B09]'s printed means for its own model.")
+
+
 STUDY_PLOTS = {"performance": performance, "pareto": pareto, "dt_stability": dt_stability}
+"""Plots of one stored study table each (table name -> function of the table)."""
+
+STUDY_FIGURES = {"budget": budget_chart, "stability_map": stability_map, "limit_stretch": limit_stretch,
+                 "damping": damping, "b09": b09_errors}
+"""Figures of the study sections that read several tables (id -> function of the results)."""
 
 
 def all_figures(results: Results, out_dir: Path, warnings: list | None = None) -> dict[str, Figure]:
@@ -593,6 +766,7 @@ def all_figures(results: Results, out_dir: Path, warnings: list | None = None) -
             (beam_deflection, (results, out_dir / "fig5_beam.png")),
             (cross_sections, (results, "shear", out_dir / "fig8_shear_sections.png")),
             (cross_sections, (results, "torsion", out_dir / "fig10_torsion_sections.png"))]
+    jobs += [(fn, (results, out_dir / f"study_{name}.png")) for name, fn in STUDY_FIGURES.items()]
     for fn, args in jobs:
         try:
             f = fn(*args)

@@ -1,20 +1,24 @@
 """One palette and one typographic style for every figure of the report.
 
-Colours are keyed by model family so that a model has the same colour in every plot, render
-caption and table legend: hybmss blue, hybmss-fd orange, hybmss-cf green, hybmss (E-form)
-purple, FEM references in greys/black, Euler–Bernoulli red, the publication's values brown.
+Colours are keyed by family so that a model has the same colour in every plot, render caption
+and table legend.  A model's style (colour, marker, line style) is the model's own: the studies
+store it with the results (``tables/models.csv``, one row per variant name) and the report uses it
+inside :func:`models`.  FEM references are greys/black, Euler–Bernoulli red, the publication's
+values brown; a method of no stored model is :data:`OTHER` (grey, never another model's colour).
 """
 
 from __future__ import annotations
 
 from contextlib import contextmanager
+from contextvars import ContextVar
+
+OTHER = "other"
+"""Family of a method whose model has no stored style."""
+
+_MODELS: ContextVar[dict] = ContextVar("model_styles", default={})
 
 COLORS = {
-    "hybmss": "#1f77b4",
-    "hybmss-fd": "#ff7f0e",
-    "hybmss-cf": "#2ca02c",
-    "hybmss (E-form)": "#9467bd",
-    "baudet2009": "#8c564b",
+    OTHER: "#9a9a9a",
     "fem": "#222222",
     "fem-linear": "#222222",
     "fem-neo-hookean": "#555555",
@@ -23,8 +27,7 @@ COLORS = {
     "paper": "#8c564b",
 }
 
-MARKERS = {"hybmss": "o", "hybmss-fd": "s", "hybmss-cf": "^", "hybmss (E-form)": "D", "baudet2009": "v",
-           "fem": "x", "fem-linear": "x", "fem-neo-hookean": "+", "fem-svk": "1"}
+MARKERS = {OTHER: "P", "fem": "x", "fem-linear": "x", "fem-neo-hookean": "+", "fem-svk": "1"}
 
 LINESTYLES = {"fem-linear": "-", "fem-neo-hookean": "--", "fem-svk": ":", "Euler-Bernoulli": "-."}
 
@@ -51,6 +54,30 @@ RC = {
 }
 
 
+@contextmanager
+def models(table):
+    """Use the model styles of ``table`` (rows ``variant, color, marker, linestyle``: the
+    results' ``models`` table) inside the ``with`` block."""
+    styles = {}
+    if table is not None:
+        for r in table.to_dict("records"):
+            styles[str(r["variant"])] = (str(r["color"]), str(r["marker"]), str(r["linestyle"]))
+    token = _MODELS.set(styles)
+    try:
+        yield styles
+    finally:
+        _MODELS.reset(token)
+
+
+def _model_family(m: str) -> str:
+    """The longest stored variant name that ``m`` is or starts with (then a space), else OTHER."""
+    best = ""
+    for v in _MODELS.get():
+        if (m == v or m.startswith(v + " ")) and len(v) > len(best):
+            best = v
+    return best or OTHER
+
+
 def family(method: str) -> str:
     """Palette key of a method name of the tables (``"hybmss static"``, ``"fem-auto-linear"``,
     ``"hybmss (E-form) mss-explicit"``, ``"Euler-Bernoulli"``, ``"paper hybmss"``)."""
@@ -64,25 +91,26 @@ def family(method: str) -> str:
         return "fem"
     if m.startswith("Euler"):
         return "Euler-Bernoulli"
-    if "(E-form)" in m:
-        return "hybmss (E-form)"
-    head = m.split()[0] if m else m
-    return head if head in COLORS else "hybmss"
+    return _model_family(m)
 
 
 def color(method: str) -> str:
-    return COLORS[family(method)]
+    fam = family(method)
+    return COLORS[fam] if fam in COLORS else _MODELS.get()[fam][0]
 
 
 def marker(method: str) -> str:
-    return MARKERS.get(family(method), "o")
+    fam = family(method)
+    return MARKERS.get(fam, "o") if fam in COLORS else _MODELS.get()[fam][1]
 
 
 def linestyle(method: str) -> str:
     fam = family(method)
     if fam in LINESTYLES:
         return LINESTYLES[fam]
-    return "--" if "explicit" in str(method) else "-"
+    if "explicit" in str(method):
+        return "--"
+    return _MODELS.get()[fam][2] if fam not in COLORS else "-"
 
 
 @contextmanager

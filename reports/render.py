@@ -18,13 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from . import palette
-from .data import VTK_HEX_ORDER, Results, reference_law
+from .data import VTK_HEX_ORDER, Results
 
 #: bump when the look of the renders changes (invalidates the cache)
 RENDER_VERSION = "4"
 PANEL_SIZE = (400, 350)
 BEAM_PANEL_SIZE = (420, 170)
-NUS = (0.0, 0.25, 0.499)
 ROWS = ("hybmss-fd static", "hybmss static", "FEM")
 
 FIGURE_NUMBERS = {"compression": 3, "tension": 4, "shear": 7, "torsion": 9}
@@ -162,7 +161,7 @@ def render_figures(results: Results, out_dir: Path, cache_dir: Path | None = Non
             for load in _loads(results, experiment, mesh):
                 panels = {}
                 for r, row in enumerate(ROWS):
-                    for c, nu in enumerate(NUS):
+                    for c, nu in enumerate(results.nus(experiment)[:3]):
                         sel = _select(results, experiment, mesh, nu, load, row)
                         if sel is not None and "u" in results.arrays(sel["key"]):
                             panels[(r, c)] = sel
@@ -198,7 +197,7 @@ def render_figures(results: Results, out_dir: Path, cache_dir: Path | None = Non
 def _caption(results, experiment, mesh, load, panels, umax) -> str:
     any_row = next(iter(panels.values()))
     fem = [s for (r, _), s in panels.items() if ROWS[r] == "FEM"]
-    law = reference_law(experiment, load.get("deformation", 0.0), load.get("angle_deg", 0.0))
+    law = results.reference_law(experiment, load.get("deformation", 0.0), load.get("angle_deg", 0.0))
     femtxt = f"FEM: {fem[0]['solver']} ({law})" if fem else "FEM: no reference stored"
     missing = 9 - len(panels)
     miss = f"; {missing} panel(s) empty (run missing or failed, see the failures table)" if missing else ""
@@ -214,7 +213,7 @@ def _failed(results, experiment, mesh, load) -> dict:
     for r, row in enumerate(ROWS):
         if row == "FEM":
             continue
-        for c, nu in enumerate(NUS):
+        for c, nu in enumerate(results.nus(experiment)[:3]):
             sub = results.find(experiment, mesh=mesh, nu=nu, method=row, ok_only=False, **load)
             sub = sub[sub["status"] != "ok"]
             if not sub.empty:
@@ -257,12 +256,12 @@ def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
                     ax.imshow(np.full((h, w, 3), 245, dtype=np.uint8))
                     ax.text(0.5, 0.5, failed.get((r, c), "no run stored"), ha="center", va="center",
                             transform=ax.transAxes, color="#a00", fontsize=8)
-                if r == 0:
-                    ax.set_title(f"ν = {NUS[c]:g}")
+                if r == 0 and c < len(results.nus(experiment)):
+                    ax.set_title(f"ν = {results.nus(experiment)[c]:g}")
             label = ROWS[r].replace(" static", "")
             fam = "fem-linear" if label == "FEM" else label
             axes[r, 0].text(-0.04, 0.5, label, rotation=90, ha="right", va="center", transform=axes[r, 0].transAxes,
-                            color=palette.COLORS.get(fam, "k"), fontsize=9.5, fontweight="bold")
+                            color=palette.color(fam), fontsize=9.5, fontweight="bold")
         cax = fig.add_axes([0.905, 0.08, 0.022, 0.8])
         sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(*clim), cmap=palette.CMAP)
         cb = fig.colorbar(sm, cax=cax)

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from hybmss.cli import CliError, emit, mesh_arg
-from hybmss.scene import MODELS
+from hybmss import models
 
 from .compare import default_law, diff_metrics
 from .runner import SolverSpec, Task, measure, solve
@@ -92,7 +92,7 @@ def register(sub) -> None:
     q = sub.add_parser("compare", help="one scene on the MSS and the FEM reference, side by side")
     q.add_argument("scene", choices=[e for e in EXPERIMENTS if e != "uniaxial"])
     q.add_argument("--mesh", type=mesh_arg, default=None, help="NXxNYxNZ cells (default: publication's)")
-    q.add_argument("--model", choices=MODELS, default="hybmss")
+    q.add_argument("--model", choices=models.names(), default="hybmss")
     q.add_argument("--A", type=float, default=None)
     q.add_argument("--e-form", action="store_true", help="spring constants from [G20] eq. 5.12")
     q.add_argument("--E", type=float, default=None, help="Young's modulus, Pa (> 0)")

@@ -56,13 +56,17 @@ import numpy as np
 import pandas as pd
 
 from .compare import default_law
+from hybmss import models
+from hybmss.experiments import SceneSpec
+
 from .runner import SolverSpec, Task, run_tasks
-from .scenes import SceneSpec
 from .store import Store
 
 EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending")
 NUS = (0.0, 0.25, 0.499)
-VARIANTS = ("hybmss", "hybmss-fd", "hybmss-cf")
+def pareto_models() -> tuple[str, ...]:
+    """The models compared (registry order; the first is the reference model, also run implicitly)."""
+    return models.in_role("pareto")
 DAMPING = 2.0
 PROTOCOL = SolverSpec("explicit", dt=1e-3, steps=10_000, ramp_time=1.0)
 IMPLICIT = SolverSpec("implicit", dt=0.25, steps=40, ramp_time=1.0)
@@ -148,12 +152,12 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
     finest = max(mss_factors)
     for f in mss_factors:
         s = _scaled(spec, f)
-        for model in VARIANTS:
+        for model in pareto_models():
             sm = s.replace(model=model)
             add("candidate", f, sm, STATIC, f"{model} static")
-            if f < finest or model != "hybmss-cf" or quick:
+            if f < finest or model in models.in_role("explicit-tables") or quick:
                 add("candidate", f, sm.replace(damping=DAMPING), PROTOCOL, f"{model} explicit")
-            if f == 1 and model == "hybmss":
+            if f == 1 and model == pareto_models()[0] and models.get(model).supports("implicit"):
                 add("candidate", f, sm.replace(damping=DAMPING), IMPLICIT, f"{model} implicit")
     for f in sorted(set(fem_factors) | set(mss_factors)):
         s = _scaled(spec, f)
@@ -245,7 +249,7 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
             if meta["role"] != "candidate":
                 continue
             rec = {**{k: v for k, v in meta.items() if k != "base"}, "nu": spec.nu, "load": cfg.split(" ", 2)[2], "solver": task.solver.label,
-                   "variant": task.scene.model if task.solver.kind != "fem" else "fem",
+                   "variant": task.scene.variant if task.solver.kind != "fem" else "fem",
                    "status": row["status"], "time_s": row.get("wall_time_s", np.nan),
                    "elapsed_s": row.get("elapsed_s", np.nan), "message": row.get("message", ""),
                    "reference_error_estimate": ref_err}

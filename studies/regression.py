@@ -22,13 +22,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from hybmss import models
+from hybmss.experiments import SceneSpec
+
 from .compare import diff_metrics
 from .runner import SolverSpec, Task, run_tasks
-from .scenes import SceneSpec
 from .store import Store, atomic_write_text
 
 METRICS = ("rel_l2", "volume_err_pp", "reaction_rel_err")
-MODELS = ("hybmss", "hybmss-fd", "hybmss-cf")
 NUS = (0.0, 0.25, 0.499)
 
 
@@ -64,9 +65,9 @@ def measure(store: Store | None = None, jobs: int | None = 1, progress: bool = F
     try:
         tasks, pairs = [], []
         for spec in cases():
-            fem = Task(spec.replace(model="hybmss"), SolverSpec("fem", element="auto", law="linear"), "regression")
+            fem = Task(spec, SolverSpec("fem", element="auto", law="linear"), "regression")
             tasks.append(fem)
-            for m in MODELS:
+            for m in models.in_role("regression"):
                 t = Task(spec.replace(model=m), SolverSpec("static"), "regression")
                 tasks.append(t)
                 pairs.append((spec, m, t, fem))

@@ -14,13 +14,14 @@ from __future__ import annotations
 import itertools
 from pathlib import Path
 
+from hybmss import models
+from hybmss.experiments import SceneSpec
+
 from .runner import SolverSpec, Task, run_tasks
-from .scenes import SceneSpec
 from .store import Store
 
 NUS = (0.0, 0.25, 0.499)
 DEFORMATIONS = (0.05, 0.20)
-MSS_MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009")
 EXPLICIT_DAMPING = 2.0
 TORSION_TABLE_ANGLES = (1.0, 45.0)
 TORSION_SWEEP = (2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 90.0)
@@ -56,25 +57,25 @@ def fem_solvers(spec: SceneSpec, quick: bool, sweep_svk: bool = True) -> list[So
     return out
 
 
-def _mss_models(nu: float):
-    """Variants compared at every ν, plus the E-form of [G20] eq. 5.12 (hybmss and hybmss-fd)
-    where it differs from the G-form (ν ≠ 1/4)."""
-    out = [dict(model=m) for m in MSS_MODELS]
-    if nu != 0.25:
-        out += [dict(model="hybmss", e_form=True), dict(model="hybmss-fd", e_form=True)]
-    return out
+def _mss_models(nu: float) -> list[dict]:
+    """Every model of the ``tables`` role with each parameter set it is compared in at ν (its
+    defaults first; e.g. the E-form of [G20] eq. 5.12 where it differs from the G-form)."""
+    return [dict(model=m.name, **v) for m in models.all_models() if m.takes_part("tables")
+            for v in m.study_variants(nu)]
 
 
-def _with_fem(study: str, specs: list[SceneSpec], quick: bool, explicit_models=("hybmss", "hybmss-fd")) -> list[Task]:
+def _with_fem(study: str, specs: list[SceneSpec], quick: bool) -> list[Task]:
     tasks = []
+    explicit = models.in_role("explicit-tables")
     for spec in specs:
         for m in _mss_models(spec.nu):
             s = spec.replace(**m)
             tasks.append(Task(s, STATIC, study))
-            if not quick and m.get("model") in explicit_models and not m.get("e_form"):
+            defaults = len(m) == 1  # the model's own defaults, not a study variant of its parameters
+            if not quick and m["model"] in explicit and defaults:
                 tasks.append(Task(s.replace(damping=EXPLICIT_DAMPING), EXPLICIT, study))
         for fs in fem_solvers(spec, quick):
-            tasks.append(Task(spec.replace(model="hybmss"), fs, study))
+            tasks.append(Task(spec, fs, study))
     return tasks
 
 
@@ -103,7 +104,7 @@ def torsion(quick: bool = False) -> list[Task]:
     if not quick:  # torque against angle at ν = 1/4
         for a in TORSION_SWEEP:
             spec = SceneSpec.default("torsion", mesh=cube(quick), nu=0.25, angle_deg=a)
-            for m in MSS_MODELS[:2]:
+            for m in models.in_role("torsion-sweep"):
                 tasks.append(Task(spec.replace(model=m), STATIC, "torsion-sweep"))
             for fs in fem_solvers(spec, quick, sweep_svk=False):
                 if fs.law == "linear" and a > TORSION_SWEEP_LINEAR_MAX:
@@ -116,7 +117,7 @@ def bending(quick: bool = False) -> list[Task]:
     tasks = []
     for mesh, E in itertools.product(beams(quick), (1e7, 2e6)):
         spec = SceneSpec.default("bending", mesh=mesh, E=E, nu=0.25, gravity=10.0)
-        for m in ("hybmss", "hybmss-fd"):
+        for m in models.in_role("bending"):
             tasks.append(Task(spec.replace(model=m), STATIC, "bending"))
         tasks.append(Task(spec, SolverSpec("fem", element="hex2", law="linear"), "bending"))
         tasks.append(Task(spec, SolverSpec("fem", element="hex2", law="neo-hookean"), "bending"))
@@ -133,7 +134,7 @@ STUDIES = {
 
 
 EXTRA_STUDIES: dict[str, str] = {
-    "baudet2009": "studies.baudet:run",  # [B09]'s cantilever and L-shape, baudet2009 vs hybmss; moduli
+    "baudet2009": "studies.baudet:run",  # [B09]'s cantilever and L-shape (models of the b09 role); moduli
     "performance": "studies.performance:run",  # [G20] Figs 11-12: explicit kernel time per step
     "pareto": "studies.pareto:run",  # speed against error vs a converged FEM reference; error budgets
     "stability": "studies.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input

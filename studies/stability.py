@@ -52,12 +52,17 @@ import time
 import numpy as np
 import pandas as pd
 
+from hybmss import models
+from hybmss.experiments import SceneSpec
+from hybmss.scene import Material
+
 from .compare import diff_metrics
 from .runner import SolverSpec, Task, run_tasks
-from .scenes import SceneSpec
 from .store import Store
 
-VARIANTS = ("hybmss", "hybmss-fd", "hybmss-cf")
+def stability_models() -> tuple[str, ...]:
+    """The models of the stability study (registry order; the first is the reference model)."""
+    return models.in_role("stability")
 NU_DT = (-0.9, -0.5, 0.45, 0.49, 0.499, 0.4999)
 NU_EXTREME = (0.0, 0.25, 0.499)
 NU_LIMIT = (0.0, -0.5)
@@ -134,12 +139,12 @@ def bisect_dt(scene, steps: int = 10_000, rel_tol: float = 0.01, lo_factor: floa
     return out
 
 
-def dt_table(quick: bool = False, nus=NU_DT, variants=VARIANTS, steps: int | None = None) -> pd.DataFrame:
+def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = None) -> pd.DataFrame:
     mesh = (2, 2, 2) if quick else (4, 4, 4)
     steps = steps or (2000 if quick else 10_000)
     rows = []
     for nu in nus:
-        for model in variants:
+        for model in (variants if variants is not None else stability_models()):
             spec = SceneSpec.default("compression", mesh=mesh, nu=nu, model=model, deformation=0.05)
             t0 = time.perf_counter()
             r = bisect_dt(spec.build(), steps=steps)
@@ -161,7 +166,7 @@ def extreme_tasks(quick: bool = False, mesh=None) -> list[tuple[str, Task]]:
     for exp, kw in cases:
         for nu in nus:
             base = SceneSpec.default(exp, mesh=mesh, nu=nu, **kw)
-            for model in VARIANTS:
+            for model in stability_models():
                 s = base.replace(model=model)
                 out.append(("c", Task(s, STATIC, "stability")))
                 out.append(("c", Task(s.replace(damping=DAMPING), PROTOCOL, "stability")))
@@ -193,7 +198,7 @@ def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict])
         out.append({
             "part": "b" if t.scene.experiment == "compression" else "c",
             "case": _case_name(t.scene), "mesh": "x".join(map(str, t.scene.mesh)), "nu": t.scene.nu,
-            "variant": t.scene.model, "solver": t.solver.label, "status": _status(r, inv),
+            "variant": t.scene.variant, "solver": t.solver.label, "status": _status(r, inv),
             "inverted_cells": inv, "volume_change": r.get("volume_change", float("nan")),
             "load_steps": r.get("load_steps", float("nan")), "iterations": r.get("iterations", float("nan")),
             "wall_time_s": r.get("wall_time_s", float("nan")),
@@ -222,12 +227,22 @@ def parse_failure(message: str) -> dict:
 D_MAX = 1.0
 
 
+def volume_forms(model: str, nu: float) -> tuple:
+    """The volume-energy forms a model is compared in at ν: both where it has a volume term with
+    a choice of form, else its only one (``None``: no such parameter)."""
+    spec = models.get(model)
+    if "volume_energy" not in spec.parameter_names():
+        return (None,)
+    kappa = spec.constants(spec.parameters(), Material(1e4, nu), 1.0).kappa
+    return ("quadratic", "squared") if kappa != 0.0 else ("quadratic",)
+
+
 def limit_tasks(quick: bool = False) -> list[tuple[tuple, Task]]:
     mesh = (2, 2, 12) if quick else (4, 4, 24)
     out = []
     for nu in NU_LIMIT:
-        for model in VARIANTS:
-            for ve in (("quadratic",) if model == "hybmss-cf" else ("quadratic", "squared")):
+        for model in stability_models():
+            for ve in volume_forms(model, nu):
                 base = SceneSpec.default("tension", mesh=mesh, nu=nu, model=model, volume_energy=ve)
                 out.append((("limit", nu, model, ve), Task(base.replace(deformation=D_MAX), STATIC, "stability")))
                 if nu == 0.0:
@@ -324,19 +339,19 @@ def irregular_table(quick: bool = False) -> pd.DataFrame:
     steps = 2000 if quick else PROTOCOL.steps
     for nu in nus:
         fem_cache = {}
-        for model in VARIANTS:
+        for model in stability_models():
             for name, (scene, builder, fem_scene) in irregular_scenes(quick, nu, model).items():
                 if name not in fem_cache:
                     try:
-                        fem_cache[name] = (fem_solve(fem_scene.with_model(name="hybmss"), element="auto",
+                        fem_cache[name] = (fem_solve(fem_scene, element="auto",
                                                      law="linear"), "ok", "")
                     except Exception as exc:  # noqa: BLE001 - reported as a row
                         fem_cache[name] = (None, "error", f"{type(exc).__name__}: {exc}")
                 fem, fem_status, _ = fem_cache[name]
                 S = builder(scene) if builder is not None else None
                 for solver in ("mss-static", "mss-explicit"):
-                    if solver == "mss-explicit" and builder is not None and model != "hybmss":
-                        continue  # the jittered lattice runs on the (slow) NumPy twin: hybmss only
+                    if solver == "mss-explicit" and builder is not None and model != stability_models()[0]:
+                        continue  # the jittered lattice runs on the (slow) NumPy twin: reference model only
                     t0 = time.perf_counter()
                     row = {"part": "e", "case": name, "mesh": "x".join(map(str, scene.body.shape)), "nu": nu,
                            "variant": model, "solver": solver, "fem": fem.solver if fem else "",

@@ -7,8 +7,13 @@
 - ``bending``: tip deflection (m) against Euler–Bernoulli and the FEM.
 - ``differences``: nodal displacement difference of each MSS run against its FEM reference
   (linear at ≤ 5 %, Neo-Hookean above) and the reference's model-form spread (|NH − SVK|).
-- ``eform_check``: which spring calibration reproduces the publication's hybmss column.
+- ``eform_check``: which spring calibration reproduces the publication's hybmss column (each
+  calibration from its own run; failed or missing runs say so).
 - ``moduli``: effective E, ν, G per variant (homogeneous static tests).
+- ``models``: every registered model's variants with their label and plot style.
+- ``reference_laws``: the FEM law each scene load is compared with.
+- ``bending_curves`` / ``euler_bernoulli``: centre-line deflection of every bending run and the
+  Euler–Bernoulli curve of each beam ([G20] Fig. 5).
 """
 
 from __future__ import annotations
@@ -16,9 +21,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from hybmss import models
+from hybmss.experiments import SceneSpec
+from hybmss.moduli import measure_moduli
+from hybmss.scene import Material, Model
+from hybmss.solvers import StaticSolveError
+
 from .compare import default_law, diff_metrics
 from .paper import load as load_paper
-from .scenes import SceneSpec
 from .store import Store
 
 SCENE_COLS = ["scene_experiment", "scene_mesh", "scene_nu", "scene_E", "scene_deformation", "scene_angle_deg"]
@@ -29,11 +39,24 @@ def runs_frame(store: Store) -> pd.DataFrame:
     if not rows:
         return pd.DataFrame()
     df = pd.DataFrame([{k: v for k, v in r.items() if k not in ("info", "traceback")} for r in rows])
-    df["variant"] = np.where(df.get("scene_e_form", False).astype(bool), df["scene_model"] + " (E-form)",
-                             df["scene_model"])
+    df["variant"] = [_variant(r) for r in df.to_dict("records")]
     df["method"] = np.where(df["solver"].str.startswith("fem"), df["solver"],
                             df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
     return df
+
+
+def _variant(row: dict) -> str:
+    """The stored variant name of a run; for a run stored without one, its model's name for the
+    stored parameters."""
+    v = row.get("scene_variant")
+    if isinstance(v, str):
+        return v
+    try:
+        spec = models.get(row["scene_model"])
+        given = {k: row.get(f"scene_{k}") for k in spec.parameter_names()}
+        return spec.variant(spec.parameters(**{k: v for k, v in given.items() if v is not None and v == v}))
+    except ValueError:
+        return str(row["scene_model"])
 
 
 def _ok(df):
@@ -118,17 +141,21 @@ def differences_table(df: pd.DataFrame, store: Store) -> pd.DataFrame:
         if "u" not in a or "u" not in b:
             continue
         d = diff_metrics(a["X"], a["u"], b["u"])
-        spread = np.nan
+        spread = mid_svk = np.nan
         if law != "linear":
             other = _reference_row(fem, row, "svk" if law == "neo-hookean" else "neo-hookean")
             if other is not None and "u" in store.arrays(other["key"]):
                 uo = store.arrays(other["key"])["u"]
                 spread = float(np.linalg.norm(uo - b["u"]) / np.linalg.norm(b["u"]))
+                if law == "neo-hookean":  # the same layer against the St Venant–Kirchhoff reference
+                    mid_svk = diff_metrics(a["X"], a["u"], uo)["mid_layer_mean"]
         out.append({
             "experiment": row["scene_experiment"], "mesh": row["scene_mesh"], "nu": row["scene_nu"],
             "E": row["scene_E"], "d": row["scene_deformation"], "angle_deg": row["scene_angle_deg"],
             "method": row["method"], "reference": ref["solver"],
             "mean_m": d["mean"], "max_m": d["max"], "rel_l2": d["rel_l2"], "mid_layer_mean_m": d["mid_layer_mean"],
+            "mid_layer_mean_xy_m": d["mid_layer_mean_xy"], "mid_layer_rms_m": d["mid_layer_rms"],
+            "mid_layer_n": d["mid_layer_n"], "mid_layer_mean_svk_m": mid_svk,
             "ref_nh_svk_rel_l2": spread,
             "e_mss_pct": 100 * row["volume_change"], "e_fem_pct": 100 * ref["volume_change"],
             "mss_key": row["key"], "fem_key": ref["key"],
@@ -136,43 +163,77 @@ def differences_table(df: pd.DataFrame, store: Store) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+#: the publication prints e with two decimals: two values closer than this cannot be told apart
+PAPER_E_PRECISION_PCT = 0.01
+
+
+def _run_value(grp: pd.DataFrame) -> tuple[float, str]:
+    """(e in %, state) of the single run in ``grp``: state "ok", "missing" or "failed (reason)"."""
+    if grp.empty:
+        return np.nan, "missing"
+    r = grp.iloc[0]
+    if r["status"] != "ok":
+        reason = " ".join(str(r.get("message") or "").split())[:80]
+        return np.nan, f"failed ({r['status']}{': ' + reason if reason else ''})"
+    return 100 * abs(float(r["volume_change"])), "ok"
+
+
 def eform_check(df: pd.DataFrame) -> pd.DataFrame:
     """Distance of the publication's hybmss and hybmss-fd columns to our static equilibria built
     with the G-form (right) and the E-form of [G20] eq. 5.12 (E = 5G/2) spring constants.
-    ``closer`` says which one the published value is nearer to ("same" at ν = 1/4 or on a tie)."""
+
+    Each calibration's value comes from its own run: a run that failed or was not stored is
+    reported as such (``G_form_state``, ``E_form_state``), never replaced by the other's value.
+    At ν = 1/4 the two calibrations are the same constants and no E-form run is made
+    (``E_form_state`` = "identical to G-form (ν = 1/4)").  ``closer`` names the calibration
+    nearer to the published value; "undecided (...)" when a run is missing or failed, or when the
+    two values differ by no more than the publication's printed precision (0.01 pp), so that the
+    row cannot tell them apart (``decisive`` False)."""
     out = []
     for exp, paper_name in (("compression", "g20_table2_compression"), ("tension", "g20_table3_tension")):
         paper = load_paper(paper_name)
-        for model in ("hybmss", "hybmss-fd"):
-            sub = _ok(df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
-                         & (df["scene_model"] == model) & (df["study"] == exp)])
+        for model in [m for m in models.names() if m in paper.columns]:
+            sub = df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
+                     & (df["scene_model"] == model) & (df["study"] == exp)]
             for _, p in paper.iterrows():
                 sel = sub[np.isclose(sub["scene_nu"], p["nu"]) & np.isclose(sub["scene_deformation"], p["deformation"])]
                 for mesh, grp in sel.groupby("scene_mesh"):
-                    g = grp[~grp["scene_e_form"].astype(bool)]
-                    e = grp[grp["scene_e_form"].astype(bool)]
-                    gval = 100 * abs(g["volume_change"].iloc[0]) if len(g) else np.nan
-                    eval_ = 100 * abs(e["volume_change"].iloc[0]) if len(e) else gval  # identical at ν = 1/4
-                    ref = p[model]
-                    dg, de = abs(gval - ref), abs(eval_ - ref)
+                    eform = grp["scene_e_form"].fillna(False).astype(bool)
+                    gval, gstate = _run_value(grp[~eform])
+                    if np.isclose(p["nu"], 0.25):
+                        eval_, estate = gval, "identical to G-form (ν = 1/4)"
+                    else:
+                        eval_, estate = _run_value(grp[eform])
+                    ref = float(p[model])
+                    if gstate != "ok" or not (estate == "ok" or estate.startswith("identical")):
+                        closer = "undecided (" + ("G-form " + gstate if gstate != "ok" else "E-form " + estate) + ")"
+                        decisive = False
+                    elif abs(gval - eval_) <= PAPER_E_PRECISION_PCT:
+                        closer, decisive = "same (differ by ≤ 0.01 pp)", False
+                    else:
+                        dg, de = abs(gval - ref), abs(eval_ - ref)
+                        closer = "E-form" if de < dg else "G-form"
+                        decisive = True
                     out.append({"experiment": exp, "model": model, "mesh": mesh, "nu": p["nu"], "d": p["deformation"],
-                                "paper_pct": ref, "G_form_pct": gval, "E_form_pct": eval_,
-                                "closer": ("same" if np.isclose(dg, de, atol=5e-3) or np.isnan(dg) or np.isnan(de)
-                                           else "E-form" if de < dg else "G-form")})
+                                "paper_pct": ref, "G_form_pct": gval, "G_form_state": gstate,
+                                "E_form_pct": eval_, "E_form_state": estate, "closer": closer, "decisive": decisive})
     return pd.DataFrame(out)
 
 
 def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
-    from hybmss.moduli import measure_moduli
-    from hybmss.scene import Material, Model
-    from hybmss.solvers import StaticSolveError
-
-    variants = [("hybmss", Model("hybmss")), ("hybmss-fd", Model("hybmss-fd")), ("hybmss-cf", Model("hybmss-cf")),
-                ("hybmss (E-form)", Model("hybmss", e_form=True)), ("baudet2009", Model("baudet2009"))]
+    """Effective moduli of every registered model, with each parameter set it is compared in."""
+    variants = []
+    for m in models.all_models():
+        if not m.supports("static"):
+            continue
+        for nu in nus:  # every parameter set the model is compared in at any of these ν
+            variants += [Model(m.name, **v) for v in m.study_variants(nu)]
+    variants = list(dict.fromkeys(variants))
     rows = []
     for nu in nus:
         mat = Material(1e4, nu)
-        for name, model in variants:
+        for model in variants:
+            name = model.variant
             try:
                 m = measure_moduli(model, mat)
                 # a stationary homogeneous state exists even for a non-positive-definite material;
@@ -186,10 +247,68 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:
+    """The FEM law each stored scene load is compared with (:func:`studies.compare.default_law`),
+    one row per (experiment, d, torsion angle): the decision the report shows, made here once."""
+    keys = df[["scene_experiment", "scene_deformation", "scene_angle_deg"]].fillna(0.0).drop_duplicates()
+    rows = [{"experiment": e, "deformation": float(d), "angle_deg": float(a),
+             "law": default_law(SceneSpec(e, deformation=float(d), angle_deg=float(a)))}
+            for e, d, a in keys.itertuples(index=False) if e != "uniaxial"]
+    return pd.DataFrame(rows)
+
+
+def spec_of(row: dict) -> SceneSpec:
+    """The :class:`SceneSpec` a stored run recorded (its ``scene_*`` fields and model parameters)."""
+    fields = {f: row[f"scene_{f}"] for f in ("mesh", "E", "nu", "rho", "model", "deformation", "angle_deg",
+                                             "gravity", "damping", "le") if f"scene_{f}" in row}
+    fields = {k: v for k, v in fields.items() if not (isinstance(v, float) and v != v)}
+    fields["mesh"] = tuple(int(n) for n in str(fields["mesh"]).split("x"))
+    names = models.get(fields.get("model", "hybmss")).parameter_names()
+    params = {k: row[f"scene_{k}"] for k in names if f"scene_{k}" in row and row[f"scene_{k}"] == row[f"scene_{k}"]}
+    return SceneSpec.default(row["scene_experiment"], **fields, **params)
+
+
+def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The centre line of every bending run, ``(key, method, mesh, E, z, u_y)`` with z from the
+    clamp ([G20] Fig. 5), and the Euler–Bernoulli deflection of each (mesh, E) on 101 points."""
+    from .runner import neutral_axis
+
+    sub = _ok(df[df["scene_experiment"] == "bending"])
+    curves, theory = [], []
+    for r in sub.to_dict("records"):
+        a = store.arrays(r["key"])
+        if "u" not in a:
+            continue
+        z, uy = neutral_axis(a["X"], a["u"])
+        z0 = float(a["X"][:, 2].min())
+        curves += [{"key": r["key"], "method": r["method"], "mesh": r["scene_mesh"], "E": r["scene_E"],
+                    "z": float(zi - z0), "u_y": float(u)} for zi, u in zip(z, uy)]
+    for (mesh, E), grp in sub.groupby(["scene_mesh", "scene_E"]):
+        spec = spec_of(grp.iloc[0].to_dict())
+        L = spec.beam_section()[2]
+        zz = np.linspace(0.0, L, 101)
+        theory += [{"mesh": mesh, "E": E, "z": float(z), "u_y": float(y)}
+                   for z, y in zip(zz, spec.euler_bernoulli(zz))]
+    return pd.DataFrame(curves), pd.DataFrame(theory)
+
+
+def models_table() -> pd.DataFrame:
+    """One row per variant name of every registered model: its model, label, plot style and
+    capabilities (what the report's palette and legends use)."""
+    rows = []
+    for m in models.all_models():
+        for variant, st in m.styles().items():
+            rows.append({"variant": variant, "model": m.name, "label": m.label, "color": st.color,
+                         "marker": st.marker, "linestyle": st.linestyle, "order": m.order,
+                         "conservative": m.conservative, "solvers": " ".join(m.solvers),
+                         "kernels": " ".join(m.kernels)})
+    return pd.DataFrame(rows)
+
+
 def write_tables(store: Store) -> dict:
     """Build every table from the stored runs (and the cheap moduli tests); returns them."""
     df = runs_frame(store)
-    tables = {}
+    tables = {"models": models_table()}
     if not df.empty:
         keep = [c for c in df.columns if not c.startswith("env_")] + ["env_git_revision", "env_code_version"]
         tables["runs"] = df[[c for c in keep if c in df.columns]]
@@ -200,6 +319,8 @@ def write_tables(store: Store) -> dict:
         tables["bending"] = bending_table(df)
         tables["differences"] = differences_table(df, store)
         tables["eform_check"] = eform_check(df)
+        tables["reference_laws"] = reference_laws_table(df)
+        tables["bending_curves"], tables["euler_bernoulli"] = bending_curves(df, store)
     tables["moduli"] = moduli_table()
     for name, t in tables.items():
         if t is not None and not t.empty:

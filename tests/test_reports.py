@@ -65,6 +65,11 @@ def results(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:  # moduli at three ν keep the test short
         mp.setattr(studies_tables, "moduli_table", functools.partial(studies_tables.moduli_table, nus=NUS))
         studies_tables.write_tables(store)
+    # [B09]'s two experiments on their coarsest mesh, every model, against a Hex2 solve twice as fine
+    from studies import baudet
+
+    store.write_table("baudet_cantilever", baudet._experiment(baudet.cantilever_scene, (1,), 2, 1, False, "c"))
+    store.write_table("baudet_lshape", baudet._experiment(baudet.lshape_scene, (2,), 4, 2, False, "l"))
     store.write_table("performance", pd.DataFrame({
         "variant": ["hybmss-fd", "hybmss", "hybmss-fd", "hybmss"], "volumes": [1000, 1000, 8000, 8000],
         "time_1000_steps_s": [0.1, 0.2, 0.8, 1.7]}))
@@ -251,9 +256,23 @@ def test_cell_volume_change_of_a_stretched_lattice():
     ("Euler-Bernoulli", "Euler-Bernoulli")])
 def test_one_colour_per_model(method, family):
     from reports import palette
+    from studies.tables import models_table
 
-    assert palette.family(method) == family
-    assert palette.color(method) == palette.COLORS[family]
+    with palette.models(models_table()) as styles:
+        assert palette.family(method) == family
+        assert palette.color(method) == (palette.COLORS[family] if family in palette.COLORS else styles[family][0])
+
+
+def test_unknown_model_is_not_coloured_as_another():
+    """A method of no stored model gets the neutral 'other' style, never a model's colour."""
+    from reports import palette
+    from studies.tables import models_table
+
+    with palette.models(models_table()) as styles:
+        assert palette.family("hybmss-xyz static") == palette.OTHER
+        assert palette.color("hybmss-xyz static") not in {c for c, _, _ in styles.values()}
+        assert palette.family("hybmss static") == "hybmss"
+    assert palette.family("hybmss static") == palette.OTHER  # outside the block: no stored styles
 
 
 def test_the_command_reads_results_only(report, results):
@@ -269,3 +288,198 @@ def test_the_command_reads_results_only(report, results):
     p = subprocess.run([sys.executable, "-c", code, str(results), str(out)], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr[-2000:]
     assert "SOLVERS []" in p.stdout
+
+
+# ------------------------------------------------------------------ the publication's numbers beside ours
+def _visible_text(html: str) -> str:
+    """The text a reader sees in the HTML page (no attributes, no embedded images, no style)."""
+    class P(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.parts, self._skip = [], 0
+
+        def handle_starttag(self, tag, attrs):
+            self._skip += tag in ("style", "script")
+
+        def handle_endtag(self, tag):
+            self._skip -= tag in ("style", "script")
+
+        def handle_data(self, data):
+            if not self._skip:
+                self.parts.append(data)
+
+    p = P()
+    p.feed(html)
+    return " ".join(p.parts)
+
+
+def test_new_tables_have_their_rows_and_published_columns(report):
+    from studies.paper import load
+
+    res, _ = report
+    page = _parse(res.html)
+    expect = {"table4_g20": len(load("g20_table4_shear")), "table5_g20": len(load("g20_table5_torsion")),
+              "table_middle_layer": len(load("g20_middle_layer")),
+              # [B09]: every model on the cantilever 4x1x1 and the L-shape 2x2x2
+              "table_b09": 2 * 4}
+    assert expect == {"table4_g20": 2, "table5_g20": 2, "table_middle_layer": 6, "table_b09": 8}
+    for tid, n in expect.items():
+        assert page.tables[tid]["rows"] == n, tid
+    t4 = res.tables["table4_g20"]
+    assert "hybmss [G20] (N)" in t4.columns and "FEM [G20] (N)" in t4.columns
+    assert [r[t4.columns.index("hybmss [G20] (N)")][0] for r in t4.rows] == ["3396", "1.460e+04"] or \
+        [r[t4.columns.index("hybmss [G20] (N)")][0] for r in t4.rows] == ["3396", "14600"]
+    t5 = res.tables["table5_g20"]
+    assert [r[t5.columns.index("load here")][0] for r in t5.rows] == ["θ = 1°", "θ = 45°"]
+    ml = res.tables["table_middle_layer"]
+    col = ml.columns.index("[G20] (m)")
+    assert [r[col][0] for r in ml.rows] == ["0.042", "0.013", "0.019", "0.064", "0.03", "0.008"]
+    # the fixture has no 20 % shear run and no 45° torsion: every row says so instead of a number
+    assert all(r[col + 1][0] == "missing" for r in ml.rows)
+    b = res.tables["table_b09"]
+    m = b.columns.index("[B09] M")
+    rows = {(r[0][0], r[1][0], r[2][0]): r for r in b.rows}
+    assert rows[("cantilever", "4x1x1", "baudet2009")][m][0] == "16.3"
+    assert rows[("L-shape", "2x2x2", "baudet2009")][m][0] == "6.99"
+    ours = b.columns.index("ours M")
+    assert all(float(r[ours][0]) > 0 for r in b.rows if r[ours][0] not in ("–",) and not r[ours][0].startswith("failed"))
+
+
+def test_no_nan_reaches_a_reader(report):
+    res, _ = report
+    text = _visible_text(res.html.read_text(encoding="utf-8"))
+    assert not re.search(r"\bnan\b", text, re.I)
+    assert not re.search(r"\bnan\b", " ".join(res.page_text), re.I)
+
+
+def test_no_study_section_prints_a_stored_table(report):
+    from reports.build import STUDY_SECTIONS
+
+    res, _ = report
+    printed = {a for page in res.page_anchors for a in page}
+    stored = {f"table_{name}" for *_, names in STUDY_SECTIONS for name in names}
+    assert "table_performance" in res.tables  # the fixture's performance table is in the HTML ...
+    assert res.tables["table_performance"].csv == "tables/performance.csv"
+    assert not printed & stored  # ... and no stored study table is in the PDF
+    assert "as stored by the study" not in " ".join(res.page_text)
+    assert "study_performance" in printed and "table_b09" in printed  # the sections and their short tables are
+
+
+def test_every_printed_table_fits_one_page(report):
+    res, _ = report
+    norm = [" ".join(t.split()) for t in res.page_text]
+    checked = 0
+    for tid, t in res.tables.items():
+        pages = [i for i, a in enumerate(res.page_anchors) if tid in a]
+        if t.screen_only or not pages:
+            continue
+        start = " ".join(t.caption.split())[:40]
+        assert start in norm[pages[0]], (tid, pages[0])  # the caption, below the table, on the table's page
+        checked += 1
+    assert checked >= 10
+
+
+def test_printed_rows_are_capped():
+    from reports.tables import PRINT_ROWS, Table, cap_printed_rows
+
+    t = Table("t", "t", "caption.", ["a"], [[(str(i), "")] for i in range(PRINT_ROWS + 7)])
+    cap_printed_rows(t)
+    assert sum(1 for i in range(t.n_rows) if t.row_classes.get(i) == "screen-only") == 7
+    assert f"first {PRINT_ROWS} of these {PRINT_ROWS + 7} rows" in t.caption
+
+
+def test_a_failed_run_reads_failed_with_its_reason(report):
+    res, _ = report
+    t = res.tables["table_explicit"]
+    assert any(r[5][0] == "diverged" for r in t.rows)
+    fail = res.tables["table_failures"]
+    assert any("ExplicitDivergenceError" in c[0] for r in fail.rows for c in r)
+
+
+def _runs(rows):
+    base = {"scene_experiment": "compression", "solver": "mss-static", "study": "compression", "scene_mesh": "4x4x4",
+            "message": ""}
+    return pd.DataFrame([{**base, **r} for r in rows])
+
+
+def test_eform_check_never_borrows_the_g_form_value():
+    from studies.tables import eform_check
+
+    rows = []
+    for model in ("hybmss", "hybmss-fd"):
+        for nu, d in ((0.0, 0.20), (0.0, 0.05), (0.25, 0.05)):
+            rows.append(dict(scene_model=model, scene_nu=nu, scene_deformation=d, scene_e_form=False, status="ok",
+                             volume_change=-0.1843))
+        rows.append(dict(scene_model=model, scene_nu=0.0, scene_deformation=0.20, scene_e_form=True,
+                         status="unstable", volume_change=np.nan, message="StaticSolveError: limit point"))
+    out = eform_check(_runs(rows))
+    comp = out[out["experiment"] == "compression"]
+    bad = comp[np.isclose(comp["nu"], 0.0) & np.isclose(comp["d"], 0.20)]
+    assert len(bad) == 2
+    assert bad["E_form_pct"].isna().all() and bad["G_form_pct"].eq(18.43).all()
+    assert bad["E_form_state"].str.startswith("failed (unstable").all()
+    assert bad["closer"].str.startswith("undecided").all() and not bad["decisive"].any()
+    miss = comp[np.isclose(comp["nu"], 0.0) & np.isclose(comp["d"], 0.05)]
+    assert (miss["E_form_state"] == "missing").all() and miss["E_form_pct"].isna().all()
+    quarter = comp[np.isclose(comp["nu"], 0.25)]
+    assert quarter["E_form_state"].str.startswith("identical").all() and not quarter["decisive"].any()
+
+
+def _eform(closers):
+    return pd.DataFrame({"closer": closers, "decisive": [c in ("E-form", "G-form") for c in closers]})
+
+
+def test_eform_verdict_supported_counts_only_decisive_rows():
+    from reports.summary import SUPPORTED, eform_claim
+
+    c = eform_claim(_eform(["E-form", "E-form", "G-form", "undecided (E-form failed (unstable))",
+                            "same (differ by ≤ 0.01 pp)"]), "Table 2", "compression")
+    assert c.verdict == SUPPORTED
+    assert "2 of 3 decisive rows" in c.evidence and "2 of 5 rows not counted" in c.evidence
+
+
+def test_eform_verdict_not_supported():
+    from reports.summary import NOT_SUPPORTED, eform_claim
+
+    c = eform_claim(_eform(["G-form", "G-form", "E-form", "undecided (G-form missing)", "undecided (G-form missing)",
+                            "undecided (G-form missing)"]), "Table 3", "tension")
+    assert c.verdict == NOT_SUPPORTED and "1 of 3 decisive rows" in c.evidence
+
+
+def test_eform_verdict_not_tested_without_decisive_rows():
+    from reports.summary import UNTESTED, eform_claim
+
+    c = eform_claim(_eform(["same (differ by ≤ 0.01 pp)", "undecided (E-form missing)"]), "Table 2", "compression")
+    assert c.verdict == UNTESTED and "0 of 2 rows" in c.evidence
+
+
+@pytest.mark.parametrize("n_ok, n, kind", [(4, 4, "reproduced"), (2, 4, "partly reproduced"),
+                                           (1, 4, "not reproduced"), (0, 0, "not tested")])
+def test_count_verdicts(n_ok, n, kind):
+    from reports.summary import count_verdict
+
+    assert count_verdict(n_ok, n) == kind
+
+
+def test_published_claims_follow_their_criteria(results):
+    """The Table 4 claim, recomputed here from the stored runs and the published CSV."""
+    from reports.data import Results
+    from reports.summary import REL_PCT, count_verdict, published_claims
+    from studies.paper import load
+
+    r = Results(results)
+    cl = {c.statement: c for c in published_claims(r)}
+    t4 = next(c for s, c in cl.items() if "Table 4" in s)
+    paper = load("g20_table4_shear")
+    rows = r.rows
+    n_ok = 0
+    for _, p in paper.iterrows():
+        for model in ("hybmss", "hybmss-fd"):
+            m = rows[(rows["scene_experiment"] == "shear") & (rows["method"] == f"{model} static")
+                     & np.isclose(rows["scene_nu"], p["nu"]) & np.isclose(rows["scene_deformation"], p["deformation"])
+                     & (rows["status"] == "ok")]
+            n_ok += len(m) > 0 and abs(float(m["force_x"].iloc[0]) / p[model] - 1) <= REL_PCT / 100
+    assert t4.verdict == count_verdict(n_ok, 4)
+    assert "missing" in t4.evidence  # no 20 % shear run in the fixture
+    b09 = next(c for s, c in cl.items() if "[B09]'s (mean error" in s)
+    assert b09.evidence.startswith(("0 of 2", "1 of 2", "2 of 2"))

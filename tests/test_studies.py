@@ -91,4 +91,24 @@ def test_compare_cli_schema():
     for side in ("mss", "fem"):
         assert {"volume_change", "reaction_force", "reaction_torque", "max_displacement", "wall_time_s",
                 "tip_deflection"} <= set(d[side])
-    assert set(d["diff"]) == {"mean", "max", "rel_l2", "mid_layer_mean"}
+    assert set(d["diff"]) == {"mean", "max", "rel_l2", "mid_layer_mean", "mid_layer_mean_xy", "mid_layer_rms",
+                              "mid_layer_n"}
+
+
+def test_middle_layer_metrics_on_a_known_difference():
+    """A 3×3×4-cell grid: the plane z = 2 le is the middle layer (16 particles); a difference of
+    (3, 4, 0) there and (0, 0, 7) elsewhere gives a 3D and in-plane mean of 5, whatever the rest."""
+    from studies.compare import diff_metrics, middle_layer
+
+    ii, jj, kk = np.meshgrid(np.arange(4), np.arange(4), np.arange(5), indexing="ij")
+    X = 0.5 * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(float)
+    mid = middle_layer(X)
+    assert len(mid) == 16 and np.allclose(X[mid, 2], 1.0)
+    du = np.tile([0.0, 0.0, 7.0], (len(X), 1))
+    du[mid] = [3.0, 4.0, 0.0]
+    d = diff_metrics(X, du, np.zeros_like(du))
+    assert d["mid_layer_mean"] == pytest.approx(5.0) and d["mid_layer_mean_xy"] == pytest.approx(5.0)
+    assert d["mid_layer_rms"] == pytest.approx(5.0) and d["mid_layer_n"] == 16
+    du[mid] = [0.0, 0.0, 2.0]
+    d = diff_metrics(X, du, np.zeros_like(du))
+    assert d["mid_layer_mean"] == pytest.approx(2.0) and d["mid_layer_mean_xy"] == pytest.approx(0.0)

@@ -96,7 +96,7 @@ def test_scene_loads_round_trip_and_keep_old_digests():
 
 def test_dead_load_nodal_forces_sum_to_traction_times_area():
     S = build(_lshape_scene("hybmss", n=2))
-    dead = S.extras["dead_load"]
+    dead = S.term("dead_load").f
     assert np.allclose(dead.sum(axis=0), [0.0, 0.0, -0.5 * 0.1 * 0.1])
     loaded = np.flatnonzero(np.abs(dead).sum(axis=1) > 0)
     assert np.allclose(S.X[loaded, 0], 0.2)

@@ -1,0 +1,238 @@
+"""The experiments ([G20] §6, SPEC §6): one scene builder for every command, study and benchmark.
+
+A :class:`SceneSpec` holds an experiment's parameters as the publication states them (mesh, E,
+ν, ρ, model and its parameters, deformation d, torsion angle, gravity); :meth:`SceneSpec.build`
+turns it into the :class:`hybmss.scene.Scene` that the mass-spring solvers and the FEM reference
+both run.  ``hybmss compare``, ``hybmss fem``, ``hybmss bench``, the benchmarks and the studies
+all build their scenes here, so equal parameters give scenes of equal digest.
+
+Geometry and loading:
+
+- ``compression``, ``shear``, ``torsion``: cube of 5 m (10×10×10 cells of 0.5 m), bottom face
+  (z = 0) clamped.  Compression moves the top plate down by d·H; shear moves it along x by d·H.
+- **Torsion** rotates the top plate by ``angle_deg`` degrees about the vertical axis through the
+  top face's centre (an exact rotation); ``deformation`` plays no part in it.  [G20] does not
+  define "d" for torsion; its table runs θ = 1° and 45°.
+- ``tension``: beam 0.4 × 0.4 × 2.4 m along z (meshes 4×4×24, 8×8×48), end z = 0 clamped, end
+  z = L pulled by d·L.
+- ``bending``: the same beam, end z = 0 clamped, gravity g = 10 m/s² along −y (the vertical of this
+  scene), E = 10 MPa or 2 MPa, ν = 0.25, ρ = 1000 kg/m³ ([G20] gives no density).
+- ``uniaxial``: homogeneous uniaxial stress (sliding plates, free sides), strain d = 1e-4, for
+  effective moduli (:func:`uniaxial_scene`; :func:`shear_scene` is its simple-shear companion).
+
+ρ = 1000 kg/m³ everywhere unless said (the publication gives none for the cube).  ``le``
+(cell edge) follows from the body's size and the mesh unless given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import models
+from .scene import Body, Material, Model, Motion, Plate, Region, Scene
+
+EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending", "uniaxial")
+
+CUBE_SIDE = 5.0
+BEAM_WIDTH = 0.4
+BEAM_LENGTH = 2.4
+
+DEFAULTS = {
+    "compression": dict(mesh=(10, 10, 10), E=1e4, nu=0.25, deformation=0.05),
+    "tension": dict(mesh=(4, 4, 24), E=1e4, nu=0.25, deformation=0.05),
+    "shear": dict(mesh=(10, 10, 10), E=1e4, nu=0.25, deformation=0.05),
+    "torsion": dict(mesh=(10, 10, 10), E=1e4, nu=0.25, deformation=0.0, angle_deg=1.0),
+    "bending": dict(mesh=(4, 4, 24), E=1e7, nu=0.25, deformation=0.0, gravity=10.0),
+    "uniaxial": dict(mesh=(2, 2, 2), E=1e4, nu=0.25, deformation=1e-4),
+}
+
+
+def uniaxial_scene(model: Model, material: Material, strain: float = 1e-4, n: int = 2, le: float = 1.0) -> Scene:
+    """Uniaxial stress: ``n³`` cells between two frictionless plates (only u_z prescribed), the top
+    one pulled by ``strain · H``; one corner pinned in x and y and a second one in y."""
+    H = n * le
+    plates = (
+        Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
+        Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, strain * H), components=(2,))),
+        Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0)), Motion("slide", components=(0, 1))),
+        Plate("pin_x", Region(lo=(H, 0, 0), hi=(H, 0, 0)), Motion("slide", components=(1,))),
+    )
+    return Scene(Body.box(n, n, n, le), material, model, plates, name="uniaxial")
+
+
+def shear_scene(model: Model, material: Material, gamma: float = 1e-4, n: int = 3, le: float = 1.0) -> Scene:
+    """Simple shear: every boundary particle follows ``u = γ (z − z0) e_x``."""
+    grad = (0.0, 0.0, gamma, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    motion = Motion("affine", gradient=grad)
+    plates = tuple(Plate(f, Region(f), motion) for f in ("x-", "x+", "y-", "y+", "z-", "z+"))
+    return Scene(Body.box(n, n, n, le), material, model, plates, name="simple-shear")
+
+
+def _check_experiment(experiment: str) -> None:
+    if experiment not in EXPERIMENTS:
+        raise ValueError(f"scene must be one of {', '.join(EXPERIMENTS)}; got {experiment!r}")
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Parameters of one experiment run (everything a row of a results table needs).
+
+    ``params`` holds the model's parameters given explicitly, as sorted ``(name, value)`` pairs
+    (the others take the model's defaults); :meth:`default` and :meth:`replace` accept them as
+    keywords (``SceneSpec.default("compression", model="hybmss", e_form=True)``).
+    :meth:`to_dict` records every parameter of the model, defaults included, under its own name.
+    """
+
+    experiment: str
+    mesh: tuple[int, int, int] = (10, 10, 10)
+    E: float = 1e4
+    nu: float = 0.25
+    rho: float = 1000.0
+    model: str = "hybmss"
+    params: tuple[tuple[str, object], ...] = ()
+    deformation: float = 0.05
+    angle_deg: float = 0.0
+    gravity: float = 0.0
+    damping: float = 0.0
+    le: float | None = None
+
+    def __post_init__(self):
+        _check_experiment(self.experiment)
+        object.__setattr__(self, "mesh", tuple(int(n) for n in self.mesh))
+        params = tuple(sorted((str(k), v) for k, v in dict(self.params).items() if v is not None))
+        clash = [k for k, _ in params if k in _FIELDS]
+        if clash:
+            raise ValueError(f"model {self.model} parameter {clash[0]!r} clashes with a scene field")
+        object.__setattr__(self, "params", params)
+        models.get(self.model).parameters(**dict(params))  # validates the name and the values
+
+    @classmethod
+    def default(cls, experiment: str, **overrides) -> "SceneSpec":
+        """The experiment's defaults with ``overrides`` (``None`` values keep the default;
+        keywords that are not fields are the model's parameters)."""
+        _check_experiment(experiment)
+        values = dict(DEFAULTS[experiment])
+        values.update({k: v for k, v in overrides.items() if v is not None and k in _FIELDS})
+        params = {**dict(values.pop("params", ())), **{k: v for k, v in overrides.items() if k not in _FIELDS}}
+        values.pop("experiment", None)
+        return cls(experiment, **values, params=tuple(params.items()))
+
+    def replace(self, **kw) -> "SceneSpec":
+        """A copy with fields and model parameters changed; a new ``model`` keeps the given
+        parameters that it also has."""
+        fields = {k: v for k, v in kw.items() if k in _FIELDS}
+        params = dict(self.params)
+        if "model" in fields and fields["model"] != self.model:
+            names = models.get(fields["model"]).parameter_names()
+            params = {k: v for k, v in params.items() if k in names}
+        params.update({k: v for k, v in kw.items() if k not in _FIELDS})
+        return dataclasses.replace(self, **fields, params=tuple(params.items()))
+
+    # ---------------------------------------------------------------- model
+    @property
+    def scene_model(self) -> Model:
+        """The :class:`hybmss.scene.Model` of this run."""
+        return Model(self.model, **dict(self.params))
+
+    @property
+    def variant(self) -> str:
+        """Name of the model and its parameter set in tables and legends."""
+        return self.scene_model.variant
+
+    def param(self, name: str):
+        """The value (given or default) of the model parameter ``name``."""
+        return getattr(self.scene_model.params, name)
+
+    # ---------------------------------------------------------------- geometry
+    @property
+    def is_beam(self) -> bool:
+        return self.experiment in ("tension", "bending")
+
+    @property
+    def cell_edge(self) -> float:
+        if self.le is not None:
+            return float(self.le)
+        if self.is_beam:
+            return BEAM_LENGTH / self.mesh[2]
+        if self.experiment == "uniaxial":
+            return 1.0
+        return CUBE_SIDE / self.mesh[2]
+
+    @property
+    def label(self) -> str:
+        mesh = "x".join(map(str, self.mesh))
+        load = f"θ={self.angle_deg:g}°" if self.experiment == "torsion" else (
+            f"E={self.E:g}" if self.experiment == "bending" else f"d={100 * self.deformation:g}%")
+        model = self.scene_model
+        return f"{self.experiment} {mesh} {model.spec.tag(model.params)} ν={self.nu:g} {load}"
+
+    def to_dict(self) -> dict:
+        """Every field and every model parameter (under its own name), and the variant name."""
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "params"}
+        d["mesh"] = "x".join(map(str, self.mesh))
+        model = self.scene_model
+        d.update({k: v for k, v in model.to_dict().items() if k != "name"})
+        d["variant"] = model.variant
+        return d
+
+    def key(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    def build(self) -> Scene:
+        """The :class:`Scene` of this run."""
+        le = self.cell_edge
+        nx, ny, nz = self.mesh
+        model = self.scene_model
+        mat = Material(self.E, self.nu, self.rho)
+        if self.experiment == "uniaxial":
+            return dataclasses.replace(uniaxial_scene(model, mat, self.deformation, nx, le), name=self.label)
+        H = nz * le
+        bottom = Plate("bottom", Region("z-"), Motion("clamped"))
+        g = (0.0, 0.0, 0.0)
+        ex = self.experiment
+        if ex == "compression":
+            plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -self.deformation * H))))
+        elif ex == "tension":
+            plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, self.deformation * H))))
+        elif ex == "shear":
+            plates = (bottom, Plate("top", Region("z+"), Motion("translate", (self.deformation * H, 0.0, 0.0))))
+        elif ex == "torsion":
+            center = (nx * le / 2.0, ny * le / 2.0, H)
+            plates = (bottom, Plate("top", Region("z+"), Motion(
+                "rotate", angle=math.radians(self.angle_deg), axis=(0.0, 0.0, 1.0), center=center)))
+        else:  # bending
+            plates = (bottom,)
+            g = (0.0, -self.gravity, 0.0)
+        return Scene(Body.box(nx, ny, nz, le), mat, model, plates, gravity=g, damping=self.damping,
+                     name=self.label)
+
+    # ---------------------------------------------------------------- theory
+    def beam_section(self) -> tuple[float, float, float]:
+        """Width l (along x), height h (along y, the bending plane) and length L of the beam, m."""
+        nx, ny, nz = self.mesh
+        le = self.cell_edge
+        return nx * le, ny * le, nz * le
+
+    def neutral_axis(self) -> tuple[float, float]:
+        """(x, y) of the beam's neutral axis (the centre of its cross-section), m."""
+        lw, hh, _ = self.beam_section()
+        return lw / 2.0, hh / 2.0
+
+    def euler_bernoulli(self, z: np.ndarray) -> np.ndarray:
+        """[G20] eq. for the clamped beam under its weight: deflection (along −g) at distance z
+        from the clamp, ``y = ρ g l h /(24 E I) (4 L z³ − 6 L² z² − z⁴)``, ``I = l h³/12``."""
+        lw, hh, L = self.beam_section()
+        I = lw * hh**3 / 12.0
+        z = np.asarray(z, dtype=float)
+        return self.rho * self.gravity * lw * hh / (24.0 * self.E * I) * (4 * L * z**3 - 6 * L**2 * z**2 - z**4)
+
+    def euler_bernoulli_tip(self) -> float:
+        return float(self.euler_bernoulli(np.array([self.beam_section()[2]]))[0])
+
+
+_FIELDS = frozenset(f.name for f in dataclasses.fields(SceneSpec))

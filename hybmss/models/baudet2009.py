@@ -1,0 +1,29 @@
+"""``baudet2009``: the cubic-cell MSS of [B09] — per-cell edges and inner diagonals, no face
+diagonals, no volume energy, and lateral correction forces for ν (not an energy:
+:mod:`hybmss.baudet`)."""
+
+from __future__ import annotations
+
+from ..baudet import Corrections
+from ..calibrate import b09_springs
+from .base import ModelBase, Style
+
+
+class Baudet2009(ModelBase):
+    name = "baudet2009"
+    label = "cubic-cell MSS with lateral corrections [B09]"
+    style = Style("#8c564b", "v")
+    conservative = False
+    solvers = ("static", "explicit")
+    kernels = ("numpy",)
+    order = 3
+    studies = ("tables", "b09")
+
+    def constants(self, p, material, le):
+        return b09_springs(material, le)
+
+    def terms(self, p, scene, lattice, consts):
+        return (Corrections.for_system(consts, scene.material, lattice),)
+
+
+MODEL = Baudet2009()

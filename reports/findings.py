@@ -1,0 +1,254 @@
+"""The answers of the study sections, computed from the stored study tables.
+
+Each function reads one or two stored tables and returns a small frame or a sentence; the figures
+(:mod:`reports.figures`) and the section texts (:mod:`reports.build`) use the same frames, so a
+sentence and its picture never disagree.  A missing table gives ``None`` / an empty frame, and a
+sentence says what is missing rather than printing a placeholder number.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pandas as pd
+
+BUDGETS = (0.01, 0.05, 0.10)
+"""Error budgets (relative L2 nodal error) of the speed-against-error study, when its table does
+not list them."""
+
+STATES = ("converged", "unstable", "diverged", "inverted", "missing")
+"""Outcomes of a run in the stability map, in legend order."""
+
+
+def pct(v: float, digits: int = 3) -> str:
+    """A fraction as a percentage for a sentence (``0.05`` -> ``"5 %"``)."""
+    return f"{100 * v:.{digits}g} %"
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+# ------------------------------------------------------------------ speed against error
+def budget_answers(pareto: pd.DataFrame | None, budget: pd.DataFrame | None = None) -> pd.DataFrame:
+    """For every configuration and error budget: the fastest method whose nodal error (relative
+    L2 against the converged reference) meets the budget, its time, the next fastest *other*
+    method that meets it and the lead ``t_next / t_fastest``.
+
+    Columns: ``config, experiment, budget, method, mesh, time_s, error_u, next_method,
+    next_time_s, lead`` (``method`` = "none" when no candidate meets the budget; ``next_method``
+    = "none" and ``lead`` NaN when only one method does)."""
+    cols = ["config", "experiment", "budget", "method", "mesh", "time_s", "error_u", "next_method", "next_time_s",
+            "lead"]
+    if pareto is None or not {"config", "method", "time_s", "error_u"} <= set(pareto.columns):
+        return pd.DataFrame(columns=cols)
+    df = pareto.copy()
+    if "role" in df and (df["role"] == "candidate").any():
+        df = df[df["role"] == "candidate"]
+    if "status" in df:
+        df = df[df["status"].astype(str) == "ok"]
+    df = df[np.isfinite(pd.to_numeric(df["time_s"], errors="coerce"))
+            & np.isfinite(pd.to_numeric(df["error_u"], errors="coerce"))]
+    budgets = BUDGETS
+    if budget is not None and "budget" in budget:
+        budgets = tuple(sorted(float(b) for b in budget["budget"].unique()))
+    rows = []
+    for cfg, g in df.groupby("config", sort=False):
+        exp = str(g["experiment"].iloc[0]) if "experiment" in g else str(cfg).split()[0]
+        for b in budgets:
+            ok = g[g["error_u"] <= b].sort_values("time_s")
+            best = ok.drop_duplicates("method")
+            rec = {"config": cfg, "experiment": exp, "budget": b}
+            if best.empty:
+                rec.update(method="none", mesh="", time_s=math.nan, error_u=math.nan, next_method="none",
+                           next_time_s=math.nan, lead=math.nan)
+            else:
+                r = best.iloc[0]
+                rec.update(method=str(r["method"]), mesh=str(r.get("mesh", "")), time_s=float(r["time_s"]),
+                           error_u=float(r["error_u"]))
+                if len(best) > 1:
+                    n = best.iloc[1]
+                    rec.update(next_method=str(n["method"]), next_time_s=float(n["time_s"]),
+                               lead=float(n["time_s"]) / float(r["time_s"]))
+                else:
+                    rec.update(next_method="none", next_time_s=math.nan, lead=math.nan)
+            rows.append(rec)
+    return pd.DataFrame(rows, columns=cols)
+
+
+def budget_sentence(ans: pd.DataFrame) -> str:
+    if ans.empty:
+        return "No speed-against-error table is stored (study pareto not run)."
+    parts = []
+    for b, g in ans.groupby("budget"):
+        wins = g["method"].value_counts()
+        txt = ", ".join(f"{m} in {n}" for m, n in wins.items() if m != "none")
+        none = int(wins.get("none", 0))
+        if none:
+            txt += (", " if txt else "") + f"no method in {none}"
+        parts.append(f"within {pct(b)} error, {txt} of {len(g)} configurations")
+    leads = ans["lead"].dropna()
+    lead = (f"; the winner's lead over the next method is ×{leads.median():.2g} in the median "
+            f"(×{leads.min():.2g}–×{leads.max():.2g})" if len(leads) else "")
+    return "Fastest method that meets the error budget: " + "; ".join(parts) + lead + "."
+
+
+# ------------------------------------------------------------------ performance
+def performance_sentence(summ: pd.DataFrame | None, paper: pd.DataFrame | None) -> str:
+    if summ is None or "hybmss_over_fd" not in summ:
+        return "No performance summary is stored (study performance not run)."
+    s = summ[summ["threads"] == summ["threads"].min()] if "threads" in summ else summ
+    p = paper.set_index("quantity")["value"] if paper is not None else pd.Series(dtype=float)
+    rh, rc = s["hybmss_over_fd"].astype(float), s.get("cf_over_fd")
+    txt = (f"Per explicit step on one thread, hybmss costs ×{rh.min():.2g}–×{rh.max():.2g} the time of hybmss-fd "
+           f"([G20]: ×{_num(p.get('ratio_hybmss_over_fd')):g})")
+    if rc is not None:
+        rc = rc.astype(float)
+        txt += (f" and hybmss-cf ×{rc.min():.2g}–×{rc.max():.2g} ([G20]: "
+                f"×{_num(p.get('ratio_hybmss_cf_over_fd')):g})")
+    if "volumes" in s:
+        txt += f", over meshes of {int(s['volumes'].min())}–{int(s['volumes'].max())} volumes"
+    return txt + "."
+
+
+# ------------------------------------------------------------------ stability
+def outcome(status: str, inverted) -> str:
+    """One of :data:`STATES` for a row of the stability tables."""
+    st = str(status)
+    if _num(inverted) > 0 or st == "inverted":
+        return "inverted"
+    if st in ("converged", "ok"):
+        return "converged"
+    if st.startswith("diverged"):
+        return "diverged"
+    if st in ("nan", "", "missing"):
+        return "missing"
+    return "unstable"
+
+
+def stability_grid(extreme: pd.DataFrame | None) -> pd.DataFrame:
+    """Rows ``variant, case, solver, nu, outcome`` of the extreme-load study."""
+    if extreme is None or not {"variant", "case", "nu", "status"} <= set(extreme.columns):
+        return pd.DataFrame(columns=["variant", "case", "solver", "nu", "outcome"])
+    df = extreme.copy()
+    df["solver"] = df.get("solver", "mss-static").astype(str).str.replace("mss-", "", regex=False)
+    df["outcome"] = [outcome(s, i) for s, i in zip(df["status"], df.get("inverted_cells", 0))]
+    return df[["variant", "case", "solver", "nu", "outcome"]]
+
+
+def stability_sentence(extreme: pd.DataFrame | None, dt: pd.DataFrame | None) -> str:
+    parts = []
+    if dt is not None and {"nu", "variant", "dt_crit"} <= set(dt.columns):
+        h = dt[dt["variant"] == "hybmss"].sort_values("nu")
+        h = h[h["nu"] > 0]
+        if len(h) >= 2:
+            a, b = h.iloc[0], h.iloc[-1]
+            parts.append(f"the explicit limit dt_crit of hybmss falls from {a['dt_crit']:.3g} s at ν = {a['nu']:g} to "
+                         f"{b['dt_crit']:.3g} s at ν = {b['nu']:g} (×{a['dt_crit'] / b['dt_crit']:.3g} smaller)")
+    g = stability_grid(extreme)
+    if len(g):
+        for solver, s in g.groupby("solver"):
+            c = s["outcome"].value_counts()
+            other = ", ".join(f"{k} {v}" for k, v in c.items() if k != "converged")
+            parts.append(f"under the extreme loads the {solver} solver converged in {int(c.get('converged', 0))} of "
+                         f"{len(s)} runs" + (f" ({other})" if other else ""))
+    if not parts:
+        return "No stability table is stored (study stability not run)."
+    s = "; ".join(parts)
+    return s[0].upper() + s[1:] + "."
+
+
+def limit_sentence(limit: pd.DataFrame | None) -> str:
+    if limit is None or not {"nu", "variant", "status", "stretch_lo"} <= set(limit.columns):
+        return "No limit-stretch table is stored (study stability not run)."
+    sub = limit[limit.get("volume_energy", "quadratic").astype(str) == "quadratic"] if "volume_energy" in limit else limit
+    lost = sub[sub["status"] != "ok"]
+    held = sub[sub["status"] == "ok"]
+    parts = []
+    for v, g in lost.groupby("variant", sort=False):
+        parts.append(f"{v} loses its equilibrium at a stretch of " + ", ".join(
+            f"{r['stretch_lo']:.3g} (ν = {r['nu']:g})" for _, r in g.sort_values("nu", ascending=False).iterrows()))
+    for v, g in held.groupby("variant", sort=False):
+        dmax = g["d_max"].max() if "d_max" in g else math.nan
+        parts.append(f"{v} holds to the largest stretch tried ({1 + dmax:.3g})")
+    return ("In tension to 100 % with the quadratic volume energy, " + "; ".join(parts) +
+            ". The volume term with κ < 0 (ν < 1/4) rewards dilation, so the loss of equilibrium is a limit point of "
+            "the model, not a solver failure.") if parts else "The limit-stretch table has no rows."
+
+
+def damping_curves(damping: pd.DataFrame | None) -> pd.DataFrame:
+    """``nu, steps, error`` parsed from the ``errors`` column ("1000:3.96e-01; 2000:...")."""
+    rows = []
+    if damping is None or "errors" not in damping:
+        return pd.DataFrame(columns=["nu", "steps", "error"])
+    for _, r in damping.iterrows():
+        for m in re.finditer(r"(\d+)\s*:\s*([0-9.eE+-]+)", str(r["errors"])):
+            rows.append({"nu": float(r["nu"]), "steps": int(m.group(1)), "error": float(m.group(2))})
+    return pd.DataFrame(rows, columns=["nu", "steps", "error"])
+
+
+def damping_sentence(damping: pd.DataFrame | None) -> str:
+    if damping is None or "steps_to_tol" not in damping:
+        return "No damping table is stored (study stability not run)."
+    c = damping["damping"].iloc[0] if "damping" in damping else math.nan
+    tol = damping["tol"].iloc[0] if "tol" in damping else math.nan
+    dt = damping["dt"].iloc[0] if "dt" in damping else math.nan
+    per = ", ".join(f"{r['steps_to_tol']} at ν = {r['nu']:g}" for _, r in damping.iterrows())
+    return (f"With mass-proportional damping c = {c:g} s⁻¹ and dt = {dt:g} s, the explicit run comes within "
+            f"{tol:g} (relative L2) of the static equilibrium after {per} steps; [G20]'s protocol reads the state "
+            "after 10,000 steps.")
+
+
+# ------------------------------------------------------------------ [B09]
+EXPERIMENT_NAMES = {"lshape": "L-shape", "cantilever": "cantilever"}
+"""Reader-facing names of [B09]'s experiments."""
+
+
+def b09_frame(cantilever: pd.DataFrame | None, lshape: pd.DataFrame | None, paper: pd.DataFrame | None) -> pd.DataFrame:
+    """Rows ``experiment, mesh, model, state`` with our error statistics (``err_*``: normalized by
+    the largest reference displacement; ``rel_*``: nodal relative error) and [B09]'s (``b09_*``)."""
+    parts = []
+    for exp, t in (("cantilever", cantilever), ("lshape", lshape)):
+        if t is None:
+            continue
+        t = t.copy()
+        t["experiment"] = exp
+        if "err_std_pct" in t and "err_sd_pct" not in t:  # older result folders
+            t["err_sd_pct"] = t["err_std_pct"]
+        if "status" not in t:
+            t["status"] = "ok"
+        parts.append(t)
+    if not parts:
+        return pd.DataFrame()
+    df = pd.concat(parts, ignore_index=True)
+    df["state"] = df["status"].fillna("missing").astype(str)
+    if paper is not None:
+        p = paper.rename(columns={"mean_pct": "b09_mean_pct", "sd_pct": "b09_sd_pct", "max_pct": "b09_max_pct"})
+        df = df.merge(p, on=["experiment", "mesh"], how="left")
+    return df
+
+
+def b09_sentence(df: pd.DataFrame) -> str:
+    if df.empty:
+        return "No [B09] table is stored (study baudet2009 not run)."
+    parts = []
+    for exp, g in df.groupby("experiment", sort=False):
+        b = g[(g["model"] == "baudet2009") & (g["state"] == "ok")].sort_values("cells")
+        exp = EXPERIMENT_NAMES.get(exp, exp)
+        if b.empty:
+            parts.append(f"{exp}: baudet2009 has no successful run")
+            continue
+        ours = " → ".join(f"{v:.3g}" for v in b["err_mean_pct"])
+        theirs = " → ".join("missing" if pd.isna(v) else f"{v:.3g}" for v in b.get("b09_mean_pct", []))
+        meshes = " → ".join(b["mesh"])
+        fine = g[(g["state"] == "ok") & (g["cells"] == g["cells"].max())]
+        best = fine.set_index("model")["err_mean_pct"].sort_values()
+        parts.append(f"{exp} ({meshes}): baudet2009 mean error {ours} % against [B09]'s {theirs} %; on the finest "
+                     f"mesh here the lowest mean error is {best.index[0]}'s ({best.iloc[0]:.3g} %)")
+    s = "; ".join(parts) + "."
+    return s[0].upper() + s[1:]
