@@ -30,6 +30,7 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -184,7 +185,11 @@ class SceneSpec:
         return json.dumps(self.to_dict(), sort_keys=True)
 
     def build(self) -> Scene:
-        """The :class:`Scene` of this run."""
+        """The :class:`Scene` of this run (built once per specification)."""
+        return self._scene
+
+    @cached_property
+    def _scene(self) -> Scene:
         le = self.cell_edge
         nx, ny, nz = self.mesh
         model = self.scene_model

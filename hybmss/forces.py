@@ -37,9 +37,10 @@ def spring_energy_forces(x, a, b, k, l0):
     stretch = l - l0
     energy = 0.5 * np.dot(k, stretch * stretch)
     fa = (k * (1.0 - l0 / l))[:, None] * d
-    f = np.zeros_like(x)
-    np.add.at(f, a, fa)
-    np.add.at(f, b, -fa)
+    n = len(x)
+    f = np.empty_like(x)
+    for i in range(3):  # bincount: the scatter-add of np.add.at, an order of magnitude faster
+        f[:, i] = np.bincount(a, fa[:, i], n) - np.bincount(b, fa[:, i], n)
     return energy, f
 
 
@@ -91,8 +92,11 @@ def volume_energy_forces(x, cells, V0, kappa, form="quadratic"):
     V = np.einsum("mi,mi->m", abc[:, 0], np.cross(abc[:, 1], abc[:, 2]))
     W, dW, _ = _volume_law(V, V0, kappa, form)
     g = volume_gradients(abc)  # (m, 8, 3)
-    f = np.zeros_like(x)
-    np.add.at(f, cells.ravel(), (-dW[:, None, None] * g).reshape(-1, 3))
+    fc = (-dW[:, None, None] * g).reshape(-1, 3)
+    idx = cells.ravel()
+    f = np.empty_like(x)
+    for i in range(3):
+        f[:, i] = np.bincount(idx, fc[:, i], len(x))
     return float(W.sum()), f
 
 
@@ -178,38 +182,36 @@ def stiffness(system: System, x: np.ndarray, load: float = 1.0) -> sp.csr_matrix
 
 @lru_cache(maxsize=8)
 def _pattern(n, a_bytes, b_bytes, cells_bytes):
-    """CSR pattern of the Hessian and the map from COO entries to CSR slots."""
+    """CSR pattern of the Hessian and the map from COO entries to CSR slots.
+
+    The pattern is made of 3×3 blocks: the node pairs (springs (a,a), (b,b), (a,b), (b,a), then
+    the 8×8 corner pairs of every volume cell, the order :func:`hessian` lists its blocks in) are
+    sorted once at the node level, and the slot of entry (i, j) of the block of pair q in row a is
+    ``9 P_a + 3 i deg(a) + 3 (q − P_a) + j`` (P_a pairs in rows before a, deg(a) in row a)."""
     a = np.frombuffer(a_bytes, dtype=np.int64)
     b = np.frombuffer(b_bytes, dtype=np.int64)
     cells = np.frombuffer(cells_bytes, dtype=np.int64).reshape(-1, 8)
-    rows, cols = _coo_indices(n, a, b, cells)
-    N = 3 * n
-    key = rows * N + cols
-    uniq, inv = np.unique(key, return_inverse=True)
-    r, c = np.divmod(uniq, N)
-    indptr = np.zeros(N + 1, dtype=np.int64)
-    np.add.at(indptr, r + 1, 1)
-    indptr = np.cumsum(indptr)
-    return indptr, c.astype(np.int64), inv
-
-
-def _coo_indices(n, a, b, cells):
-    ij = np.arange(3)
-    # springs: blocks (a,a), (b,b), (a,b), (b,a), each 3×3
-    pa = 3 * a[:, None] + ij[None]
-    pb = 3 * b[:, None] + ij[None]
-    def block(p, q):
-        return (np.repeat(p[:, :, None], 3, 2).reshape(-1), np.repeat(q[:, None, :], 3, 1).reshape(-1))
-    blocks = [block(pa, pa), block(pb, pb), block(pa, pb), block(pb, pa)]
-    rows = [r for r, _ in blocks]
-    cols = [c for _, c in blocks]
+    rows = [a, b, a, b]
+    cols = [a, b, b, a]
     if len(cells):
-        pc = 3 * cells[:, :, None] + ij[None, None]  # (m, 8, 3)
-        R = np.broadcast_to(pc[:, :, None, :, None], (len(cells), 8, 8, 3, 3)).reshape(-1)
-        C = np.broadcast_to(pc[:, None, :, None, :], (len(cells), 8, 8, 3, 3)).reshape(-1)
-        rows.append(R)
-        cols.append(C)
-    return np.concatenate(rows), np.concatenate(cols)
+        rows.append(np.broadcast_to(cells[:, :, None], (len(cells), 8, 8)).reshape(-1))
+        cols.append(np.broadcast_to(cells[:, None, :], (len(cells), 8, 8)).reshape(-1))
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    uniq, q = np.unique(rows * n + cols, return_inverse=True)
+    r, c = np.divmod(uniq, n)
+    deg = np.bincount(r, minlength=n)
+    P = np.concatenate(([0], np.cumsum(deg)[:-1]))
+    ra = r[q]
+    base = 9 * P[ra] + 3 * (q - P[ra])  # slot of (i, j) = (0, 0) of each COO block
+    ij = np.arange(3)
+    inv = (base[:, None, None] + 3 * ij[None, :, None] * deg[ra][:, None, None] + ij[None, None, :]).reshape(-1)
+    # dof-level rows: row 3a + i starts at 9 P_a + 3 i deg(a); its columns are 3c + j per neighbour c
+    indptr = np.empty(3 * n + 1, dtype=np.int64)
+    indptr[:-1] = (9 * P[:, None] + 3 * ij[None, :] * deg[:, None]).reshape(-1)
+    indptr[-1] = 9 * len(uniq)
+    nb = np.split(c, np.cumsum(deg)[:-1])
+    indices = np.concatenate([np.tile((3 * cc[:, None] + ij[None, :]).reshape(-1), 3) for cc in nb])
+    return indptr, indices.astype(np.int64), inv
 
 
 def hessian(system: System, x: np.ndarray) -> sp.csr_matrix:

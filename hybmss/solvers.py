@@ -40,6 +40,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+try:  # CHOLMOD (SuiteSparse) through cvxopt's wheels: supernodal Cholesky, symbolic analysis reusable
+    import cvxopt
+    from cvxopt import cholmod
+except ImportError:  # pragma: no cover - SuperLU's symmetric LU does everything, slower
+    cvxopt = cholmod = None
+
 from .forces import cell_volumes, energy_forces, hessian, stiffness
 from .result import Reaction, Result, reaction_from_nodal
 from .scene import Scene
@@ -185,10 +191,69 @@ def _energy_shifts(mu_last: float):
         mu = 1e-6 if mu == 0.0 else mu * 100.0
 
 
-def _factor(A):
-    """Sparse LU of a symmetric matrix: symmetric mode with a minimum-degree ordering of A+Aᵀ
-    (3× faster than the default COLAMD on the lattice Hessians)."""
+def _factor(A, fac: "_Factorizer | None" = None):
+    """Factorization of a symmetric matrix ``A`` (CSC) with a ``solve`` method: CHOLMOD's Cholesky
+    when ``A`` is positive definite (through ``fac``, which keeps the symbolic analysis), else
+    SuperLU's LU in symmetric mode with a minimum-degree ordering of A+Aᵀ (3× faster than the
+    default COLAMD on the lattice Hessians; no pivoting, so its pivots are the D of LDLᵀ)."""
+    if fac is not None:
+        F = fac.cholesky(A)
+        if F is not None:
+            return F
+    return _superlu_symmetric(A)
+
+
+def _superlu_symmetric(A):
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+
+
+class _CholeskyFactor:
+    """A CHOLMOD factor ``A = P L Lᵀ Pᵀ`` (valid until its :class:`_Factorizer` factorizes again)."""
+
+    def __init__(self, F):
+        self._F = F
+
+    def solve(self, r: np.ndarray) -> np.ndarray:
+        B = cvxopt.matrix(np.asarray(r, dtype=float))
+        cholmod.solve(self._F, B)
+        return np.array(B).ravel()
+
+
+class _Factorizer:
+    """Cholesky factorizations of the constrained Hessians of one solve.  The symbolic analysis
+    (fill-reducing ordering, supernodes) depends on the sparsity pattern only, which is the same
+    for every Newton iteration, shift and load step: it is computed once per pattern and every
+    factorization after it is numeric only.  A failed factorization (``ArithmeticError``: a
+    pivot ≤ 0) is CHOLMOD's proof that the matrix is not positive definite; the caller then uses
+    SuperLU, and the symbolic analysis serves the next factorization.  Without cvxopt every call
+    returns None."""
+
+    def __init__(self):
+        self._indptr = self._indices = None
+        self._A = self._F = None
+        self.numeric = self.symbolic = self.failed = 0
+
+    def cholesky(self, A) -> _CholeskyFactor | None:
+        if cholmod is None:
+            return None
+        L = sp.tril(A, format="csc")
+        L.sort_indices()
+        if (self._F is None or L.shape != self._A.size or not np.array_equal(L.indptr, self._indptr)
+                or not np.array_equal(L.indices, self._indices)):
+            self._indptr, self._indices = L.indptr.copy(), L.indices.copy()
+            cols = np.repeat(np.arange(L.shape[1]), np.diff(L.indptr))
+            self._A = cvxopt.spmatrix(L.data, L.indices.astype(np.int64), cols, L.shape)
+            self._F = cholmod.symbolic(self._A, uplo="L")
+            self.symbolic += 1
+        else:
+            self._A.V = cvxopt.matrix(L.data)
+        self.numeric += 1
+        try:
+            cholmod.numeric(self._A, self._F)
+        except ArithmeticError:  # not positive definite (the analysis stays valid for the next one)
+            self.failed += 1
+            return None
+        return _CholeskyFactor(self._F)
 
 
 def _factor_general(A):
@@ -198,7 +263,7 @@ def _factor_general(A):
 
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
             inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True,
-            lu=None, load: float = 1.0):
+            lu=None, load: float = 1.0, fac: _Factorizer | None = None):
     """Newton's method over the free dofs from ``x`` at load factor ``load``, in one of two modes:
 
     - **energy** (every force conservative): minimize Π (+ the inertia term ``½ Σ w_a |x_a − x̃_a|²``
@@ -246,6 +311,9 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
         return False, x, f, np.inf, _force_scale(system, f)
     best, e_best, stalled = np.inf, np.inf, 0
     mu_last, lu_mu = 0.0, 0.0
+    # once the unshifted Hessian has proved not positive definite in this call (a failed
+    # Cholesky), the next unshifted ones go to SuperLU directly instead of failing again
+    indefinite = False
     if residual:
         lu = None
     for it in range(max_iter + 1):
@@ -293,7 +361,13 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                 A = Jff if mu == 0.0 else (Jff + sp.identity(Jff.shape[0], format="csc") * (mu * diag_mean))
                 try:
                     with np.errstate(all="ignore"):
-                        lu = _factor_general(A) if residual else _factor(A)
+                        if residual:
+                            lu = _factor_general(A)
+                        else:
+                            failed = fac.failed if fac is not None else 0
+                            lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
+                            if mu == 0.0 and fac is not None and fac.failed > failed:
+                                indefinite = True
                         dx = lu.solve(r)
                     ok = np.all(np.isfinite(dx)) and (residual or float(r @ dx) > 0.0)
                 except RuntimeError:  # exactly singular
@@ -339,7 +413,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
 
 
 def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray,
-                       load: float = 1.0):
+                       load: float = 1.0, fac: _Factorizer | None = None):
     """First-order guess for a new load step: move the prescribed dofs to ``target`` and the free
     dofs by the linear response ``δ_f = J_ff⁻¹ (f_f − J_fc δ_c)``, J = ∂(−f)/∂x at ``x``.  Energy
     mode: J is the Hessian, factorized as is; returns ``(guess, lu)`` (the factorization, reusable
@@ -358,7 +432,7 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
                 shift = sp.identity(Jff.shape[0], format="csc") * (1e-8 * float(np.abs(Jff.diagonal()).mean()))
                 lu = _factor_general(Jff + shift)
             else:
-                lu = _factor(Jff)
+                lu = _factor(Jff, fac)
             d_f = lu.solve(rhs)
     except RuntimeError:
         return None, None
@@ -390,15 +464,18 @@ def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
     return smallest_eigenpair(system, x)[0]
 
 
-def _stability(S: System, x: np.ndarray, free: np.ndarray):
-    """``(stable, lam, vec)`` at ``x``.  The inertia of the constrained Hessian comes for free
-    from its symmetric LU (no pivoting: the pivots are the D of LDLᵀ, Sylvester's law); only when
-    a pivot is negative is the smallest eigenpair computed."""
+def _stability(S: System, x: np.ndarray, free: np.ndarray, fac: _Factorizer | None = None):
+    """``(stable, lam, vec)`` at ``x``.  A Cholesky factorization that succeeds certifies that
+    the constrained Hessian is positive definite; otherwise its inertia comes from the symmetric
+    LU (no pivoting: the pivots are the D of LDLᵀ, Sylvester's law); only when a pivot is
+    negative or tiny is the smallest eigenpair computed (shift-invert)."""
     Hff = stiffness(S, x)[free][:, free].tocsc()
+    if fac is not None and fac.cholesky(Hff) is not None:
+        return True, float("nan"), None
     tol = 1e-9 * float(np.abs(Hff.diagonal()).mean())
     try:
         with np.errstate(all="ignore"):
-            pivots = _factor(Hff).U.diagonal()
+            pivots = _superlu_symmetric(Hff).U.diagonal()
         if np.all(np.isfinite(pivots)) and pivots.min() > tol:
             return True, float("nan"), None
     except RuntimeError:  # singular: zero-energy modes, decide from the eigenvalue
@@ -500,6 +577,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     residual = not S.conservative
     free = ~S.fixed.ravel()
     stats = _NewtonStats()
+    fac = _Factorizer()
     x = S.X.copy()
     s, ds = 0.0, min(opts.max_step, 1.0 / max(1, opts.initial_steps))
     x_prev, s_prev = None, None
@@ -512,12 +590,12 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         # equilibrium: the rest state is the answer, exactly
         trial = x.copy()
         trial[S.fixed] = target[S.fixed]
-        if _newton(S, trial, free, opts.rtol, 0, None, stats, load=s_new)[0]:
+        if _newton(S, trial, free, opts.rtol, 0, None, stats, load=s_new, fac=fac)[0]:
             x_prev, s_prev, x, s = x, s, trial, s_new
             load_steps += 1
             ds = min(opts.max_step, ds * 1.5)
             continue
-        guess, lu = _tangent_predictor(S, x, target, free, s_new)
+        guess, lu = _tangent_predictor(S, x, target, free, s_new, fac)
         if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
             guess, lu = x.copy(), None
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
@@ -525,7 +603,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         guess[S.fixed] = target[S.fixed]
         iters = opts.max_iter if not failed_before else opts.retry_iter
         ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, iters, None, stats,
-                                             opts.line_search, lu=lu, load=s_new)
+                                             opts.line_search, lu=lu, load=s_new, fac=fac)
         failed_before = not ok
         if ok:
             load_steps += 1
@@ -544,14 +622,14 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     escapes, lam, stable, warning = 0, None, True, ""
     if opts.check_stability and not residual:
         for escapes in range(opts.max_escapes + 1):
-            stable, lam, vec = _stability(S, x, free)
+            stable, lam, vec = _stability(S, x, free, fac)
             if stable or escapes == opts.max_escapes:
                 break
             xt = _escape_saddle(S, x, free, vec)
             if xt is None:
                 break
             ok, x_new, f, rnorm, scale = _newton(S, xt, free, opts.rtol, 5 * opts.max_iter, None, stats,
-                                                 opts.line_search)
+                                                 opts.line_search, fac=fac)
             if not ok:
                 warning = (f"the equilibrium found is a saddle (smallest eigenvalue {lam:.4g} N/m: buckling or "
                            "zero-energy modes); descending along the unstable mode did not reach another "
@@ -624,6 +702,7 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
         raise ValueError("implicit Euler needs a positive mass on every free particle (rho > 0)")
     x, v = S.X.copy(), np.zeros_like(S.X)
     stats = _NewtonStats()
+    fac = _Factorizer()
     le = scene.body.le
     steps_done = 0
     for n in range(1, opts.steps + 1):
@@ -632,7 +711,8 @@ def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
         x_tilde = x + dt * v / (1.0 + c * dt)
         guess = x_tilde.copy()
         guess[S.fixed] = target[S.fixed]
-        ok, x_new, _, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, (w, x_tilde), stats)
+        ok, x_new, _, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.max_iter, (w, x_tilde), stats,
+                                             fac=fac)
         if not ok:
             raise StaticSolveError(_implicit_failure_message(S, n, t, dt, rnorm, scale))
         v = (x_new - x) / dt

@@ -139,6 +139,8 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             print(f"[{time.perf_counter() - t0:6.2f} s] {msg}", flush=True)
 
     warnings: list[str] = []
+    warnings += [f"damaged run left out: {d} (run 'hybmss run' again to recompute it)"
+                 for d in results.damaged]
     vtu_files = vtu.export_all(results, out / "vtu")
     log(f"{len(vtu_files)} VTU files")
     with palette.models(results.table("models")):  # the models' own plot styles, as stored

@@ -6,13 +6,14 @@ Layout (written by ``studies``): ``runs/<key>.json`` (one row per run), ``runs/<
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from studies.store import DamagedRun, Store
 
 #: lattice corner c = di + 2 dj + 4 dk  ->  VTK hexahedron order
 VTK_HEX_ORDER = [0, 1, 3, 2, 4, 5, 7, 6]
@@ -32,6 +33,7 @@ class Results:
         self.runs_dir = self.root / "runs"
         self.tables_dir = self.root / "tables"
         self._arrays: dict[str, dict] = {}
+        self._damaged: list[DamagedRun] = []
         if not self.runs_dir.is_dir() and not self.tables_dir.is_dir():
             raise FileNotFoundError(f"no results in {self.root}: expected runs/ and tables/ (run "
                                     f"'python -m studies run --all --out {self.root}' first)")
@@ -40,12 +42,7 @@ class Results:
     @cached_property
     def rows(self) -> pd.DataFrame:
         """Every stored run, one row each, with ``variant``, ``method`` and ``load`` columns."""
-        recs = []
-        for p in sorted(self.runs_dir.glob("*.json")) if self.runs_dir.is_dir() else []:
-            try:
-                recs.append(json.loads(p.read_text()))
-            except (OSError, json.JSONDecodeError):
-                continue
+        recs, self._damaged = Store(self.root).scan()
         if not recs:
             return pd.DataFrame()
         df = pd.DataFrame(recs)
@@ -56,12 +53,21 @@ class Results:
                 df[col] = default
         df["scene_e_form"] = df["scene_e_form"].fillna(False).astype(bool)
         df["message"] = df["message"].fillna("")
-        df["variant"] = np.where(df["scene_e_form"], df["scene_model"] + " (E-form)", df["scene_model"])
+        # the variant name the study stored with the run (its model's name for its parameters)
+        stored = df["scene_variant"] if "scene_variant" in df else pd.Series(np.nan, index=df.index)
+        df["variant"] = stored.where(stored.notna(), df["scene_model"])
         fem = df["solver"].map(is_fem)
         df["method"] = np.where(fem, df["solver"],
                                 df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
         df["is_fem"] = fem
         return df
+
+    @property
+    def damaged(self) -> list[DamagedRun]:
+        """Stored runs left out of :attr:`rows` (unreadable, incomplete, arrays not their own),
+        each with its file and reason."""
+        self.rows  # noqa: B018 - reading the rows finds them
+        return self._damaged
 
     def ok(self) -> pd.DataFrame:
         df = self.rows

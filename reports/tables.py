@@ -8,6 +8,7 @@ result, ``ref`` for the FEM reference column, ``paper`` for the publication's va
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -77,6 +78,11 @@ def _short(m: str) -> str:
     return m.replace(" static", "").replace("fem-auto-", "FEM ").replace("fem-hex2-", "FEM Hex2 ")
 
 
+def _not_in_design(method: str, law: str) -> bool:
+    """A finite-strain FEM column at a small load, where the study runs the linear FEM only."""
+    return method.startswith("fem") and law == "linear" and not method.endswith("linear")
+
+
 def volume_table(results: Results, name: str, experiment: str, number: int) -> Table | None:
     t = results.table(name)
     if t is None:
@@ -95,7 +101,9 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
         row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (fmt(100 * r["d"], 3), "")]
         for m in methods:
             v = r[m]
-            if pd.isna(v):
+            if pd.isna(v) and _not_in_design(m, law):
+                row.append(("–", ""))
+            elif pd.isna(v):
                 state = run_state(results, experiment, m, mesh=r["mesh"], nu=r["nu"], deformation=r["d"])
                 row.append((state or "missing", "fail" if state.startswith("failed") else ""))
             else:
@@ -103,9 +111,9 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
         for c in paper_cols:
             row.append((fmt(r[c], 3), "paper"))
 
-        def delta(a, b):
-            d = a - b if not (pd.isna(a) or pd.isna(b)) else np.nan
-            return (fmt(d, 3), grade(d, E_DIFF_PP))
+        def delta(a, b):  # printed to 0.001 pp: round-off below that reads as 0
+            d = round(a - b, 3) if not (pd.isna(a) or pd.isna(b)) else np.nan
+            return (fmt(d, 3) if d != 0 else "0", grade(d, E_DIFF_PP))
 
         row.append(delta(r.get("hybmss static", np.nan), r.get("paper hybmss", np.nan)))
         row.append(delta(r.get("hybmss-fd static", np.nan), r.get("paper hybmss-fd", np.nan)))
@@ -119,7 +127,7 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
                  f"e = |V′ − V0|/V0 in %, FEM e = ∫ det F. FEM ref (bold) = linear at d = 5 %, Neo-Hookean at 20 %. "
                  f"Δ in percentage points; green |Δ| ≤ {E_DIFF_PP[0]:g} pp, amber ≤ {E_DIFF_PP[1]:g} pp, red above. "
                  f"The publication ran the 10×10×10 cube / 4×4×24 and 8×8×48 beams; compare meshes before "
-                 f"reading a Δ. Publication: {src}", cols, rows)
+                 f"reading a Δ. '–': not run at this load (finite-strain FEM at 5 %). Publication: {src}", cols, rows)
 
 
 def reaction_table(results: Results, name: str, experiment: str, number: int, load: str, unit: str,
@@ -146,7 +154,9 @@ def reaction_table(results: Results, name: str, experiment: str, number: int, lo
         row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (lv, "")]
         scene = dict(mesh=r["mesh"], nu=r["nu"], **{load: r[load]})
         for m in methods:
-            if pd.isna(r[m]):
+            if pd.isna(r[m]) and _not_in_design(m, law):
+                row.append(("–", ""))
+            elif pd.isna(r[m]):
                 state = run_state(results, experiment, m, **scene)
                 row.append((state or "missing", "fail" if state.startswith("failed") else ""))
             else:
@@ -171,7 +181,8 @@ def reaction_table(results: Results, name: str, experiment: str, number: int, lo
                  f"{experiment.capitalize()} of the 5 m cube, bottom clamped, {loadtxt}; E = 10⁴ Pa, static equilibria; "
                  f"{quantity} on the top plate in {unit}. FEM ref (bold) = linear at small load (5 %, 1°), "
                  f"Neo-Hookean at large load. Relative differences: green ≤ {REL_DIFF_PCT[0]:g} %, amber ≤ "
-                 f"{REL_DIFF_PCT[1]:g} %, red above.{note}", cols, rows)
+                 f"{REL_DIFF_PCT[1]:g} %, red above. '–': not run at this load (finite-strain FEM at the small load).{note}",
+                 cols, rows)
 
 
 def bending_table(results: Results) -> Table | None:
@@ -260,6 +271,13 @@ def moduli_table(results: Results) -> Table | None:
                         "nu_eff": "ν_eff (–)", "G_eff_over_G": "G_eff / G (–)", "status": "status"}, cls)
 
 
+def _short_state(state: str) -> str:
+    """"failed (unstable: StaticSolveError: ...)" -> "failed (unstable)" (the reason is in the
+    failures table); other states unchanged."""
+    m = re.match(r"^(.*?failed) \(([^:(),]+)", state)
+    return f"{m.group(1)} ({m.group(2).strip()})" if m else state
+
+
 def eform_table(results: Results) -> Table | None:
     t = results.table("eform_check")
     if t is None:
@@ -275,9 +293,11 @@ def eform_table(results: Results) -> Table | None:
                 return fmt(r[c]), ""
             if st.startswith("identical"):
                 return f"{fmt(r[c])} (identical at ν = 1/4)", ""
-            return st, "fail" if st.startswith("failed") else ""
+            return _short_state(st), "fail" if st.startswith("failed") else ""
 
         closer = str(r["closer"])
+        if closer.startswith("undecided ("):
+            closer = "undecided (" + _short_state(closer[len("undecided ("):-1]) + ")"
         rows.append([(r["experiment"], ""), (r["model"], ""), (r["mesh"], ""), (fmt(r["nu"], 3), ""),
                      (fmt(100 * r["d"], 3), ""), (fmt(r["paper_pct"], 3), "paper"),
                      val("G_form_pct", r["G_form_state"]), val("E_form_pct", r["E_form_state"]),
@@ -287,7 +307,8 @@ def eform_table(results: Results) -> Table | None:
                  "harness) and from [G20] eq. 5.12 in terms of E (E-form), each from its own run, against the "
                  "publication's hybmss and hybmss-fd columns (Tables 2, 3). 'closer' names the calibration nearer to "
                  "the publication; 'undecided' where a run failed or is missing, 'same' where the two differ by no "
-                 "more than the publication's printed precision (0.01 pp); at ν = 1/4 both are the same constants.",
+                 "more than the publication's printed precision (0.01 pp); at ν = 1/4 both are the same constants. "
+                 "The reasons of failed runs are in the failures table.",
                  cols, rows)
 
 
@@ -506,15 +527,19 @@ def explicit_table(results: Results) -> Table | None:
 # ------------------------------------------------------------------ the publication's numbers beside ours
 def run_state(results: Results, experiment: str, method: str, **scene) -> str:
     """What a reader sees instead of a number: "missing" if no run of ``method`` is stored for the
-    scene, "failed (status: message)" if every stored one failed, "" if one reached a result."""
+    scene, "failed (status, exception)" if every stored one failed (the message is in the failures
+    table), "" if one reached a result;
+    an E-form method at ν = 1/4 is the G-form (the same constants, not run) and says so."""
     sub = results.find(experiment, method=method, ok_only=False, **scene)
+    if sub.empty and "(E-form)" in method and scene.get("nu") is not None and np.isclose(float(scene["nu"]), 0.25):
+        return "= G-form (ν = 1/4)"  # the same constants: not run
     if sub.empty:
         return "missing"
     if (sub["status"] == "ok").any():
         return ""
     r = sub.iloc[0]
-    msg = " ".join(str(r.get("message") or "").split())
-    return f"failed ({r['status']}{': ' + msg[:60] + ('…' if len(msg) > 60 else '') if msg else ''})"
+    exc = re.match(r"^([A-Za-z_]+(?:Error|Exception))\b", str(r.get("message") or "").strip())
+    return f"failed ({r['status']}{', ' + exc.group(1) if exc else ''})"
 
 
 def _value_cell(results: Results, experiment: str, method: str, value, digits: int = 4, cls: str = "",
@@ -655,11 +680,12 @@ def b09_table(results: Results) -> Table | None:
                             paper_table("b09_errors"))
     if df.empty:
         return None
+    own = findings.b09_models(df)
     cols = ["experiment", "mesh", "model", "[B09] M", "[B09] SD", "[B09] MAX", "ours M", "ours SD", "ours MAX",
             "ours M / [B09] M", "nodal rel. M", "nodal rel. SD", "nodal rel. MAX"]
     rows = []
     for _, r in df.iterrows():
-        is_b09 = r["model"] == "baudet2009"
+        is_b09 = r["model"] in own
         row = [(findings.EXPERIMENT_NAMES.get(r["experiment"], r["experiment"]), ""), (r["mesh"], ""), (r["model"], "")]
         for c in ("b09_mean_pct", "b09_sd_pct", "b09_max_pct"):
             v = r.get(c, np.nan)
@@ -681,5 +707,5 @@ def b09_table(results: Results) -> Table | None:
                  "of order 10⁴; in the linear regime the normalized errors do not depend on the force). Every model "
                  "against a Hex2 linear FEM on a finer grid. Ours M, SD, MAX: mean, standard deviation and maximum over "
                  "the particles of |u_MSS − u_FEM| / max|u_FEM| (%); nodal rel.: |u_MSS − u_FEM| / |u_FEM| at the "
-                 "particles that move (%). [B09]'s values are for its own model (baudet2009) and do not say which "
+                 "particles that move (%). [B09]'s values are for its own model (" + ", ".join(own) + ") and do not say which "
                  f"normalization they use. {src}", cols, rows)

@@ -232,7 +232,7 @@ def volume_table(quick: bool = False, progress: bool = False):
     return pd.DataFrame(rows)
 
 
-def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True) -> None:
+def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, runner=None) -> None:
     """Write ``baudet_moduli``, ``baudet_cantilever``, ``baudet_lshape`` and ``baudet_volume``
     into ``store``."""
     store.write_table("baudet_moduli", moduli_table(quick, progress))

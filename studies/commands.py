@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import time
 
@@ -13,8 +14,10 @@ from hybmss.cli import CliError, emit, mesh_arg
 from hybmss import models
 
 from .compare import default_law, diff_metrics
-from .runner import SolverSpec, Task, measure, solve
+from .executors import EXECUTORS, SweepError
+from .runner import Runner, SolverSpec, Task, exit_now, measure, solve
 from .scenes import EXPERIMENTS, SceneSpec
+from .store import Store
 
 
 def _spec_from_args(args) -> SceneSpec:
@@ -79,11 +82,58 @@ def cmd_compare(args) -> int:
     return 0
 
 
-def cmd_run(args) -> int:
-    from .reproduce import run_studies
+def run_options(q: argparse.ArgumentParser) -> None:
+    """The options of ``hybmss run`` (added to its parser by :func:`register`)."""
+    q.add_argument("--study", action="append", default=None, help="study name (repeatable)")
+    q.add_argument("--all", action="store_true", help="every study of make reproduce-paper")
+    q.add_argument("--out", default="artifacts/results", help="results folder")
+    q.add_argument("--quick", action="store_true", help="coarse meshes (the tests' mode)")
+    q.add_argument("--jobs", type=int, default=None,
+                   help="parallel runs, >= 1 (default: all cores, or the Dask cluster's threads)")
+    q.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="local: a process pool on this machine (default); dask: a dask.distributed "
+                        "cluster (--scheduler, or a local cluster of --jobs workers)")
+    q.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of a running dask scheduler, e.g. tcp://host:8786 (--executor dask)")
+    q.add_argument("--no-progress", action="store_true")
+    q.add_argument("--json", action="store_true", help="print what was run as one JSON object")
 
-    run_studies(args.out, names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,
-                progress=not args.no_progress)
+
+def cmd_run(args) -> int:
+    """Exit 0 when the sweep finishes (failed runs are stored rows), 2 for options not allowed
+    (checked before any work), 3 when the sweep cannot go on, 130 on SIGINT."""
+    from .reproduce import EXTRA_STUDIES, STUDIES, run_studies
+
+    if args.all and args.study:
+        raise ValueError(f"--all and --study {','.join(args.study)} together are not allowed: "
+                         "--all runs every study; give one or the other")
+    if not str(args.out).strip():
+        raise ValueError("--out '' is not allowed: a results folder path is required")
+    unknown = [n for n in args.study or () if n not in STUDIES and n not in EXTRA_STUDIES]
+    if unknown:
+        raise ValueError(f"--study {unknown[0]!r} is not allowed; studies: "
+                         f"{', '.join(list(STUDIES) + list(EXTRA_STUDIES))}")
+    runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
+    Store(args.out).check_writable()
+    try:
+        with runner:
+            run_studies(args.out, names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,
+                        progress=not args.no_progress, runner=runner)
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, exit_now)  # exiting; a second Ctrl-C exits at once
+        s = runner.summary
+        sys.stderr.write(f"interrupted: {s.computed} runs computed and stored in {args.out}, running "
+                         "ones abandoned; rerun the same command to resume\n")
+        return 130
+    except SweepError as exc:
+        msg = " ".join(str(exc).split())
+        if args.json:
+            emit({"status": "error", "message": msg, "out": str(args.out), **runner.summary.as_dict()}, True, "")
+        sys.stderr.write(f"error: {msg}\n")
+        return 3
+    s = runner.summary
+    out = {"status": "ok", "out": str(args.out), **s.as_dict()}
+    emit(out, args.json, f"{args.out}: {s.line()}")
     return 0
 
 
@@ -112,10 +162,5 @@ def register(sub) -> None:
     q.set_defaults(func=cmd_compare)
 
     q = sub.add_parser("run", help="run the publication's studies and store their results")
-    q.add_argument("--study", action="append", default=None, help="study name (repeatable)")
-    q.add_argument("--all", action="store_true", help="every study of make reproduce-paper")
-    q.add_argument("--out", default="artifacts/results", help="results folder")
-    q.add_argument("--quick", action="store_true", help="coarse meshes (the tests' mode)")
-    q.add_argument("--jobs", type=int, default=None, help="parallel runs (default: all cores)")
-    q.add_argument("--no-progress", action="store_true")
+    run_options(q)
     q.set_defaults(func=cmd_run)

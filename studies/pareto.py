@@ -320,11 +320,12 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
 
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
-        experiments=EXPERIMENTS, nus=None, level: str | None = None) -> dict:
+        experiments=EXPERIMENTS, nus=None, level: str | None = None, runner=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``pareto``, ``pareto_front``,
     ``pareto_references`` and ``budget``."""
     pairs = all_tasks(quick, experiments, nus, level)
-    rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto")
+    rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto",
+                     runner=runner)
     df, refs = pareto_frame(store, pairs, rows, quick)
     tables = {"pareto": df, "pareto_front": df[df["pareto"]].sort_values(["config", "time_s"]),
               "pareto_references": refs, "budget": budget_table(df)}

@@ -244,8 +244,9 @@ def format_table(df: pd.DataFrame) -> str:
         return df[cols].to_string(index=False)
 
 
-def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True) -> pd.DataFrame:
-    """Study driver (``EXTRA_STUDIES``): always serial (timings)."""
+def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True,
+        runner=None) -> pd.DataFrame:
+    """Study driver (``EXTRA_STUDIES``): always serial in this process (timings), whatever ``runner``."""
     df, bw = run_performance(quick=quick, progress=progress)
     store.write_table("performance", df)
     store.write_table("performance_summary", summary(df))

@@ -108,8 +108,16 @@ def load_tolerances() -> dict[str, tuple[float, float]]:
     return {r.metric: (float(r.rtol), float(r.atol)) for r in t.itertuples()}
 
 
+def unbaselined(current: pd.DataFrame, baseline: pd.DataFrame) -> list[str]:
+    """Models measured now that have no row in the baseline at all (a model added to the
+    registry, or another package's): nothing to regress from until a baseline is recorded."""
+    return sorted(set(current["model"]) - set(baseline["model"]))
+
+
 def regressions(current: pd.DataFrame, baseline: pd.DataFrame, tolerances) -> list[str]:
-    """Human-readable list of the metrics that got worse than allowed (empty: all good)."""
+    """Human-readable list of the metrics that got worse than allowed (empty: all good).  Rows of
+    :func:`unbaselined` models are not compared."""
+    current = current[~current["model"].isin(unbaselined(current, baseline))]
     merged = baseline.merge(current, on=["case", "model"], how="outer", suffixes=("_base", "_now"),
                             indicator="where")
     problems = []
@@ -143,7 +151,10 @@ def main(argv=None) -> int:
         atomic_write_text(_data_path("regression_baseline.csv"), header + now.to_csv(index=False, float_format="%.6g"))
         print(now.to_string(index=False))
         return 0
-    problems = regressions(now, load_baseline(), load_tolerances())
+    base = load_baseline()
+    problems = regressions(now, base, load_tolerances())
+    for m in unbaselined(now, base):
+        print(f"model {m}: no baseline yet (measured, not compared; record one with --update --reason)")
     print("\n".join(problems) if problems else "no regression")
     return 1 if problems else 0
 

@@ -140,8 +140,9 @@ EXTRA_STUDIES: dict[str, str] = {
     "stability": "studies.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input
 }
 """Studies with their own driver, run after the task lists above: name -> "module:function",
-where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool) -> None``
-and writes its own tables into ``store`` (e.g. performance, speed against error, stability)."""
+where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool, runner)``
+(``runner``: the :class:`studies.runner.Runner` its runs go to, or ``None``) and writes its own
+tables into ``store`` (e.g. performance, speed against error, stability)."""
 
 
 def tasks_for(names=None, quick: bool = False) -> list[Task]:
@@ -152,8 +153,10 @@ def tasks_for(names=None, quick: bool = False) -> list[Task]:
     return [t for n in names for t in STUDIES[n](quick)]
 
 
-def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, progress: bool = True):
-    """Run (or resume) the named studies into the results folder ``out`` and write the tables."""
+def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, progress: bool = True,
+                runner=None):
+    """Run (or resume) the named studies into the results folder ``out`` and write the tables.
+    ``runner`` (a :class:`studies.runner.Runner`) chooses where runs are computed."""
     from .tables import write_tables
 
     import importlib
@@ -166,10 +169,11 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
     # one pool for every task list, so that no core idles at the end of a study's slowest run
     listed = [n for n in names if n in STUDIES]
     rows = run_tasks(tasks_for(listed, quick), store, jobs=jobs, progress=progress,
-                     desc=", ".join(listed)) if listed else []
+                     desc=", ".join(listed), runner=runner) if listed else []
     write_tables(store)
     for name in names:
         if name in EXTRA_STUDIES:
             module, func = EXTRA_STUDIES[name].split(":")
-            getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress)
+            getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress,
+                                                           runner=runner)
     return rows

@@ -1,26 +1,34 @@
 """The study runner: tasks (scene × solver) executed once, stored, resumable.
 
 A :class:`Task` pairs a :class:`~studies.scenes.SceneSpec` with a :class:`SolverSpec`.
-:func:`run_tasks` skips tasks whose key is already stored, runs the rest over the machine's
-cores with a progress bar, and stores each result atomically as soon as it finishes.  A failure
-(divergence, loss of equilibrium, an exception in a solver) is stored as a row with
-``status`` and ``message``: it is reported, never raised past the runner.
+:func:`run_tasks` skips tasks whose key is already stored intact, computes the rest with an
+executor (:class:`Runner`: the machine's cores or a Dask cluster, :mod:`studies.executors`) and a
+progress bar, and stores each result atomically, in this process, as soon as it comes back.  A
+failure (divergence, loss of equilibrium, an exception in a solver, a worker that died too often)
+is stored as a row with ``status`` and ``message``: it is reported, never raised past the runner.
+A damaged stored run is reported, moved aside and computed again; a run is claimed in the store
+before it is computed, so two sweeps on one folder share the work.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import multiprocessing
 import os
+import signal
+import sys
+import threading
 import time
 import traceback
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass
+from collections import deque
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from .scenes import BEAM_LENGTH, SceneSpec
-from .store import Store, code_version, environment
+from .executors import EXECUTORS, SweepError, WorkerDied, make_executor
+from .store import DamagedRun, Store, code_version, environment
 
 SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
 
@@ -156,13 +164,10 @@ def tip_deflection(X: np.ndarray, u: np.ndarray) -> float:
     return float(uy[np.argmax(z)])
 
 
-def run_task(task: Task, store_root: str) -> dict:
-    """Execute ``task`` and store its row and arrays (worker entry point)."""
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    store = Store(store_root)
-    key = task.key()
-    row = {
-        "key": key,
+def base_row(task: Task, key: str | None = None) -> dict:
+    """The fields of a run's row that describe it (scene, solver, environment)."""
+    return {
+        "key": key or task.key(),
         "study": task.study,
         "solver": task.solver.label,
         **{f"scene_{k}": v for k, v in task.scene.to_dict().items()},
@@ -170,6 +175,13 @@ def run_task(task: Task, store_root: str) -> dict:
         "label": task.scene.label,
         **{f"env_{k}": v for k, v in environment().items()},
     }
+
+
+def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
+    """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
+    the process that runs the sweep stores them)."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    row = base_row(task, key)
     t0 = time.perf_counter()
     arrays = None
     try:
@@ -190,8 +202,7 @@ def run_task(task: Task, store_root: str) -> dict:
         row["message"] = f"{name}: {' '.join(str(exc).split())}"
         row["traceback"] = traceback.format_exc(limit=4)
     row["elapsed_s"] = time.perf_counter() - t0
-    store.save(key, row, arrays)
-    return row
+    return row, arrays
 
 
 def _expected_cost(task: Task) -> float:
@@ -208,36 +219,235 @@ def _expected_cost(task: Task) -> float:
     return cells * (2.0 if task.scene.nu < 0.25 else 1.0)
 
 
-def run_tasks(tasks: list[Task], store: Store, jobs: int | None = None, progress: bool = True,
-              desc: str = "runs") -> list[dict]:
-    """Run the tasks not yet stored; return the rows of all tasks (in task order)."""
-    from tqdm import tqdm
+@dataclass
+class Summary:
+    """What a sweep did: runs asked for, computed here, found stored, computed meanwhile by
+    another process, failed (stored with their message), damaged runs moved aside."""
 
-    keys = [t.key() for t in tasks]
-    todo = [(t, k) for t, k in zip(tasks, keys) if not store.has(k)]
-    # unique keys only (two studies may share a run)
-    seen, unique = set(), []
-    for t, k in todo:
-        if k not in seen:
-            seen.add(k)
-            unique.append(t)
-    unique.sort(key=_expected_cost, reverse=True)  # longest first: the pool's tail stays short
-    jobs = max(1, min(jobs or os.cpu_count() or 1, len(unique) or 1))
-    bar = tqdm(total=len(tasks), initial=len(tasks) - len(unique), desc=desc, disable=not progress,
-               unit="run", dynamic_ncols=True)
-    if jobs == 1:
-        for t in unique:
-            bar.set_postfix_str(t.scene.label[:40], refresh=False)
-            run_task(t, str(store.root))
-            bar.update(1)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(run_task, t, str(store.root)): t for t in unique}
-            for fut in as_completed(futures):
-                fut.result()
+    runs: int = 0
+    computed: int = 0
+    stored: int = 0
+    by_other: int = 0
+    failed: int = 0
+    orphans: int = 0
+    damaged: list[str] = field(default_factory=list)
+
+    def add(self, other: "Summary") -> None:
+        for k in ("runs", "computed", "stored", "by_other", "failed", "orphans"):
+            setattr(self, k, getattr(self, k) + getattr(other, k))
+        self.damaged += other.damaged
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def line(self) -> str:
+        out = (f"{self.runs} runs: {self.computed} computed, {self.stored} already stored"
+               f"{f', {self.by_other} computed by another process' if self.by_other else ''}, "
+               f"{self.failed} failed")
+        if self.damaged:
+            out += f", {len(self.damaged)} damaged (moved to damaged/ and computed again)"
+        return out
+
+
+class Interrupted(KeyboardInterrupt):
+    """A sweep stopped by SIGINT: finished runs are stored, running ones were abandoned."""
+
+    def __init__(self, summary: Summary):
+        super().__init__(f"interrupted: {summary.computed} runs computed and stored before the "
+                         "interrupt, running ones abandoned; rerun to resume")
+        self.summary = summary
+
+
+def exit_now(signum, frame):  # a second Ctrl-C while the first is being handled
+    os.write(2, b"interrupted again: exiting now\n")
+    for p in multiprocessing.active_children():
+        p.kill()
+    os._exit(130)
+
+
+class Runner:
+    """How the runs of a sweep are computed: ``executor`` ``"local"`` (a process pool of ``jobs``
+    workers, all cores by default; ``jobs = 1`` runs in this process) or ``"dask"`` (the
+    ``dask.distributed`` scheduler at ``scheduler``, or a ``LocalCluster`` of ``jobs``
+    single-threaded workers).  Whatever computes, this process stores every result.
+
+    Arguments are checked here, before any work (``ValueError`` naming the parameter, its value
+    and what is allowed).  Use it as a context manager to keep one Dask cluster for several
+    sweeps; :attr:`summary` adds up what every sweep did."""
+
+    def __init__(self, executor: str = "local", jobs: int | None = None, scheduler: str | None = None,
+                 progress: bool = True):
+        if executor not in EXECUTORS:
+            raise ValueError(f"executor {executor!r} is not allowed; one of {', '.join(EXECUTORS)}")
+        if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer))
+                                 or jobs < 1):
+            raise ValueError(f"jobs {jobs!r} is not allowed: an integer >= 1 (parallel runs), or "
+                             "none for all cores")
+        if scheduler is not None and executor != "dask":
+            raise ValueError(f"scheduler {scheduler!r} is given with executor {executor!r}; a "
+                             "scheduler address needs executor dask")
+        if scheduler is not None and not str(scheduler).strip():
+            raise ValueError("scheduler '' is not allowed: the address of a running dask scheduler, "
+                             "e.g. tcp://host:8786")
+        if executor == "dask":
+            try:
+                import distributed  # noqa: F401 - optional dependency, checked before any work
+            except ImportError:
+                raise ValueError("executor 'dask' needs dask.distributed, which is not installed: "
+                                 "pip install 'hybmss[dask]'") from None
+        self.executor, self.jobs, self.scheduler, self.progress = executor, jobs, scheduler, progress
+        self.summary = Summary()
+        self._dask = None
+
+    # -------------------------------------------------------------- dask session
+    def __enter__(self):
+        if self.executor == "dask" and self._dask is None:
+            self._dask = make_executor("dask", compute, self.jobs, self.scheduler, 0)
+            if self._dask.dashboard:
+                self._write(f"dask dashboard: {self._dask.dashboard}")
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self) -> None:
+        if self._dask is not None:
+            self._dask.close()
+            self._dask = None
+
+    def _write(self, msg: str) -> None:
+        from tqdm import tqdm
+
+        tqdm.write(msg, file=sys.stderr)
+
+    # -------------------------------------------------------------- one sweep
+    def run(self, tasks: list[Task], store: Store, desc: str = "runs") -> list[dict]:
+        """Compute the tasks not yet stored (or stored damaged); return every task's row, in
+        task order.  SIGINT stops at once: runs finished are kept, running ones abandoned, the
+        workers shut down (:class:`Interrupted`); a second SIGINT exits immediately."""
+        from tqdm import tqdm
+
+        store.check_writable()
+        keys = [t.key() for t in tasks]
+        unique: dict[str, Task] = {}
+        for t, k in zip(tasks, keys):  # two studies may share a run
+            unique.setdefault(k, t)
+        s = Summary(runs=len(unique), orphans=len(store.remove_orphans()))
+        todo = []
+        for k, t in unique.items():
+            if store.has(k):
+                s.stored += 1
+            else:
+                todo.append((k, t))
+        todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)  # longest first: a short tail
+        bar = tqdm(total=len(unique), initial=s.stored, desc=desc, disable=not self.progress, unit="run",
+                   dynamic_ncols=True, file=sys.stderr)
+        own = self._dask is None and self.executor == "dask" and bool(todo)
+        if own:
+            self.__enter__()
+        ex = None
+        claims: dict = {}
+        try:
+            if todo:
+                ex = self._dask if self.executor == "dask" else make_executor(
+                    "local", compute, self.jobs, None, len(todo))
+                self._sweep(ex, todo, store, s, bar, claims)
+        except KeyboardInterrupt:
+            main = threading.current_thread() is threading.main_thread()
+            previous = signal.signal(signal.SIGINT, exit_now) if main else None
+            try:
+                if ex is not None:
+                    ex.abandon()
+                    if ex is self._dask:
+                        self._dask = None
+            finally:
+                for c in claims.values():
+                    c.release()
+                bar.close()
+                self.summary.add(s)
+                if main:
+                    signal.signal(signal.SIGINT, previous)
+            raise Interrupted(self.summary) from None
+        except BaseException:
+            for c in claims.values():
+                c.release()
+            if ex is not None and ex is not self._dask:
+                ex.abandon()
+            if own:
+                self.close()
+            bar.close()
+            self.summary.add(s)
+            raise
+        if ex is not None and ex is not self._dask:
+            ex.close()
+        if own:
+            self.close()
+        bar.close()
+        self.summary.add(s)
+        return [store.row(k) for k in keys]
+
+    def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict) -> None:
+        pending = deque(todo)
+        by_key = dict(todo)
+        waiting: list[tuple[str, Task]] = []
+        own_version = code_version()
+        while pending or claims or waiting:
+            while pending and len(claims) < ex.capacity():
+                k, t = pending.popleft()
+                claim = store.claim(k)
+                if claim is None:  # another process is computing it
+                    waiting.append((k, t))
+                    continue
+                try:
+                    done = store.check(k) is not None
+                except DamagedRun as d:
+                    where = store.quarantine(d)
+                    s.damaged.append(str(d))
+                    self._write(f"damaged run {d.path.name}: {d.reason}; moved to {where} and "
+                                "computed again")
+                    done = False
+                if done:  # stored meanwhile by another process
+                    claim.release()
+                    s.by_other += 1
+                    bar.update(1)
+                    continue
+                claims[k] = claim
+                ex.submit(k, t)
+            if claims:
+                k, outcome = ex.wait_one()
+                if isinstance(outcome, WorkerDied):
+                    row, arrays = base_row(by_key[k], k), None
+                    row.update(status="error", message=outcome.message)
+                else:
+                    row, arrays = outcome
+                    if row.get("env_code_version") != own_version:
+                        raise SweepError(
+                            f"a worker computed run {k} with hybmss code version "
+                            f"{row.get('env_code_version')}, this process has {own_version}: install "
+                            "the same hybmss on every worker (README)")
+                stored = store.save(k, row, arrays)
+                claims.pop(k).release()
+                s.computed += 1
+                s.failed += stored.get("status") != "ok"
+                bar.set_postfix_str(str(stored.get("label", ""))[:40], refresh=False)
                 bar.update(1)
-    bar.close()
-    return [store.row(k) for k in keys]
+            elif waiting:
+                holders = sorted({store.holder(k) for k, _ in waiting} - {""})
+                bar.set_postfix_str(f"waiting for {len(waiting)} runs claimed by "
+                                    f"{', '.join(holders) or 'another process'}"[:60], refresh=True)
+                time.sleep(0.5)
+                pending.extend(waiting)
+                waiting.clear()
+
+
+def run_tasks(tasks: list[Task], store: Store, jobs: int | None = None, progress: bool = True,
+              desc: str = "runs", runner: Runner | None = None) -> list[dict]:
+    """Run the tasks not yet stored; return the rows of all tasks (in task order).  ``runner``
+    (a :class:`Runner`) chooses the executor; without one, the local process pool of ``jobs``
+    workers."""
+    if runner is None:
+        runner = Runner(jobs=jobs, progress=progress)
+    return runner.run(tasks, store, desc=desc)
 
 
 def task_dict(task: Task) -> dict:

@@ -441,7 +441,7 @@ def _combined(store: Store) -> pd.DataFrame:
 
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
-        parts: str = "adfce", damping_mesh=None, extreme_mesh=None) -> dict:
+        parts: str = "adfce", damping_mesh=None, extreme_mesh=None, runner=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``dt_stability`` (a), ``limit_stretch`` (d),
     ``damping_steps`` (f), ``stability_extreme`` (b, c) and ``stability_irregular`` (e), each as
     soon as its part is done, and ``stability``, the last two together.
@@ -454,17 +454,20 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
             store.write_table("dt_stability", tables["dt_stability"])
         elif part == "d":
             lim = limit_tasks(quick)
-            rows = run_tasks([t for _, t in lim], store, jobs=jobs, progress=progress, desc="stability limit")
+            rows = run_tasks([t for _, t in lim], store, jobs=jobs, progress=progress,
+                             desc="stability limit", runner=runner)
             tables["limit_stretch"] = limit_table(store, lim, rows)
             store.write_table("limit_stretch", tables["limit_stretch"])
         elif part == "f":
             dmp = damping_tasks(quick, damping_mesh)
-            rows = run_tasks([t for _, t in dmp], store, jobs=jobs, progress=progress, desc="stability damping")
+            rows = run_tasks([t for _, t in dmp], store, jobs=jobs, progress=progress,
+                             desc="stability damping", runner=runner)
             tables["damping_steps"] = damping_table(store, dmp, rows)
             store.write_table("damping_steps", tables["damping_steps"])
         elif part == "c":
             ext = extreme_tasks(quick, extreme_mesh)
-            rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress, desc="stability extreme")
+            rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress,
+                             desc="stability extreme", runner=runner)
             tables["stability_extreme"] = extreme_table(store, ext, rows)
             store.write_table("stability_extreme", tables["stability_extreme"])
             tables["stability"] = _combined(store)

@@ -4,17 +4,33 @@ A run is keyed by the SHA-256 of its scene, its solver specification and the sol
 version (:func:`code_version`), so an interrupted study resumes without recomputing finished runs
 and a change to a solver invalidates exactly the runs it could change.  Files are written to a
 temporary name in the same folder and renamed (``os.replace`` is atomic on POSIX).
+
+Rows are strict JSON (a non-finite number is stored as ``null``).  A row names its key and
+carries the SHA-256 of its arrays (:func:`arrays_digest`), so a truncated or empty row, a row
+without its key, a truncated NPZ or an NPZ of another run is detected (:meth:`Store.check`);
+the runner moves such a run aside (``damaged/``) and computes it again.  A process claims a run
+before computing it (:meth:`Store.claim`, a POSIX lock on ``locks/<key>.lock`` that the kernel
+releases when the process ends, however it ends), so two processes on one folder share the work
+and a lock left by a killed process never blocks.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import io
 import json
+import math
 import os
 import platform
+import socket
 import subprocess
 import tempfile
+import time
+import warnings
+import zipfile
+import zlib
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -53,8 +69,49 @@ def _json_default(o):
     raise TypeError(f"not JSON serializable: {type(o)}")
 
 
+def strict(obj):
+    """``obj`` with every non-finite float (NaN, ±inf) replaced by ``None`` and NumPy scalars and
+    arrays made plain, so that it serialises as strict JSON."""
+    if isinstance(obj, dict):
+        return {str(k): strict(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, set)):
+        return [strict(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return strict(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+
 def dumps(obj) -> str:
-    return json.dumps(obj, default=_json_default, sort_keys=True, indent=1)
+    """Strict JSON (``null`` for a non-finite number, never ``NaN`` or ``Infinity``)."""
+    return json.dumps(strict(obj), default=_json_default, sort_keys=True, indent=1, allow_nan=False)
+
+
+def _reject_constant(name):
+    raise ValueError(f"{name} is not strict JSON")
+
+
+def loads(text: str):
+    """Parse strict JSON (``NaN``/``Infinity`` rejected)."""
+    return json.loads(text, parse_constant=_reject_constant)
+
+
+def arrays_digest(arrays: dict | None) -> str | None:
+    """SHA-256 of a run's arrays (names, dtypes, shapes and values; independent of the NPZ's
+    compression and timestamps).  ``None`` for a run without arrays."""
+    if not arrays:
+        return None
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 SOLVER_SOURCES = {
@@ -106,38 +163,265 @@ def environment() -> dict:
     }
 
 
+class DamagedRun(Exception):
+    """A stored run that cannot be trusted: the file and the reason."""
+
+    def __init__(self, key: str, path: Path, reason: str):
+        super().__init__(f"{path}: {reason}")
+        self.key, self.path, self.reason = key, Path(path), reason
+
+
+@dataclass
+class Claim:
+    """A run claimed by this process (an exclusive lock on ``locks/<key>.lock``)."""
+
+    key: str
+    path: Path
+    fd: int
+
+    def release(self) -> None:
+        if self.fd < 0:
+            return
+        try:  # unlink first: a process that opened the file before sees another inode and retries
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        os.close(self.fd)
+        self.fd = -1
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+ARRAYS_FIELD = "arrays_sha256"
+NONFINITE_FIELD = "nonfinite"
+
+
+def _nonfinite(row: dict) -> dict:
+    """``{field: "nan" | "inf" | "-inf"}`` for the non-finite numbers of a row (top level and
+    ``info``), which strict JSON stores as ``null``; :meth:`Store.row` restores them."""
+    out = {}
+    for prefix, d in (("", row), ("info.", row.get("info") if isinstance(row.get("info"), dict) else {})):
+        for k, v in d.items():
+            if isinstance(v, (float, np.floating)) and not math.isfinite(v):
+                out[prefix + k] = repr(float(v))
+    return out
+
+
+def _restore_nonfinite(row: dict) -> dict:
+    for path, text in (row.get(NONFINITE_FIELD) or {}).items():
+        head, _, tail = path.partition(".")
+        target, name = (row.get(head), tail) if tail and isinstance(row.get(head), dict) else (row, path)
+        if name in target and target[name] is None:
+            target[name] = float(text)
+    return row
+
+
 class Store:
-    """Folder of run records: ``runs/<key>.json`` (row) and ``runs/<key>.npz`` (arrays)."""
+    """Folder of run records: ``runs/<key>.json`` (row) and ``runs/<key>.npz`` (arrays);
+    ``locks/`` holds the claims of runs being computed, ``damaged/`` the runs moved aside."""
 
     def __init__(self, root):
+        if isinstance(root, str) and not root.strip():
+            raise ValueError("out (results folder) is '': a folder path is required")
         self.root = Path(root)
         self.runs = self.root / "runs"
+        self.locks = self.root / "locks"
+        self.damaged_dir = self.root / "damaged"
 
-    def has(self, key: str) -> bool:
-        return (self.runs / f"{key}.json").exists()
+    # ----------------------------------------------------------------- writing
+    def check_writable(self) -> None:
+        """Raise ``ValueError`` (naming the folder) unless the results folder is, or can be
+        created as, a writable folder: checked before any work."""
+        p = self.root.absolute()
+        probe = p
+        while not probe.exists():
+            if probe.parent == probe:
+                break
+            probe = probe.parent
+        if probe.exists() and not probe.is_dir():
+            what = "is a file" if probe == p else f"is under {probe}, which is not a folder"
+            raise ValueError(f"out (results folder) {str(self.root)!r} {what}: a writable folder is required")
+        if not os.access(probe, os.W_OK | os.X_OK):
+            raise ValueError(f"out (results folder) {str(self.root)!r}: {probe} is not writable; "
+                             "a writable folder is required")
+        for sub in (self.runs, self.locks):
+            if sub.exists() and not sub.is_dir():
+                raise ValueError(f"out (results folder) {str(self.root)!r}: {sub} is a file; "
+                                 "a results folder holds runs/ and locks/ folders")
 
-    def save(self, key: str, row: dict, arrays: dict | None = None) -> None:
+    def save(self, key: str, row: dict, arrays: dict | None = None) -> dict:
+        """Store a run (arrays first, then the row naming their digest); returns the stored row."""
+        arrays = {k: np.asarray(v) for k, v in (arrays or {}).items() if v is not None}
+        row = {**row, "key": key, ARRAYS_FIELD: arrays_digest(arrays)}
+        row[NONFINITE_FIELD] = _nonfinite(row)
         if arrays:
             buf = io.BytesIO()
-            np.savez_compressed(buf, **{k: np.asarray(v) for k, v in arrays.items() if v is not None})
+            np.savez_compressed(buf, **arrays)
             atomic_write_bytes(self.runs / f"{key}.npz", buf.getvalue())
+        else:
+            self.runs.mkdir(parents=True, exist_ok=True)
+            (self.runs / f"{key}.npz").unlink(missing_ok=True)
         # the JSON row is written last: its presence means the run is complete
-        atomic_write_text(self.runs / f"{key}.json", dumps(row))
+        text = dumps(row)
+        atomic_write_text(self.runs / f"{key}.json", text)
+        return _restore_nonfinite(loads(text))
+
+    # ----------------------------------------------------------------- reading
+    def _load_row(self, key: str) -> dict | None:
+        path = self.runs / f"{key}.json"
+        try:
+            text = path.read_text()
+        except FileNotFoundError:
+            return None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise DamagedRun(key, path, f"unreadable ({type(exc).__name__}: {exc})") from None
+        if not text.strip():
+            raise DamagedRun(key, path, "empty file")
+        try:
+            row = loads(text)
+        except ValueError as exc:  # json.JSONDecodeError is a ValueError
+            raise DamagedRun(key, path, f"not valid JSON ({exc})") from None
+        if not isinstance(row, dict) or not row:
+            raise DamagedRun(key, path, "not a run record (empty or not an object)")
+        if row.get("key") != key:
+            raise DamagedRun(key, path, f"names key {row.get('key')!r}, not its own")
+        for field in ("status", ARRAYS_FIELD):
+            if field not in row:
+                raise DamagedRun(key, path, f"no {field!r} field (incomplete or an older store format)")
+        return _restore_nonfinite(row)
+
+    def _load_arrays(self, key: str, row: dict) -> dict:
+        path = self.runs / f"{key}.npz"
+        want = row.get(ARRAYS_FIELD)
+        if want is None:
+            return {}
+        try:
+            with np.load(path) as z:
+                arrays = {k: z[k] for k in z.files}
+        except FileNotFoundError:
+            raise DamagedRun(key, path, "missing (the row names arrays)") from None
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+            raise DamagedRun(key, path, f"unreadable ({type(exc).__name__}: {' '.join(str(exc).split())})") from None
+        if arrays_digest(arrays) != want:
+            raise DamagedRun(key, path, "arrays do not match the row's checksum (from another run or altered)")
+        return arrays
+
+    def check(self, key: str) -> dict | None:
+        """The verified row of a stored run, ``None`` if not stored; raises :class:`DamagedRun`."""
+        row = self._load_row(key)
+        if row is not None:
+            self._load_arrays(key, row)
+        return row
+
+    def has(self, key: str) -> bool:
+        """True if the run is stored and intact."""
+        try:
+            return self.check(key) is not None
+        except DamagedRun:
+            return False
 
     def row(self, key: str) -> dict:
-        return json.loads((self.runs / f"{key}.json").read_text())
+        row = self._load_row(key)
+        if row is None:
+            raise FileNotFoundError(f"{self.runs / (key + '.json')}: run not stored")
+        return row
 
     def arrays(self, key: str) -> dict:
-        path = self.runs / f"{key}.npz"
-        if not path.exists():
-            return {}
-        with np.load(path) as z:
-            return {k: z[k] for k in z.files}
+        """The arrays of a run, verified against its row's checksum ({} for a run without)."""
+        row = self._load_row(key)
+        return {} if row is None else self._load_arrays(key, row)
+
+    def keys(self) -> list[str]:
+        if not self.runs.is_dir():
+            return []
+        return sorted(p.stem for p in self.runs.glob("*.json") if not p.name.startswith("."))
+
+    def scan(self, verify_arrays: bool = True) -> tuple[list[dict], list[DamagedRun]]:
+        """Every stored row and every damaged run."""
+        rows, damaged = [], []
+        for key in self.keys():
+            try:
+                row = self._load_row(key)
+                if verify_arrays:
+                    self._load_arrays(key, row)
+                rows.append(row)
+            except DamagedRun as exc:
+                damaged.append(exc)
+        return rows, damaged
 
     def rows(self) -> list[dict]:
-        if not self.runs.exists():
-            return []
-        return [json.loads(p.read_text()) for p in sorted(self.runs.glob("*.json"))]
+        """Every intact stored row; a damaged run is left out with a warning naming it."""
+        rows, damaged = self.scan(verify_arrays=False)
+        for d in damaged:
+            warnings.warn(f"damaged run left out: {d}", stacklevel=2)
+        return rows
+
+    # ----------------------------------------------------------------- healing
+    def quarantine(self, damaged: DamagedRun) -> Path:
+        """Move a damaged run's files to ``damaged/`` (with the reason beside them)."""
+        stamp = time.strftime("%Y%m%dT%H%M%S") + f"-{os.getpid()}"
+        dest = self.damaged_dir
+        dest.mkdir(parents=True, exist_ok=True)
+        for suffix in (".json", ".npz"):
+            src = self.runs / f"{damaged.key}{suffix}"
+            if src.exists():
+                os.replace(src, dest / f"{damaged.key}.{stamp}{suffix}")
+        atomic_write_text(dest / f"{damaged.key}.{stamp}.reason.txt", f"{damaged}\n")
+        return dest
+
+    def claim(self, key: str) -> Claim | None:
+        """Claim a run for this process; ``None`` if another live process holds it.  The lock
+        is a POSIX record lock: it is not inherited by child processes and the kernel drops it
+        when the holder exits, even on SIGKILL, so a lock file left behind never blocks."""
+        self.locks.mkdir(parents=True, exist_ok=True)
+        path = self.locks / f"{key}.lock"
+        while True:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                return None
+            try:
+                same = os.stat(path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:  # released and unlinked by its holder meanwhile: take the new file
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{socket.gethostname()} {os.getpid()}\n".encode())
+            return Claim(key, path, fd)
+
+    def holder(self, key: str) -> str:
+        """``host pid`` written by the process holding a run's claim ('' if unknown)."""
+        try:
+            return (self.locks / f"{key}.lock").read_text().strip()
+        except OSError:
+            return ""
+
+    def remove_orphans(self) -> list[Path]:
+        """Delete temporary files in ``runs/`` left by a process that was killed while writing
+        (a key's files are written only under its claim: an unclaimed key's are orphans)."""
+        removed = []
+        if not self.runs.is_dir():
+            return removed
+        for tmp in sorted(self.runs.glob(".*.tmp")):
+            key = tmp.name[1:].split(".", 1)[0]
+            claim = self.claim(key)
+            if claim is None:
+                continue
+            with claim:
+                try:
+                    tmp.unlink()
+                    removed.append(tmp)
+                except FileNotFoundError:
+                    pass
+        return removed
 
     def write_table(self, name: str, df) -> Path:
         """Write a pandas table as CSV and Markdown under ``tables/``."""

@@ -329,6 +329,11 @@ def test_new_tables_have_their_rows_and_published_columns(report):
     assert "hybmss [G20] (N)" in t4.columns and "FEM [G20] (N)" in t4.columns
     assert [r[t4.columns.index("hybmss [G20] (N)")][0] for r in t4.rows] == ["3396", "1.460e+04"] or \
         [r[t4.columns.index("hybmss [G20] (N)")][0] for r in t4.rows] == ["3396", "14600"]
+    head = res.tables["table_headline"]
+    g = head.columns.index("[G20] hybmss")
+    shear = [r for r in head.rows if r[0][0] == "shear" and r[2][0] == "0.25"]
+    assert [r[g][0] for r in shear] == ["3396"]  # [G20] Table 4 in the headline, where it publishes a value
+    assert all(r[g][0] == "–" for r in head.rows if r[0][0] == "shear" and r[2][0] != "0.25")
     t5 = res.tables["table5_g20"]
     assert [r[t5.columns.index("load here")][0] for r in t5.rows] == ["θ = 1°", "θ = 45°"]
     ml = res.tables["table_middle_layer"]
@@ -483,3 +488,27 @@ def test_published_claims_follow_their_criteria(results):
     assert "missing" in t4.evidence  # no 20 % shear run in the fixture
     b09 = next(c for s, c in cl.items() if "[B09]'s (mean error" in s)
     assert b09.evidence.startswith(("0 of 2", "1 of 2", "2 of 2"))
+
+
+def test_budget_answers_pick_the_fastest_method_that_meets_the_budget():
+    from reports.findings import budget_answers
+
+    pareto = pd.DataFrame({"config": ["c"] * 4, "experiment": ["shear"] * 4, "role": ["candidate"] * 4,
+                           "status": ["ok"] * 4, "method": ["x", "x", "y", "z"], "mesh": ["2", "4", "2", "2"],
+                           "time_s": [1.0, 3.0, 2.0, 0.5], "error_u": [0.008, 0.002, 0.004, 0.2]})
+    ans = budget_answers(pareto, pd.DataFrame({"budget": [0.001, 0.005, 0.01, 0.5]})).set_index("budget")
+    assert ans.loc[0.001, "method"] == "none" and np.isnan(ans.loc[0.001, "lead"])
+    # at 0.5 %, x only meets it on its finer mesh (3 s): y (2 s) wins, x is next
+    assert (ans.loc[0.005, "method"], ans.loc[0.005, "next_method"]) == ("y", "x")
+    assert ans.loc[0.005, "lead"] == pytest.approx(1.5)
+    assert (ans.loc[0.01, "method"], ans.loc[0.01, "mesh"], ans.loc[0.01, "lead"]) == ("x", "2", pytest.approx(2.0))
+    assert (ans.loc[0.5, "method"], ans.loc[0.5, "lead"]) == ("z", pytest.approx(2.0))
+
+
+@pytest.mark.parametrize("status, inverted, state", [("converged", 0, "converged"), ("ok", 0, "converged"),
+                                                     ("converged", 3, "inverted"), ("diverged", 0, "diverged"),
+                                                     ("unstable", 0, "unstable"), ("nan", 0, "missing")])
+def test_stability_outcomes(status, inverted, state):
+    from reports.findings import outcome
+
+    assert outcome(status, inverted) == state

@@ -1,0 +1,93 @@
+"""``hybmss run`` as a user runs it: Ctrl-C (SIGINT to the process group, once and twice) on a
+two-worker sweep stops at once and keeps the finished runs; two ``run`` processes on one folder
+compute each run once; options that are not allowed exit 2 with one line before any work."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import psutil
+import pytest
+
+from studies.store import Store
+
+
+def hybmss(*args) -> list[str]:
+    return [sys.executable, "-m", "studies", *args]
+
+
+def wait_for_rows(store: Store, n: int, p: subprocess.Popen, timeout: float = 180) -> None:
+    deadline = time.monotonic() + timeout
+    while len(store.keys()) < n:
+        assert p.poll() is None, p.stderr.read()
+        assert time.monotonic() < deadline, "no run stored"
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("executor, signals", [("local", 2), ("dask", 1)])
+def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_path):
+    store = Store(tmp_path)
+    p = subprocess.Popen(hybmss("run", "--study", "compression", "--quick", "--jobs", "2", "--executor", executor,
+                                "--out", str(tmp_path), "--no-progress"),
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        wait_for_rows(store, 2, p)
+        workers = [c for c in psutil.Process(p.pid).children(recursive=True)
+                   if "resource_tracker" not in " ".join(c.cmdline())]
+        assert len(workers) >= 2
+        for _ in range(signals):  # Ctrl-C at a terminal: SIGINT to the whole process group
+            os.killpg(p.pid, signal.SIGINT)
+            time.sleep(0.05)
+        rc = p.wait(timeout=60)  # prompt: no run is waited for, nothing hangs
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    err = p.stderr.read()
+    # 130 from the handler; a second SIGINT landing while the interpreter exits ends it by the
+    # signal itself (the same status to a shell)
+    assert rc in (130, -signal.SIGINT), err
+    assert "Traceback" not in err and "interrupted" in err
+    _, alive = psutil.wait_procs(workers, timeout=10)
+    assert alive == []  # the pool is shut down
+    rows, damaged = store.scan()
+    assert damaged == [] and 2 <= len(rows) < 44  # finished runs kept, the rest abandoned
+    assert not list(store.runs.glob(".*.tmp"))
+
+
+def test_two_run_processes_compute_each_run_once(tmp_path):
+    cmd = hybmss("run", "--study", "bending", "--quick", "--jobs", "1", "--out", str(tmp_path), "--no-progress",
+                 "--json")
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [e for _, e in outs]
+    res = [json.loads(o) for o, _ in outs]
+    runs = res[0]["runs"]
+    assert runs == 8 and all(r["runs"] == runs for r in res)
+    assert sum(r["computed"] for r in res) == runs  # each run computed by exactly one of them
+    assert all(r["computed"] + r["stored"] + r["by_other"] == runs for r in res)
+    assert all(r["computed"] > 0 for r in res)  # the second process took runs of its own
+    rows, damaged = Store(tmp_path).scan()
+    assert len(rows) == runs and damaged == []
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--jobs", "0"], "jobs 0"), (["--out", ""], "--out ''"), (["--out", "/dev/null/r"], "/dev/null"),
+    (["--all", "--study", "bending"], "--all and --study"), (["--scheduler", "tcp://h:1"], "needs executor dask")])
+def test_run_options_not_allowed_exit_2_with_one_line(args, words, tmp_path):
+    out = [] if "--out" in args else ["--out", str(tmp_path / "r")]
+    p = subprocess.run(hybmss("run", "--quick", *out, *args), capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and p.stdout == ""
+    assert len(p.stderr.strip().splitlines()) == 1 and words in p.stderr, p.stderr
+    assert not (tmp_path / "r").exists()  # refused before any work
+
+
+def test_run_out_on_a_file_exits_2(tmp_path):
+    f = tmp_path / "results"
+    f.write_text("not a folder")
+    p = subprocess.run(hybmss("run", "--quick", "--study", "bending", "--out", str(f)), capture_output=True,
+                       text=True, timeout=60)
+    assert p.returncode == 2 and "is a file" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert f.read_text() == "not a folder"

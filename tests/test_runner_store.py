@@ -1,0 +1,215 @@
+"""The result store heals: every kind of damage is reported, moved aside and recomputed, and the
+tables built from the healed store equal the tables of the undamaged one; rows are strict JSON;
+claims keep two processes from computing one run and never outlive their process."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from reports.data import Results
+from studies.runner import Runner, SolverSpec, Task
+from studies.scenes import SceneSpec
+from studies.store import Store, arrays_digest, dumps, loads
+from studies.tables import differences_table, runs_frame, volume_table
+
+
+def tiny_tasks() -> list[Task]:
+    """Compression of a 3³ cube at two ν: hybmss and hybmss-fd static, and the linear FEM."""
+    tasks = []
+    for nu in (0.0, 0.25):
+        spec = SceneSpec.default("compression", mesh=(3, 3, 3), nu=nu, deformation=0.05)
+        for model in ("hybmss", "hybmss-fd"):
+            tasks.append(Task(spec.replace(model=model), SolverSpec("static"), "compression"))
+        tasks.append(Task(spec, SolverSpec("fem", element="hex1", law="linear"), "compression"))
+    return tasks
+
+
+def tables(store: Store) -> dict[str, pd.DataFrame]:
+    df = runs_frame(store)
+    return {"volume": volume_table(df, "compression", "g20_table2_compression"),
+            "differences": differences_table(df, store)}
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    root = tmp_path_factory.mktemp("base")
+    store = Store(root)
+    Runner(jobs=1, progress=False).run(tiny_tasks(), store)
+    return root, tables(store)
+
+
+def _keys():
+    return [t.key() for t in tiny_tasks()]
+
+
+def _damage(store: Store, kind: str) -> str:
+    """Apply one kind of damage; return the key it hits."""
+    mss, fem = _keys()[0], _keys()[2]
+    js, npz = store.runs / f"{mss}.json", store.runs / f"{mss}.npz"
+    if kind == "truncated json":
+        js.write_bytes(js.read_bytes()[: len(js.read_bytes()) // 2])
+    elif kind == "empty json":
+        js.write_bytes(b"")
+    elif kind == "{} as a row":
+        js.write_text("{}")
+    elif kind == "row of another run":
+        shutil.copy(store.runs / f"{fem}.json", js)
+    elif kind == "truncated npz":
+        npz.write_bytes(npz.read_bytes()[:-200])
+    elif kind == "npz of another run":
+        shutil.copy(store.runs / f"{_keys()[3]}.npz", npz)  # hybmss at the other nu
+    elif kind == "npz missing":
+        npz.unlink()
+    return mss
+
+
+DAMAGE = ["truncated json", "empty json", "{} as a row", "row of another run", "truncated npz",
+          "npz of another run", "npz missing"]
+
+
+@pytest.mark.parametrize("kind", DAMAGE)
+def test_damaged_run_is_reported_moved_aside_and_recomputed(kind, base, tmp_path, capsys):
+    root, want = base
+    shutil.copytree(root, tmp_path / "r")
+    store = Store(tmp_path / "r")
+    key = _damage(store, kind)
+    # the report's reader names the damaged run instead of dropping it silently
+    res = Results(store.root)
+    assert [d.key for d in res.damaged] == [key]
+    assert key not in set(res.rows["key"])
+    runner = Runner(jobs=1, progress=False)
+    rows = runner.run(tiny_tasks(), store)
+    s = runner.summary
+    assert (s.computed, s.stored, len(s.damaged)) == (1, len(rows) - 1, 1)
+    assert key in capsys.readouterr().err  # reported on stderr
+    moved = sorted(p.name for p in store.damaged_dir.iterdir())
+    assert any(n.startswith(key) and n.endswith(".reason.txt") for n in moved)
+    assert store.scan()[1] == []  # nothing damaged is left
+    got = tables(store)
+    for name in want:
+        pd.testing.assert_frame_equal(got[name], want[name])
+    assert Results(store.root).damaged == []
+
+
+def test_npz_of_another_run_would_change_the_differences(base, tmp_path):
+    """The swap the checksum catches matters: with the other run's arrays the nodal difference
+    against the FEM changes (the table computed from the damaged files is wrong)."""
+    root, want = base
+    shutil.copytree(root, tmp_path / "r")
+    store = Store(tmp_path / "r")
+    key = _damage(store, "npz of another run")
+    with np.load(store.runs / f"{key}.npz") as z:
+        swapped = {k: z[k] for k in z.files}
+    assert arrays_digest(swapped) != store.row(key)["arrays_sha256"]
+    row = want["differences"][want["differences"]["mss_key"] == key].iloc[0]
+    fem = np.load(store.runs / f"{row['fem_key']}.npz")["u"]
+    rel = np.linalg.norm(swapped["u"] - fem) / np.linalg.norm(fem)
+    assert abs(rel - row["rel_l2"]) > 1e-3
+
+
+def test_orphan_temporary_file_is_removed(base, tmp_path):
+    """A temporary file left by a process killed while writing is deleted by the next sweep;
+    nothing is recomputed."""
+    root, _ = base
+    shutil.copytree(root, tmp_path / "r")
+    store = Store(tmp_path / "r")
+    key = _keys()[0]
+    orphan = store.runs / f".{key}.json.abc123.tmp"
+    orphan.write_text('{"key": "')
+    runner = Runner(jobs=1, progress=False)
+    runner.run(tiny_tasks(), store)
+    assert runner.summary.orphans == 1 and runner.summary.computed == 0
+    assert not orphan.exists()
+    assert not list(store.runs.glob(".*.tmp"))
+
+
+def test_rows_are_strict_json_and_keep_their_nan(tmp_path):
+    store = Store(tmp_path)
+    key = "a" * 24
+    row = {"status": "ok", "x": float("nan"), "y": float("inf"), "z": -np.inf, "w": np.float64(2.5),
+           "info": {"r": float("nan"), "s": "text"}, "scene_A": None}
+    store.save(key, row, {"u": np.arange(3.0)})
+    text = (store.runs / f"{key}.json").read_text()
+    loads(text)  # strict: NaN and Infinity are rejected by the parser
+    stored = json.loads(text)
+    assert stored["x"] is None and stored["y"] is None and stored["info"]["r"] is None
+    back = store.row(key)
+    assert np.isnan(back["x"]) and back["y"] == np.inf and back["z"] == -np.inf
+    assert np.isnan(back["info"]["r"]) and back["scene_A"] is None and back["w"] == 2.5
+    with pytest.raises(ValueError):
+        loads('{"a": NaN}')
+    assert "NaN" not in dumps({"a": float("nan")})
+
+
+def test_lock_of_a_killed_process_does_not_block(tmp_path):
+    """A run claimed by a process that was then killed (SIGKILL) is computed by the next sweep:
+    the claim died with its process, though its lock file is still there."""
+    store = Store(tmp_path)
+    task = tiny_tasks()[0]
+    code = textwrap.dedent(f"""
+        import sys, time
+        from studies.store import Store
+        claim = Store({str(tmp_path)!r}).claim({task.key()!r})
+        print("claimed" if claim else "refused", flush=True)
+        time.sleep(60)
+    """)
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "claimed"
+        assert store.claim(task.key()) is None  # held by a live process
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert (store.locks / f"{task.key()}.lock").exists()
+    runner = Runner(jobs=1, progress=False)
+    (row,) = runner.run([task], store)
+    assert row["status"] == "ok" and runner.summary.computed == 1
+    assert not list(store.locks.iterdir())  # released claims leave no lock file
+
+
+def test_out_that_cannot_be_a_folder_is_refused_before_work(tmp_path):
+    f = tmp_path / "file"
+    f.write_text("x")
+    for out, words in ((f, "is a file"), (f / "sub", "not a folder"), ("/dev/null/results", "not a folder")):
+        with pytest.raises(ValueError, match=words):
+            Runner(jobs=1, progress=False).run(tiny_tasks()[:1], Store(out))
+    with pytest.raises(ValueError, match="folder path is required"):
+        Store("")
+    assert f.read_text() == "x"
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(jobs=0), "jobs 0"), (dict(jobs=-1), "jobs -1"), (dict(executor="ssh"), "executor 'ssh'"),
+    (dict(scheduler="tcp://h:8786"), "needs executor dask")])
+def test_runner_arguments_are_checked(kw, words):
+    with pytest.raises(ValueError, match=words):
+        Runner(**kw)
+
+
+def test_results_of_other_solver_code_are_not_stored(tmp_path, monkeypatch):
+    """A worker whose hybmss differs from this process's (its rows name another code version)
+    stops the sweep instead of storing its results under this code's keys."""
+    import studies.runner as runner_mod
+    from studies.executors import SweepError
+
+    real = runner_mod.compute
+
+    def other_version(task, key=None):
+        row, arrays = real(task, key)
+        return {**row, "env_code_version": "0" * 16}, arrays
+
+    monkeypatch.setattr(runner_mod, "compute", other_version)
+    store = Store(tmp_path)
+    with pytest.raises(SweepError, match="code version"):
+        Runner(jobs=1, progress=False).run(tiny_tasks()[:1], store)
+    assert store.keys() == [] and not list(store.locks.iterdir())
