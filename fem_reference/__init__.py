@@ -10,8 +10,9 @@
 - :mod:`~fem_reference.linalg`: direct (nested-dissection order) / AMG-preconditioned solves, chosen
   by size;
 - :mod:`~fem_reference.convergence`: refinement studies, observed order, Richardson error;
-- :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``;
-- :mod:`~fem_reference.cli`: the ``fem`` subcommand.
+- :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``.
+
+The ``hybmss fem`` subcommand (:mod:`studies.cli`) runs it on one scene.
 """
 
 from .solve import operators, solve

@@ -80,6 +80,56 @@ def _check_experiment(experiment: str) -> None:
 
 
 @dataclass(frozen=True)
+class Range:
+    """An interval of allowed values, ``lo`` and ``hi`` included unless ``*_open``."""
+
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def __contains__(self, value) -> bool:
+        v = float(value)
+        if not math.isfinite(v):
+            return False
+        above = v > self.lo if self.lo_open else v >= self.lo
+        below = v < self.hi if self.hi_open else v <= self.hi
+        return above and below
+
+    def __str__(self) -> str:
+        def end(x):
+            return "inf" if x == math.inf else "-inf" if x == -math.inf else f"{x:g}"
+
+        left = "(" if self.lo_open or self.lo == -math.inf else "["
+        right = ")" if self.hi_open or self.hi == math.inf else "]"
+        return f"{left}{end(self.lo)}, {end(self.hi)}{right}"
+
+
+FINITE = Range()
+
+MSS_SOLVERS = ("static", "explicit", "implicit")
+"""The mass-spring solvers (the FEM reference is ``fem``)."""
+
+
+def param(default, help: str, unit: str = "", ranges=None, experiments=None, flags=(), solvers=None):
+    """A :class:`SceneSpec` field with what a user needs to set it: ``help`` and ``unit``; the
+    values a user may ask for, ``ranges`` (a :class:`Range`, a dict experiment → Range, or
+    ``None``: checked by the scene's own types); the ``experiments`` and ``solvers`` that use it
+    (``None``: every one); extra command-line ``flags``."""
+    return dataclasses.field(default=default, metadata={
+        "help": help, "unit": unit, "ranges": ranges, "experiments": experiments, "flags": tuple(flags),
+        "solvers": solvers})
+
+
+class ParameterError(ValueError):
+    """A scene parameter outside its allowed range: ``name``, ``value`` and ``allowed``."""
+
+    def __init__(self, name: str, value, allowed: str, why: str = ""):
+        self.name, self.value, self.allowed = name, value, allowed
+        super().__init__(f"{name} = {value!r} is not allowed: {why + '; ' if why else ''}allowed: {allowed}")
+
+
+@dataclass(frozen=True)
 class SceneSpec:
     """Parameters of one experiment run (everything a row of a results table needs).
 
@@ -90,17 +140,24 @@ class SceneSpec:
     """
 
     experiment: str
-    mesh: tuple[int, int, int] = (10, 10, 10)
-    E: float = 1e4
-    nu: float = 0.25
-    rho: float = 1000.0
-    model: str = "hybmss"
+    mesh: tuple[int, int, int] = param((10, 10, 10), "cells NXxNYxNZ")
+    E: float = param(1e4, "Young's modulus", "Pa", Range(0.0, lo_open=True))
+    nu: float = param(0.25, "Poisson ratio (the static and implicit mass-spring solvers and moduli take "
+                      "[-0.99, 0.49999])", "", Range(-1.0, 0.5, lo_open=True, hi_open=True))
+    rho: float = param(1000.0, "density", "kg/m^3", Range(0.0))
+    model: str = param("hybmss", "mass-spring model", solvers=MSS_SOLVERS)
     params: tuple[tuple[str, object], ...] = ()
-    deformation: float = 0.05
-    angle_deg: float = 0.0
-    gravity: float = 0.0
-    damping: float = 0.0
-    le: float | None = None
+    deformation: float = param(0.05, "plate displacement / height d (0.05 = 5 %)", "", {
+        "compression": Range(0.0, 1.0, hi_open=True), "tension": Range(0.0), "shear": FINITE,
+        "uniaxial": Range(-0.1, 0.1)}, experiments=("compression", "tension", "shear", "uniaxial"),
+        flags=("-d",))
+    angle_deg: float = param(0.0, "torsion angle of the top plate", "degrees",
+                             Range(-180.0, 180.0, lo_open=True, hi_open=True), experiments=("torsion",),
+                             flags=("--angle",))
+    gravity: float = param(0.0, "gravity along -y", "m/s^2", FINITE, experiments=("bending",))
+    damping: float = param(0.0, "mass-proportional damping c of the dynamic solvers", "1/s", Range(0.0),
+                           solvers=("explicit", "implicit"))
+    le: float | None = param(None, "cell edge (default: the body's size / mesh)", "m", Range(0.0, lo_open=True))
 
     def __post_init__(self):
         _check_experiment(self.experiment)
@@ -133,6 +190,53 @@ class SceneSpec:
             params = {k: v for k, v in params.items() if k in names}
         params.update({k: v for k, v in kw.items() if k not in _FIELDS})
         return dataclasses.replace(self, **fields, params=tuple(params.items()))
+
+    # ---------------------------------------------------------------- what a user may ask for
+    @staticmethod
+    def parameters() -> tuple[dataclasses.Field, ...]:
+        """The fields a user sets (all but ``experiment`` and the model's ``params``, which its
+        model declares), with their :func:`param` metadata."""
+        return tuple(f for f in dataclasses.fields(SceneSpec) if f.name not in ("experiment", "params"))
+
+    @staticmethod
+    def uses(name: str, experiment: str, solver: str | None = None) -> bool:
+        """Whether parameter ``name`` changes an ``experiment`` solved by ``solver``; a model's
+        parameter is the mass-spring solvers' only."""
+        meta = {f.name: f.metadata for f in SceneSpec.parameters()}.get(name)
+        if meta is None:
+            return solver is None or solver in MSS_SOLVERS
+        if meta["experiments"] is not None and experiment not in meta["experiments"]:
+            return False
+        return solver is None or meta["solvers"] is None or solver in meta["solvers"]
+
+    def check(self, solved: bool = True) -> "SceneSpec":
+        """Refuse values a user may not ask for (:class:`ParameterError`, a ``ValueError`` naming
+        the parameter, its value and the allowed range); returns ``self``.
+
+        Beyond each field's range: a scene with a plate on each end needs two cell layers along z
+        (with one, every particle lies on a plate and nothing is left to solve); torsion stays
+        below half a turn because a plate rotation is defined by its end position, so θ and
+        θ − 360° are the same boundary condition; compression stops short of the floor (d < 1).
+        The material is built to check its own constraints (the model checks its parameters
+        when the spec is made).  ``solved=False`` checks the values only (a body to count, not a
+        scene to solve: one cell layer is allowed).
+        """
+        for f in self.parameters():
+            rng = f.metadata["ranges"]
+            if isinstance(rng, dict):
+                rng = rng.get(self.experiment)
+            value = getattr(self, f.name)
+            if rng is None or value is None or not self.uses(f.name, self.experiment):
+                continue
+            if value not in rng:
+                unit = f" {f.metadata['unit']}" if f.metadata["unit"] else ""
+                raise ParameterError(f.name, value, f"{rng}{unit}", f"{self.experiment}: {f.metadata['help']}")
+        if solved and self.experiment in ("compression", "tension", "shear", "torsion") and self.mesh[2] < 2:
+            raise ParameterError("mesh", "x".join(map(str, self.mesh)), "NZ >= 2",
+                                 f"{self.experiment} moves a plate on each end, so one cell layer leaves "
+                                 "nothing to solve")
+        Material(self.E, self.nu, self.rho)
+        return self
 
     # ---------------------------------------------------------------- model
     @property

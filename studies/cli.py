@@ -1,38 +1,406 @@
-"""The installed ``hybmss`` command: the mass-spring subcommands of :mod:`hybmss.cli` plus the
-FEM reference and the study subcommands (which need both solvers)."""
+"""The ``hybmss`` command line: one parser for every subcommand, and its contract.
+
+Subcommands: ``info`` (lattice counts), ``moduli`` (effective E, ν, G of a model), ``bench``
+(speed of the kernels), ``fem`` (the FEM reference of one scene), ``compare`` (one scene on the
+mass-spring system and the FEM, side by side) and ``run`` (the publication's studies).  Their
+implementations are in :mod:`studies.commands`.
+
+The scene options (``--mesh``, ``--E``, ``--nu``, ``--deformation``, ``--angle-deg``, …) are
+generated from the fields of :class:`studies.scenes.SceneSpec`: each parameter is declared, ranged
+and defaulted once, there, and means the same in every subcommand.  Solver options take their
+defaults from :class:`studies.runner.SolverSpec`.
+"""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
+import json
+import math
+import os
 import sys
+import traceback
+import warnings
 
-from hybmss.cli import build_parser, run
+from hybmss.experiments import DEFAULTS, SceneSpec
+from hybmss.scene import parse_mesh
+
+from . import commands
+from .executors import EXECUTORS
+from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices, \
+    model_parameters
+
+ELEMENTS = ("hex1", "hex2", "mixed", "auto")
+LAWS = ("linear", "neo-hookean", "svk")
+"""The FEM reference's elements and laws (``fem_reference.solve``'s, named here so that a refused
+invocation does not import scikit-fem)."""
+
+CONTRACT = """\
+exit status and output:
+  0  a result; with --json exactly one JSON object on stdout (strict JSON: null, never NaN
+     or Infinity).
+  2  the input is not allowed: one line on stderr naming the parameter, its value and the
+     allowed range, checked before any work starts (a size guard refuses meshes and
+     refinements whose estimated memory does not fit this machine and says how much
+     they would need).
+  3  the input was valid but the simulation failed (diverged, lost equilibrium, Newton did
+     not converge, inverted cells): one line on stderr with the cause and a likely remedy;
+     with --json also one JSON object with "status" and "message" on stdout.
+  130 stopped by Ctrl-C (one line saying what was kept).
+  Never a traceback: --debug shows one (and the solvers' warnings).
+"""
 
 
-def _subparsers(parser):
-    for action in parser._actions:  # argparse keeps the subparsers action here
-        if action.__class__.__name__ == "_SubParsersAction":
-            return action
-    raise RuntimeError("parser has no subcommands")
+CHOICES = {"model": model_choices}
+"""Allowed values of the scene's text parameters."""
 
 
-def full_parser():
-    parser = build_parser()
-    sub = _subparsers(parser)
+# ------------------------------------------------------------------------------- value types
+def number(text: str) -> float:
     try:
-        from fem_reference.cli import register as register_fem
-    except ImportError:  # the FEM package is optional at the parser level
-        register_fem = None
-    if register_fem is not None:
-        register_fem(sub)
-    from .commands import register as register_studies
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return v
 
-    register_studies(sub)
-    return parser
+
+def positive_number(text: str) -> float:
+    v = number(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return v
+
+
+def non_negative_number(text: str) -> float:
+    v = number(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return v
+
+
+def integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+
+
+def mesh_arg(text: str):
+    try:
+        return parse_mesh(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected three integers >= 1 as NXxNYxNZ (e.g. 10x10x10), got {text!r}") from None
+
+
+def refinements(text: str) -> tuple[int, ...]:
+    try:
+        rs = tuple(int(t) for t in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected refinement factors like 1,2,3, got {text!r}") from None
+    if len(rs) < 2 or min(rs) < 1 or len(set(rs)) != len(rs):
+        raise argparse.ArgumentTypeError(f"expected at least two distinct factors >= 1, got {text!r}")
+    return rs
+
+
+# ------------------------------------------------------------------------------- the parser
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors raise :class:`InputError` (one line, exit 2)."""
+
+    def error(self, message):
+        raise InputError(message)
+
+
+class Options:
+    """The options declared so far, by flag: which take a value, so that ``--E -1e4`` reads
+    ``-1e4`` as the value of ``--E`` rather than as an unknown option."""
+
+    def __init__(self):
+        self.valued: set[str] = set()
+        self.flags: set[str] = set()
+
+    def add(self, parser, *flags, **kw):
+        action = parser.add_argument(*flags, **kw)
+        self.flags.update(flags)
+        if kw.get("action") in (None, "store", "append"):
+            self.valued.update(flags)
+        return action
+
+    def join_values(self, argv: list[str]) -> list[str]:
+        """``[--E, -1e4]`` → ``[--E=-1e4]`` for options that take a value."""
+        out, i = [], 0
+        while i < len(argv):
+            tok = argv[i]
+            if tok == "--":
+                out.extend(argv[i:])
+                break
+            nxt = argv[i + 1] if i + 1 < len(argv) else None
+            if tok in self.valued and nxt is not None and nxt.startswith("-") and nxt not in self.flags:
+                out.append(f"{tok}={nxt}")
+                i += 2
+                continue
+            out.append(tok)
+            i += 1
+        return out
+
+
+def _default_text(f: dataclasses.Field) -> str:
+    per = {ex: d[f.name] for ex, d in DEFAULTS.items() if f.name in d and ex != "uniaxial"
+           and SceneSpec.uses(f.name, ex)}
+    if per and len(set(map(str, per.values()))) > 1:
+        show = {ex: ("x".join(map(str, v)) if isinstance(v, tuple) else f"{v:g}") for ex, v in per.items()}
+        return "default: " + ", ".join(f"{ex} {v}" for ex, v in show.items())
+    v = next(iter(per.values())) if per else f.default
+    if isinstance(v, tuple):
+        v = "x".join(map(str, v))
+    return "" if v is None or v is False else f"default: {v:g}" if isinstance(v, float) else f"default: {v}"
+
+
+def add_scene_options(parser, opts: Options, names=None) -> None:
+    """One option per :class:`SceneSpec` parameter (or those in ``names``), default ``None``
+    (the experiment's own value)."""
+    group = parser.add_argument_group("scene parameters")
+    for f in SceneSpec.parameters():
+        if names is not None and f.name not in names:
+            continue
+        meta = f.metadata
+        rng = meta["ranges"]
+        bits = [meta["help"]]
+        if meta["unit"]:
+            bits.append(meta["unit"])
+        if isinstance(rng, dict):
+            bits.append("allowed " + ", ".join(f"{ex} {r}" for ex, r in rng.items() if ex in SCENES))
+        elif rng is not None:
+            bits.append(f"allowed {rng}")
+        if meta["experiments"] is not None:
+            bits.append("used by " + ", ".join(e for e in meta["experiments"] if e in SCENES))
+        if meta["solvers"] is not None:
+            bits.append("solvers " + ", ".join(meta["solvers"]))
+        dflt = _default_text(f)
+        if dflt:
+            bits.append(dflt)
+        text = "; ".join(bits).replace("%", "%%")
+        flags = (flag(f.name), *meta["flags"])
+        if f.type == "bool":
+            opts.add(group, *flags, dest=f.name, action="store_const", const=True, default=None, help=text)
+        elif f.name in CHOICES:
+            opts.add(group, *flags, dest=f.name, choices=CHOICES[f.name](), default=None, help=text)
+        elif f.name == "mesh":
+            opts.add(group, *flags, dest=f.name, type=mesh_arg, default=None, metavar="NXxNYxNZ", help=text)
+        else:
+            opts.add(group, *flags, dest=f.name, type=number, default=None, help=text)
+
+
+def add_model_options(parser, opts: Options) -> None:
+    """One option per parameter of the registered models (default ``None``: the model's own)."""
+    group = parser.add_argument_group("model parameters (of the models that declare them)")
+    for name, (f, owners) in model_parameters().items():
+        default = f.default if f.default is not dataclasses.MISSING else None
+        doc = f.metadata.get("help", name)
+        doc = f"{doc}; parameter of {', '.join(owners)} (default: the model's)".replace("%", "%%")
+        kw = dict(dest=name, default=None, help=doc)
+        if isinstance(default, bool):
+            opts.add(group, flag(name), action="store_const", const=True, **kw)
+        elif f.metadata.get("choices"):
+            opts.add(group, flag(name), choices=tuple(f.metadata["choices"]), **kw)
+        elif isinstance(default, (int, float)):
+            opts.add(group, flag(name), type=number, **kw)
+        else:
+            opts.add(group, flag(name), **kw)
+
+
+def add_fem_options(parser, opts: Options) -> None:
+    from_spec = SOLVER_DEFAULTS
+    g = parser.add_argument_group("FEM reference")
+    opts.add(g, "--element", "--fem", choices=ELEMENTS, default="auto",
+             help="hex1, hex2, mixed (Hex2 x Hex1 u-p) or auto (mixed for nu >= 0.45, else hex2; default)")
+    opts.add(g, "--law", choices=LAWS, default=None,
+             help="material law (default: linear up to 5 %% / 5 degrees, neo-hookean above and for bending)")
+    opts.add(g, "--refine", type=positive_int, default=None,
+             help=f"split each cell into r^3 elements (integer >= 1; default {from_spec['refine']})")
+
+
+def add_mss_options(parser, opts: Options) -> None:
+    d = SOLVER_DEFAULTS
+    g = parser.add_argument_group("mass-spring solver")
+    opts.add(g, "--solver", choices=MSS_SOLVERS, default="static", help="static (Newton, default), explicit "
+             "(symplectic Euler) or implicit (backward Euler to rest)")
+    opts.add(g, "--dt", type=positive_number, default=None,
+             help=f"time step of explicit/implicit, s (> 0; default {d['dt']:g})")
+    opts.add(g, "--steps", type=positive_int, default=None,
+             help=f"steps of explicit/implicit (integer >= 1; default {d['steps']})")
+    opts.add(g, "--ramp-time", type=non_negative_number, default=None,
+             help=f"plate ramp duration of explicit/implicit, s (>= 0; default {d['ramp_time']:g})")
+
+
+def build_parser() -> tuple[Parser, Options]:
+    opts = Options()
+    common = Parser(add_help=False)
+    opts.add(common, "--json", action="store_true", help="print one JSON object on stdout")
+    opts.add(common, "--debug", action="store_true", help="show tracebacks and the solvers' warnings")
+
+    p = Parser(prog="hybmss", description="Hybrid mass-spring systems validated against finite elements.",
+               epilog=CONTRACT, formatter_class=argparse.RawDescriptionHelpFormatter, allow_abbrev=False)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=Parser)
+
+    def command(name, help, func, experiment_default=None):
+        q = sub.add_parser(name, help=help, description=help, parents=[common], epilog=CONTRACT,
+                           formatter_class=argparse.RawDescriptionHelpFormatter, allow_abbrev=False)
+        q.set_defaults(func=func)
+        return q
+
+    q = command("info", "lattice counts of a scene's body (SPEC Table 6)", commands.info)
+    opts.add(q, "--scene", choices=SCENES, default="compression", help="scene whose body is counted "
+             "(default compression)")
+    add_scene_options(q, opts, names=("mesh", "le"))
+
+    q = command("moduli", "effective E, nu, G of a model (static homogeneous tests)", commands.moduli)
+    add_scene_options(q, opts, names=("model", "E", "nu", "rho"))
+    add_model_options(q, opts)
+    opts.add(q, "--strain", type=number, default=DEFAULTS["uniaxial"]["deformation"],
+             help=f"test strain (allowed [1e-06, 0.01]; default {DEFAULTS['uniaxial']['deformation']:g})")
+
+    q = command("bench", "speed of the explicit kernels and the static solver", commands.bench)
+    opts.add(q, "--steps", type=positive_int, default=10_000, help="explicit steps (integer >= 1; default 10000)")
+    opts.add(q, "--quick", action="store_true", help="fewer, smaller runs (a smoke run, not a measurement)")
+
+    q = command("fem", "FEM reference (scikit-fem) of one scene", commands.fem)
+    opts.add(q, "--scene", choices=SCENES, default=None, help="experiment (default compression)")
+    opts.add(q, "--scene-json", default=None, metavar="FILE",
+             help="solve a stored Scene (Scene.to_dict JSON) instead of an experiment")
+    add_scene_options(q, opts)
+    add_model_options(q, opts)
+    add_fem_options(q, opts)
+    opts.add(q, "--load-steps", type=positive_int, default=None,
+             help="load steps of the finite-strain laws (integer >= 1; default 5)")
+    opts.add(q, "--linear-solver", choices=("auto", "direct", "amg"), default="auto",
+             help="linear solver (default auto: direct below a size, AMG-CG above)")
+    opts.add(q, "--convergence", type=refinements, default=None, metavar="R1,R2[,R3]",
+             help="solve on these refinements; report observed order and Richardson errors")
+
+    q = command("compare", "one scene on the mass-spring system and the FEM reference, side by side",
+                commands.compare)
+    opts.add(q, "scene", choices=SCENES, help="experiment")
+    add_scene_options(q, opts)
+    add_model_options(q, opts)
+    add_mss_options(q, opts)
+    add_fem_options(q, opts)
+
+    q = command("run", "run the publication's studies and store their results", commands.run)
+    opts.add(q, "--study", action="append", default=None, choices=commands.study_names(),
+             help="study name (repeatable; default: every study)")
+    opts.add(q, "--all", action="store_true", help="every study of make reproduce-paper")
+    opts.add(q, "--out", default="artifacts/results", help="results folder (default artifacts/results)")
+    opts.add(q, "--quick", action="store_true", help="coarse meshes (the tests' mode)")
+    opts.add(q, "--jobs", type=integer, default=None,
+             help="parallel runs, >= 1 (default: all cores, or the Dask cluster's threads)")
+    opts.add(q, "--executor", choices=EXECUTORS, default="local",
+             help="local: a process pool on this machine (default); dask: a dask.distributed "
+                  "cluster (--scheduler, or a local cluster of --jobs workers)")
+    opts.add(q, "--scheduler", default=None, metavar="ADDRESS",
+             help="address of a running dask scheduler, e.g. tcp://host:8786 (--executor dask)")
+    opts.add(q, "--no-progress", action="store_true", help="no progress bar")
+    return p, opts
+
+
+# ------------------------------------------------------------------------------- output
+def strict(obj):
+    """``obj`` with numpy scalars and arrays as Python values and every non-finite float as ``None``."""
+    if isinstance(obj, dict):
+        return {str(k): strict(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [strict(v) for v in obj]
+    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
+        return strict(obj.tolist())
+    if isinstance(obj, bool) or obj is None or isinstance(obj, (str, int)):
+        return obj
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    return str(obj)
+
+
+def dump(obj) -> str:
+    return json.dumps(strict(obj), allow_nan=False)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+# ------------------------------------------------------------------------------- main
+def _flag_in(argv, name: str) -> bool:
+    head = argv[:argv.index("--")] if "--" in argv else argv
+    return name in head
 
 
 def main(argv=None) -> int:
-    return run(full_parser(), argv)
+    """Run the ``hybmss`` command; returns the exit status (0, 2 or 3)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    as_json, debug = _flag_in(argv, "--json"), _flag_in(argv, "--debug")
+    out, err = sys.stdout, sys.stderr
+
+    def fail(status: int, kind: str, message: str) -> int:
+        message = _one_line(message)
+        err.write(f"hybmss: {kind}: {message}\n")
+        if as_json:
+            kind_ = {2: "invalid", 3: "failed"}.get(status, "interrupted")
+            out.write(dump({"status": kind_, "message": message}) + "\n")
+        return status
+
+    caught: list = []
+    try:
+        parser, opts = build_parser()
+        args = parser.parse_args(opts.join_values(argv))
+        if debug:
+            obj, text = args.func(args)
+        else:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("default")
+                obj, text = args.func(args)
+    except SystemExit as exc:  # --help
+        return int(exc.code or 0)
+    except (InputError, ValueError) as exc:
+        if debug:
+            traceback.print_exc()
+        return fail(2, "error", str(exc))
+    except KeyboardInterrupt as exc:  # 130, the shell's status for SIGINT; the message says what was kept
+        return fail(130, "interrupted", str(exc) or "stopped by Ctrl-C; stored results are kept")
+    except MemoryError:
+        if debug:
+            traceback.print_exc()
+        return fail(3, "failed", "out of memory; use a coarser mesh or a smaller --refine")
+    except Exception as exc:  # noqa: BLE001 - every failure is one line; --debug shows the traceback
+        if debug:
+            traceback.print_exc()
+        msg = str(exc) if isinstance(exc, SolveFailure) else f"{type(exc).__name__}: {exc}"
+        return fail(3, "failed", msg)
+    notes = sorted({_one_line(f"{w.category.__name__}: {w.message}") for w in caught})
+    if as_json:
+        obj = {"status": "ok", **obj}
+        if notes:
+            obj["warnings"] = notes
+        out.write(dump(obj) + "\n")
+    else:
+        out.write(text.rstrip() + "\n")
+        if notes:
+            err.write(f"hybmss: note: {len(notes)} warning(s) from the solvers (first: {notes[0][:120]}); "
+                      "--debug shows them\n")
+    out.flush()
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
+    os.environ.setdefault("MPLBACKEND", "Agg")
     sys.exit(main())

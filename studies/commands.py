@@ -1,35 +1,284 @@
-"""Study subcommands of the ``hybmss`` command: ``compare`` and ``run``."""
+"""What each subcommand of ``hybmss`` does (the parser is :mod:`studies.cli`).
+
+Every command takes the parsed arguments and returns ``(obj, text)``: the JSON object printed by
+``--json`` and the table printed otherwise.  Inputs are checked before any work starts
+(:class:`InputError`, exit 2), including the size guard of :mod:`studies.sizing`; a valid
+simulation that fails raises :class:`SolveFailure` (exit 3).  The solvers are imported when a
+command runs, so an invocation that is refused costs no more than importing NumPy.
+"""
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
+import math
 import signal
-import sys
 import time
 
-import numpy as np
-
-from hybmss.cli import CliError, emit, mesh_arg
 from hybmss import models
+from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
+from hybmss.scene import Material, Model, Scene
 
+from . import sizing
 from .compare import default_law, diff_metrics
-from .executors import EXECUTORS, SweepError
+from .reproduce import EXTRA_STUDIES, STUDIES
 from .runner import Runner, SolverSpec, Task, exit_now, measure, solve
-from .scenes import EXPERIMENTS, SceneSpec
 from .store import Store
 
+SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
+"""Experiments the ``fem`` and ``compare`` subcommands solve (``uniaxial`` is ``moduli``'s)."""
 
-def _spec_from_args(args) -> SceneSpec:
-    over = dict(mesh=args.mesh, E=args.E, nu=args.nu, rho=args.rho, model=args.model, A=args.A,
-                deformation=args.deformation, angle_deg=args.angle)
-    if args.e_form:
-        over["e_form"] = True
-    if args.scene == "bending":
-        over["gravity"] = args.gravity if args.gravity is not None else 10.0
-    return SceneSpec.default(args.scene, **over)
+MSS_SOLVERS = ("static", "explicit", "implicit")
+SOLVER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(SolverSpec)}
 
 
+class InputError(ValueError):
+    """Input that is not allowed (exit status 2)."""
+
+
+class SolveFailure(RuntimeError):
+    """A valid simulation that failed (exit status 3); the message says the cause and remedy."""
+
+
+def model_choices() -> tuple[str, ...]:
+    """The mass-spring models a user can pick (the registry's)."""
+    return tuple(models.names())
+
+
+def model_parameters() -> dict[str, tuple[dataclasses.Field, tuple[str, ...]]]:
+    """Every registered model's parameters (:func:`hybmss.models.parameter_fields`): name → (its
+    field, with ``help`` and ``choices`` metadata; the models that have it)."""
+    owners = {name: tuple(m.name for m in models.all_models() if name in m.parameter_names())
+              for name in models.parameter_fields()}
+    return {name: (f, owners[name]) for name, f in models.parameter_fields().items()}
+
+
+def study_names() -> tuple[str, ...]:
+    return tuple(STUDIES) + tuple(EXTRA_STUDIES)
+
+
+def flag(name: str) -> str:
+    """The command-line flag of scene parameter ``name``."""
+    return "--" + name.replace("_", "-")
+
+
+def show(v) -> str:
+    if isinstance(v, tuple):
+        return "x".join(map(str, v))
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+# ------------------------------------------------------------------------------- scene options
+def given_scene_options(args) -> dict:
+    """The scene and model parameters set on the command line (``None`` = not given)."""
+    names = [f.name for f in SceneSpec.parameters()] + list(model_parameters())
+    return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
+
+
+def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = True) -> SceneSpec:
+    """The :class:`SceneSpec` of the options, checked (:meth:`SceneSpec.check`); refuses an option
+    that this experiment and these solvers do not use (it would be silently ignored)."""
+    given = given_scene_options(args)
+    meta = {f.name: f.metadata for f in SceneSpec.parameters()}
+    for name in given:
+        if any(SceneSpec.uses(name, experiment, s) for s in solvers):
+            continue
+        m = meta.get(name, {"experiments": None, "solvers": MSS_SOLVERS})
+        if m["experiments"] is not None and experiment not in m["experiments"]:
+            why = f"{experiment} does not use it; used by: {', '.join(e for e in m['experiments'] if e in SCENES)}"
+        else:
+            why = (f"the {' and '.join(solvers)} solver{'s do' if len(solvers) > 1 else ' does'} not use it; "
+                   f"used by: {', '.join(m['solvers'])}")
+        raise InputError(f"{flag(name)} = {show(given[name])} is not allowed: {why}")
+    try:
+        spec = SceneSpec.default(experiment, **given)
+        return spec.check(solved)
+    except ParameterError as exc:
+        raise InputError(f"{flag(exc.name)} = {show(exc.value)} is not allowed: "
+                         f"{str(exc).split(': ', 1)[1]}") from None
+    except TypeError as exc:  # a model parameter of the wrong kind
+        raise InputError(f"model {given.get('model', 'hybmss')}: {exc}") from None
+
+
+def guard(est: sizing.Estimate, what: str, estimate=None) -> None:
+    """Refuse a run whose estimated memory does not fit this machine."""
+    if not sizing.fits(est):
+        raise InputError(f"{what} is too large: {sizing.refusal(est, estimate)}")
+
+
+def _settings(spec: SceneSpec | None, shape, refine=None) -> str:
+    mesh = f"--mesh {show(tuple(shape))}"
+    return mesh + (f" --refine {refine}" if refine and refine != 1 else "")
+
+
+def check_result(res, what: str) -> None:
+    """A result that is not what was asked (not converged, non-finite outputs) is a failure."""
+    if not res.converged:
+        why = " ".join(str(res.info.get("warning") or res.info.get("message") or "did not converge").split())
+        raise SolveFailure(f"the {what} ({res.solver}) did not converge: {why}; try a smaller load or a finer mesh")
+    bad = [k for k in ("volume_change", "max_displacement") if not math.isfinite(float(getattr(res, k)))]
+    if bad:
+        raise SolveFailure(f"the {what} ({res.solver}) produced non-finite {', '.join(bad)}; "
+                           "the state is degenerate: try a smaller load or a finer mesh")
+
+
+# ------------------------------------------------------------------------------- info
+def box_counts(shape) -> dict:
+    """Lattice counts of a full box of ``nx × ny × nz`` cells in closed form (no arrays): particles
+    on the grid's vertices, one spring per grid edge, two merged diagonals per grid face, four
+    inner diagonals per cell; [G20] Table 6 adds 12 unmerged face diagonals per cell."""
+    nx, ny, nz = (int(n) for n in shape)
+    cells = nx * ny * nz
+    edge = nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz
+    faces = nx * ny * (nz + 1) + nx * (ny + 1) * nz + (nx + 1) * ny * nz
+    face, inner = 2 * faces, 4 * cells
+    return {
+        "volumes": cells,
+        "vertices": (nx + 1) * (ny + 1) * (nz + 1),
+        "springs": {"edge": edge, "face_diagonal": face, "inner_diagonal": inner, "total": edge + face + inner},
+        "paper_springs_no_fd": edge + inner,
+        "paper_springs_with_fd": edge + inner + 12 * cells,
+    }
+
+
+def info(args):
+    spec = scene_spec(args, args.scene, ("static",), solved=False)
+    counts = box_counts(spec.mesh)
+    s = counts["springs"]
+    mesh = show(spec.mesh)
+    table = "\n".join([
+        f"{spec.experiment} body, mesh {mesh}, le = {spec.cell_edge:g} m",
+        f"  volumes (cells)        {counts['volumes']:>14,}",
+        f"  vertices (particles)   {counts['vertices']:>14,}",
+        f"  edge springs           {s['edge']:>14,}",
+        f"  face-diagonal springs  {s['face_diagonal']:>14,}   (merged)",
+        f"  inner-diagonal springs {s['inner_diagonal']:>14,}",
+        f"  springs, total         {s['total']:>14,}",
+        f"  [G20] Table 6, no FD   {counts['paper_springs_no_fd']:>14,}",
+        f"  [G20] Table 6, with FD {counts['paper_springs_with_fd']:>14,}   (12 unmerged face diagonals per cell)",
+    ])
+    return {"mesh": mesh, "le": spec.cell_edge, **counts}, table
+
+
+# ------------------------------------------------------------------------------- moduli
+def moduli(args):
+    from hybmss.moduli import measure_moduli
+
+    given = given_scene_options(args)
+    base = SceneSpec("uniaxial")
+    name = given.pop("model", base.model)
+    mat_p = {k: given.pop(k, getattr(base, k)) for k in ("E", "nu", "rho")}
+    try:
+        model = Model(name, **given)  # a parameter the model does not have: exit 2
+        mat = Material(**mat_p)
+    except TypeError as exc:
+        raise InputError(f"model {name}: {exc}") from None
+    m = measure_moduli(model, mat, strain=args.strain)
+    bad = [k for k, v in m.items() if isinstance(v, float) and not math.isfinite(v)]
+    if bad:
+        raise SolveFailure(f"the moduli tests gave non-finite {', '.join(bad)}; try a smaller --strain")
+    G = mat.G
+    extra = "".join(f", {k} = {v}" for k, v in model.to_dict().items() if k != "name")
+    table = "\n".join([
+        f"model {model.variant}{extra}, E = {mat.E:g} Pa, nu = {mat.nu:g}",
+        f"  E_eff  = {m['E_eff']:.6g} Pa   (input {mat.E:g}, rel. error {m['E_eff'] / mat.E - 1:+.2e})",
+        f"  nu_eff = {m['nu_eff']:.6g}      (input {mat.nu:g}, error {m['nu_eff'] - mat.nu:+.2e})",
+        f"  G_eff  = {m['G_eff']:.6g} Pa   (E/(2(1+nu)) = {G:.6g}, rel. error {m['G_eff'] / G - 1:+.2e})",
+    ])
+    return {**model.to_dict(), "model": model.name, "variant": model.variant, "E": mat.E, "nu": mat.nu, **m}, table
+
+
+# ------------------------------------------------------------------------------- bench
+def bench(args):
+    from hybmss.bench import format_bench, run_bench
+
+    d = run_bench(steps=args.steps, quick=args.quick)
+    return d, format_bench(d)
+
+
+# ------------------------------------------------------------------------------- fem
+def load_scene(path: str) -> Scene:
+    """The Scene stored in the JSON file ``path``."""
+    try:
+        with open(path) as fh:
+            data = json.load(fh)
+    except OSError as exc:
+        raise InputError(f"--scene-json = {path} is not allowed: cannot read it ({exc.strerror}); "
+                         "allowed: a readable Scene JSON file") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"--scene-json = {path} is not allowed: not JSON ({exc}); allowed: a Scene JSON "
+                         "object (Scene.to_dict)") from None
+    if not isinstance(data, dict):
+        raise InputError(f"--scene-json = {path} is not allowed: it holds a JSON {type(data).__name__}; "
+                         "allowed: a Scene JSON object (Scene.to_dict)")
+    try:
+        return Scene.from_dict(data)
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+        what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise InputError(f"--scene-json = {path} is not allowed: not a scene ({what}); allowed: a Scene "
+                         "JSON object (Scene.to_dict)") from None
+
+
+def format_fem(res) -> str:
+    lines = [
+        f"{res.solver}  ({res.info['n_dofs']:,} dofs, {res.info['n_elements']:,} elements, "
+        f"{res.iterations} Newton iteration(s), {res.wall_time_s:.2f} s)",
+        f"  volume change  ∫det F: {100 * res.volume_change:+.4f} %   "
+        f"averaged-edge (MSS formula): {100 * (res.info['volume_mss_formula'] / res.volume0 - 1):+.4f} %",
+        f"  max |u| = {res.max_displacement:.6g} m   strain energy = {res.energy['strain']:.6g} J",
+    ]
+    for name, r in res.reactions.items():
+        F = ", ".join(f"{v:.6g}" for v in r.force)
+        T = ", ".join(f"{v:.6g}" for v in r.torque)
+        lines.append(f"  plate {name}: F = ({F}) N   T = ({T}) N·m")
+    return "\n".join(lines)
+
+
+def fem(args):
+    given = given_scene_options(args)
+    if args.scene_json:
+        if args.scene or given:
+            extra = ", ".join(["--scene"] * bool(args.scene) + [flag(n) for n in given])
+            raise InputError(f"--scene-json is not allowed with {extra}: the stored scene defines them")
+        scene, spec = load_scene(args.scene_json), None
+    else:
+        spec = scene_spec(args, args.scene or "compression", ("fem",))
+        scene = spec.build()
+    law = args.law or (default_law(spec) if spec else "linear")
+    refine = SOLVER_DEFAULTS["refine"] if args.refine is None else args.refine
+    if args.convergence and args.refine is not None:
+        raise InputError(f"--refine = {args.refine} is not allowed with --convergence "
+                         f"{','.join(map(str, args.convergence))}: the study sets the refinements")
+    nu = scene.material.nu
+    for r in args.convergence or (refine,):
+        guard(sizing.fem(scene.body.shape, args.element, r, law, nu), _settings(spec, scene.body.shape, r),
+              lambda shape, r=r: sizing.fem(shape, args.element, r, law, nu))
+
+    from fem_reference.solve import solve as fem_solve
+
+    if args.convergence:
+        from fem_reference.convergence import convergence
+
+        study = convergence(scene, refinements=args.convergence, element=args.element, law=law,
+                            steps=args.load_steps, method=args.linear_solver)
+        for res in study.results:
+            check_result(res, "FEM solve")
+        out = study.to_dict()
+        out["finest"] = study.results[-1].summary()
+        out["scene"] = scene.to_dict()
+        out["scene_digest"] = scene.digest()
+        return out, format_fem(study.results[-1]) + "\n" + study.table()
+    res = fem_solve(scene, element=args.element, law=law, refine=refine, steps=args.load_steps,
+                    method=args.linear_solver)
+    check_result(res, "FEM solve")
+    out = res.summary()
+    out["scene"] = scene.to_dict()
+    if spec is not None:
+        out["spec"] = spec.to_dict()
+    return out, format_fem(res)
+
+
+# ------------------------------------------------------------------------------- compare
 def _side(spec: SceneSpec, result) -> dict:
     row = measure(spec, result)
     plate = "bottom" if spec.experiment == "bending" else "top"
@@ -45,74 +294,73 @@ def _side(spec: SceneSpec, result) -> dict:
         out["reaction_torque"] = list(result.reactions[plate].torque)
     if spec.experiment == "bending":
         out["tip_deflection"] = row["tip_deflection"]
-    for k in ("inverted_cells", "volume_avg_edges", "volume_lnJ", "dt_crit"):
+    for k in ("inverted_cells", "volume_avg_edges", "volume_lnJ", "dt_crit", "at_rest", "kinetic_energy",
+              "residual"):
         if k in result.info:
             out[k] = result.info[k]
     return out
 
 
-def cmd_compare(args) -> int:
-    spec = _spec_from_args(args)
+def compare(args):
+    spec = scene_spec(args, args.scene, (args.solver, "fem"))
+    dyn = {"dt": args.dt, "steps": args.steps, "ramp_time": args.ramp_time}
+    if args.solver == "static":
+        for name, v in dyn.items():
+            if v is not None:
+                raise InputError(f"{flag(name)} = {show(v)} is not allowed: the static solver does not use it; "
+                                 "used by: --solver explicit, implicit")
+    dyn = {k: SOLVER_DEFAULTS[k] if v is None else v for k, v in dyn.items()}
     law = args.law or default_law(spec)
-    mss_solver = SolverSpec(kind=args.solver, dt=args.dt, steps=args.steps, ramp_time=args.ramp_time)
-    fem_solver = SolverSpec(kind="fem", element=args.fem, law=law, refine=args.refine)
+    refine = SOLVER_DEFAULTS["refine"] if args.refine is None else args.refine
+    mss_solver = SolverSpec(kind=args.solver, **dyn)
+    fem_solver = SolverSpec(kind="fem", element=args.element, law=law, refine=refine)
+    guard(sizing.mss(spec.mesh, args.solver, dyn["steps"]), _settings(spec, spec.mesh),
+          lambda shape: sizing.mss(shape, args.solver, dyn["steps"]))
+    guard(sizing.fem(spec.mesh, args.element, refine, law, spec.nu), _settings(spec, spec.mesh, refine),
+          lambda shape: sizing.fem(shape, args.element, refine, law, spec.nu))
+    scene = spec.build()
     t0 = time.perf_counter()
     mss = solve(Task(spec, mss_solver))
-    fem = solve(Task(spec, fem_solver))
-    d = diff_metrics(mss.X, mss.u, fem.u)
-    out = {"scene": spec.to_dict(), "mss": _side(spec, mss), "fem": _side(spec, fem), "diff": d}
+    check_result(mss, f"mass-spring {args.solver} solve")
+    fem_res = solve(Task(spec, fem_solver))
+    check_result(fem_res, "FEM solve")
+    d = diff_metrics(mss.X, mss.u, fem_res.u)
+    out = {"scene": spec.to_dict(), "scene_digest": scene.digest(), "mss": _side(spec, mss),
+           "fem": _side(spec, fem_res), "diff": d}
     if spec.experiment == "bending":
         out["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
     out["wall_time_s"] = time.perf_counter() - t0
-    lines = [f"{spec.label}   (FEM: {fem.solver})",
-             f"{'':24}{'MSS':>14}{'FEM':>14}"]
-    lines.append(f"{'volume change (%)':24}{100 * out['mss']['volume_change']:>14.4f}{100 * out['fem']['volume_change']:>14.4f}")
-    if "reaction_force" in out["mss"]:
+    m, f = out["mss"], out["fem"]
+    lines = [f"{spec.label}   (FEM: {fem_res.solver})", f"{'':24}{'MSS':>14}{'FEM':>14}",
+             f"{'volume change (%)':24}{100 * m['volume_change']:>14.4f}{100 * f['volume_change']:>14.4f}"]
+    if "reaction_force" in m and "reaction_force" in f:
         for i, c in enumerate("xyz"):
-            lines.append(f"{'reaction F' + c + ' (N)':24}{out['mss']['reaction_force'][i]:>14.5g}{out['fem']['reaction_force'][i]:>14.5g}")
-        lines.append(f"{'reaction Tz (N m)':24}{out['mss']['reaction_torque'][2]:>14.5g}{out['fem']['reaction_torque'][2]:>14.5g}")
+            lines.append(f"{'reaction F' + c + ' (N)':24}{m['reaction_force'][i]:>14.5g}{f['reaction_force'][i]:>14.5g}")
+        lines.append(f"{'reaction Tz (N m)':24}{m['reaction_torque'][2]:>14.5g}{f['reaction_torque'][2]:>14.5g}")
     if spec.experiment == "bending":
-        lines.append(f"{'tip deflection (m)':24}{out['mss']['tip_deflection']:>14.5g}{out['fem']['tip_deflection']:>14.5g}"
+        lines.append(f"{'tip deflection (m)':24}{m['tip_deflection']:>14.5g}{f['tip_deflection']:>14.5g}"
                      f"   Euler-Bernoulli {out['euler_bernoulli_tip']:.5g}")
-    lines.append(f"{'max |u| (m)':24}{out['mss']['max_displacement']:>14.5g}{out['fem']['max_displacement']:>14.5g}")
-    lines.append(f"{'wall time (s)':24}{out['mss']['wall_time_s']:>14.3f}{out['fem']['wall_time_s']:>14.3f}")
+    lines.append(f"{'max |u| (m)':24}{m['max_displacement']:>14.5g}{f['max_displacement']:>14.5g}")
+    lines.append(f"{'wall time (s)':24}{m['wall_time_s']:>14.3f}{f['wall_time_s']:>14.3f}")
     lines.append(f"|u_mss - u_fem|: mean {d['mean']:.4g} m, max {d['max']:.4g} m, rel L2 {d['rel_l2']:.4g}, "
                  f"middle layer mean {d['mid_layer_mean']:.4g} m")
-    emit(out, args.json, "\n".join(lines))
-    return 0
+    lines.append(f"scene digest {out['scene_digest']}")
+    return out, "\n".join(lines)
 
 
-def run_options(q: argparse.ArgumentParser) -> None:
-    """The options of ``hybmss run`` (added to its parser by :func:`register`)."""
-    q.add_argument("--study", action="append", default=None, help="study name (repeatable)")
-    q.add_argument("--all", action="store_true", help="every study of make reproduce-paper")
-    q.add_argument("--out", default="artifacts/results", help="results folder")
-    q.add_argument("--quick", action="store_true", help="coarse meshes (the tests' mode)")
-    q.add_argument("--jobs", type=int, default=None,
-                   help="parallel runs, >= 1 (default: all cores, or the Dask cluster's threads)")
-    q.add_argument("--executor", choices=EXECUTORS, default="local",
-                   help="local: a process pool on this machine (default); dask: a dask.distributed "
-                        "cluster (--scheduler, or a local cluster of --jobs workers)")
-    q.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="address of a running dask scheduler, e.g. tcp://host:8786 (--executor dask)")
-    q.add_argument("--no-progress", action="store_true")
-    q.add_argument("--json", action="store_true", help="print what was run as one JSON object")
-
-
-def cmd_run(args) -> int:
-    """Exit 0 when the sweep finishes (failed runs are stored rows), 2 for options not allowed
-    (checked before any work), 3 when the sweep cannot go on, 130 on SIGINT."""
-    from .reproduce import EXTRA_STUDIES, STUDIES, run_studies
+# ------------------------------------------------------------------------------- run
+def run(args):
+    """The studies into ``--out``: 0 when the sweep finishes (failed runs are stored rows), 2 for
+    options not allowed (checked before any work: the folder, the executor and its scheduler),
+    3 when the sweep cannot go on (:class:`studies.executors.SweepError`), 130 on SIGINT (finished
+    runs are kept, running ones abandoned; a second Ctrl-C exits at once)."""
+    from .reproduce import run_studies
 
     if args.all and args.study:
-        raise ValueError(f"--all and --study {','.join(args.study)} together are not allowed: "
+        raise InputError(f"--all and --study {','.join(args.study)} together are not allowed: "
                          "--all runs every study; give one or the other")
     if not str(args.out).strip():
-        raise ValueError("--out '' is not allowed: a results folder path is required")
-    unknown = [n for n in args.study or () if n not in STUDIES and n not in EXTRA_STUDIES]
-    if unknown:
-        raise ValueError(f"--study {unknown[0]!r} is not allowed; studies: "
-                         f"{', '.join(list(STUDIES) + list(EXTRA_STUDIES))}")
+        raise InputError("--out '' is not allowed: a results folder path is required")
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
     try:
@@ -121,46 +369,8 @@ def cmd_run(args) -> int:
                         progress=not args.no_progress, runner=runner)
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, exit_now)  # exiting; a second Ctrl-C exits at once
-        s = runner.summary
-        sys.stderr.write(f"interrupted: {s.computed} runs computed and stored in {args.out}, running "
-                         "ones abandoned; rerun the same command to resume\n")
-        return 130
-    except SweepError as exc:
-        msg = " ".join(str(exc).split())
-        if args.json:
-            emit({"status": "error", "message": msg, "out": str(args.out), **runner.summary.as_dict()}, True, "")
-        sys.stderr.write(f"error: {msg}\n")
-        return 3
+        raise KeyboardInterrupt(f"{runner.summary.computed} runs computed and stored in {args.out}, running "
+                                "ones abandoned; rerun the same command to resume") from None
     s = runner.summary
-    out = {"status": "ok", "out": str(args.out), **s.as_dict()}
-    emit(out, args.json, f"{args.out}: {s.line()}")
-    return 0
-
-
-def register(sub) -> None:
-    """Add ``compare`` and ``run`` to the ``hybmss`` parser."""
-    q = sub.add_parser("compare", help="one scene on the MSS and the FEM reference, side by side")
-    q.add_argument("scene", choices=[e for e in EXPERIMENTS if e != "uniaxial"])
-    q.add_argument("--mesh", type=mesh_arg, default=None, help="NXxNYxNZ cells (default: publication's)")
-    q.add_argument("--model", choices=models.names(), default="hybmss")
-    q.add_argument("--A", type=float, default=None)
-    q.add_argument("--e-form", action="store_true", help="spring constants from [G20] eq. 5.12")
-    q.add_argument("--E", type=float, default=None, help="Young's modulus, Pa (> 0)")
-    q.add_argument("--nu", type=float, default=None, help="Poisson ratio in (-1, 0.5)")
-    q.add_argument("--rho", type=float, default=None, help="density, kg/m^3 (>= 0)")
-    q.add_argument("--deformation", type=float, default=None, help="d, fraction (0.05 = 5 %%)")
-    q.add_argument("--angle", type=float, default=None, help="torsion angle, degrees")
-    q.add_argument("--gravity", type=float, default=None, help="bending: g, m/s^2 (default 10)")
-    q.add_argument("--solver", choices=("static", "explicit", "implicit"), default="static")
-    q.add_argument("--dt", type=float, default=1e-3, help="time step of explicit/implicit, s (> 0)")
-    q.add_argument("--steps", type=int, default=10_000, help="explicit/implicit steps")
-    q.add_argument("--ramp-time", type=float, default=1.0, help="plate ramp duration, s")
-    q.add_argument("--fem", choices=("hex1", "hex2", "mixed", "auto"), default="hex2")
-    q.add_argument("--law", choices=("linear", "neo-hookean", "svk"), default=None)
-    q.add_argument("--refine", type=int, default=1, help="FEM refinement factor r (cells split into r^3)")
-    q.add_argument("--json", action="store_true")
-    q.set_defaults(func=cmd_compare)
-
-    q = sub.add_parser("run", help="run the publication's studies and store their results")
-    run_options(q)
-    q.set_defaults(func=cmd_run)
+    names = list(study_names()) if args.all or not args.study else list(args.study)
+    return {"out": str(args.out), "studies": names, **s.as_dict()}, f"{args.out}: {s.line()}"

@@ -59,9 +59,10 @@ def diff_metrics(X: np.ndarray, u_mss: np.ndarray, u_fem: np.ndarray) -> dict:
 
 
 def default_law(spec) -> str:
-    """Linear at ≤ 5 % (and torsion ≤ 5°, bending), Neo-Hookean above (SPEC §6 notes)."""
+    """Linear at ≤ 5 % (and torsion ≤ 5°), Neo-Hookean above and for bending (SPEC §6 notes);
+    by magnitude: a load and its opposite are solved with the same law."""
     if spec.experiment == "torsion":
-        return "linear" if spec.angle_deg <= 5.0 else "neo-hookean"
+        return "linear" if abs(spec.angle_deg) <= 5.0 else "neo-hookean"
     if spec.experiment == "bending":
         return "neo-hookean"
-    return "linear" if spec.deformation <= 0.05 + 1e-12 else "neo-hookean"
+    return "linear" if abs(spec.deformation) <= 0.05 + 1e-12 else "neo-hookean"

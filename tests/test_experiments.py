@@ -3,7 +3,6 @@ compare`` with the same arguments build the same scene; torsion's angle has one 
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
@@ -35,30 +34,26 @@ def test_scene_digests_of_the_existing_models_are_unchanged(case):
     assert spec.build().digest() == DIGESTS[case]
 
 
-def _parsers():
-    from fem_reference.cli import register as register_fem
-    from studies.commands import register as register_studies
-
-    p = argparse.ArgumentParser(prog="hybmss")
-    sub = p.add_subparsers(dest="command")
-    register_fem(sub)
-    register_studies(sub)
-    return p
+LOADS = {"compression": ["--deformation", "0.1"], "tension": ["--deformation", "0.1"],
+         "shear": ["--deformation", "0.1"], "torsion": ["--angle", "7"], "bending": ["--gravity", "9"]}
 
 
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if e != "uniaxial"])
 def test_fem_and_compare_build_the_same_scene(experiment):
-    from fem_reference.cli import build_scene
-    from studies.commands import _spec_from_args
+    from studies import cli, commands
 
-    p = _parsers()
-    common = ["--mesh", "2x2x4", "--E", "2e4", "--nu", "0.3", "--deformation", "0.1", "--angle", "7"]
-    fem = build_scene(p.parse_args(["fem", "--scene", experiment] + common))
-    cmp = _spec_from_args(p.parse_args(["compare", experiment] + common)).build()
+    parser, opts = cli.build_parser()
+
+    def spec(*argv, solvers):
+        return commands.scene_spec(parser.parse_args(opts.join_values(list(argv))), experiment, solvers)
+
+    common = ["--mesh", "2x2x4", "--E", "2e4", "--nu", "0.3"] + LOADS[experiment]
+    fem = spec("fem", "--scene", experiment, *common, solvers=("fem",)).build()
+    cmp = spec("compare", experiment, *common, solvers=("static", "fem")).build()
     assert fem.digest() == cmp.digest()
     # and with every option left to the experiment's defaults
-    fem = build_scene(p.parse_args(["fem", "--scene", experiment]))
-    cmp = _spec_from_args(p.parse_args(["compare", experiment])).build()
+    fem = spec("fem", "--scene", experiment, solvers=("fem",)).build()
+    cmp = spec("compare", experiment, solvers=("static", "fem")).build()
     assert fem.digest() == cmp.digest() == SceneSpec.default(experiment).build().digest()
 
 

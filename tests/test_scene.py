@@ -2,8 +2,6 @@
 
 import dataclasses
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -80,33 +78,3 @@ def test_slide_prescribes_only_its_components():
     m = Motion("slide", (1.0, 2.0, 3.0), components=(2,))
     assert m.constrained.tolist() == [False, False, True]
     np.testing.assert_allclose(m.displacement_at(np.zeros((1, 3)), 0.5), [[0, 0, 1.5]])
-
-
-def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "studies", *args], capture_output=True, text=True)
-
-
-@pytest.mark.parametrize(
-    "args",
-    [
-        ["moduli", "--nu", "0.5"],
-        ["moduli", "--E", "-1"],
-        ["moduli", "--model", "nope"],
-        ["info", "--mesh", "3x3"],
-        ["info", "--le", "0"],
-        ["frobnicate"],
-    ],
-)
-def test_cli_bad_arguments_exit_2_with_one_line(args):
-    p = _cli(*args)
-    assert p.returncode == 2
-    assert len(p.stderr.strip().splitlines()) == 1
-    assert "error" in p.stderr
-
-
-def test_cli_info_json_matches_schema():
-    p = _cli("info", "--mesh", "10x10x10", "--json")
-    assert p.returncode == 0, p.stderr
-    d = json.loads(p.stdout)
-    assert set(d) == {"volumes", "vertices", "springs", "paper_springs_no_fd", "paper_springs_with_fd"}
-    assert set(d["springs"]) == {"edge", "face_diagonal", "inner_diagonal", "total"}
