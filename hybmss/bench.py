@@ -202,10 +202,6 @@ def _pick(rows, **key):
     return None
 
 
-def _num(v) -> float:
-    return float("nan") if v is None else v
-
-
 def format_bench(d: dict) -> str:
     """Readable table of :func:`run_bench`'s result, with the ratios measured in the same run:
     float32 / float64, two threads / one, Numba / NumPy, and each model over the fastest one
@@ -220,7 +216,7 @@ def format_bench(d: dict) -> str:
         out.append(
             f"{r['model']:<10} {r['nu']:>6g} {r['mesh']:>9} {r['kernel']:>6} {r.get('precision', 'f64'):>4} "
             f"{r['threads']:>3} {r['steps']:>6} {r['wall_time_s']:>8.3f} {r.get('cpu_time_s', float('nan')):>8.3f} "
-            f"{r['s_per_10k_steps']:>8.3f} {_num(r.get('ns_per_spring_step')):>11.2f} "
+            f"{r['s_per_10k_steps']:>8.3f} {(r.get('ns_per_spring_step') or float('nan')):>11.2f} "
             f"{load if load is not None else float('nan'):>5.2f}"
         )
     loads = [r["load_avg"] for r in rows if r.get("load_avg") is not None]

@@ -372,7 +372,7 @@ def solve_static(system: System, term: XpbdNH, dt: float | None = None, substeps
     r = simulate_explicit(system, term, dt=dt, steps=int(math.ceil(t_max / dt)), kernel=kernel, ramp_time=T,
                           substeps=substeps, iterations=iterations, coupled=coupled, until_rest=True, rest_tol=rest_tol,
                           damping=c)
-    info = dict(r.info, static_from="rest state of a damped run", omega_1=w1, omega_max=wmax)
+    info = dict(r.info, static_from="rest state of a damped run", omega_1=w1, omega_max=wmax, load_steps=0)
     return Result(solver=f"{term.name}-rest", scene_digest=r.scene_digest, X=r.X, u=r.u, volume=r.volume,
                   volume0=r.volume0, reactions=r.reactions, energy=r.energy, iterations=r.iterations,
                   wall_time_s=r.wall_time_s, converged=bool(r.info["rest"]), cell_volumes=r.cell_volumes,
