@@ -7,7 +7,8 @@
   total Lagrangian Newton with load stepping;
 - :mod:`~fem_reference.dirichlet`: plates → prescribed dofs, reactions;
 - :mod:`~fem_reference.loads`: dead surface tractions (``Scene.loads``) as load vectors;
-- :mod:`~fem_reference.linalg`: direct / AMG-preconditioned solves, chosen by size;
+- :mod:`~fem_reference.linalg`: direct (nested-dissection order) / AMG-preconditioned solves, chosen
+  by size;
 - :mod:`~fem_reference.convergence`: refinement studies, observed order, Richardson error;
 - :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``.
 

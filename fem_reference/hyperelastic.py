@@ -23,10 +23,12 @@ is the whole load; an increment that converged in at most :data:`GROW_ITERATIONS
 (tangent factorizations) doubles the next one.  An increment larger than ``1/steps`` gets at most
 :data:`OPTIMISTIC_MAXITER` iterations; if it fails, the next increment is ``1/steps``.  Linear systems
 inside Newton are solved inexactly when iterative (relative tolerance ``0.1 ‖R‖/‖f‖`` within
-[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]); for the mixed element (direct, costly
-factorizations of the saddle-point matrix) the factorization is reused
-for chord steps near the solution while they converge fast (:data:`CHORD_RATIO`,
-:data:`CHORD_NEAR`).  A trial update
+[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]); a direct factorization (the mixed
+element's saddle point, small displacement systems) is reused for chord steps near the solution
+while they converge fast (:data:`CHORD_RATIO`, :data:`CHORD_NEAR`).  The load steps before the
+last converge to :data:`INTERMEDIATE_RTOL` only: their states serve as starting points, and the
+last step converges to ``rtol`` from wherever they are (the solution at load factor 1 does not
+depend on how the path got there).  A trial update
 is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
 point) or lowers neither the residual norm nor (displacement formulation) the potential energy;
 if a step does not converge the load increment is halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
@@ -45,7 +47,7 @@ from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
 from .laws import LAWS, deviatoric, volumetric
-from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd
+from .linalg import SolveStats, dof_order, nested_dissection, rigid_modes, solve_saddle, solve_spd
 from .linear import FORMULATIONS, Solution
 from .mesh import FemMesh
 from .space import Space
@@ -54,7 +56,7 @@ from .space import Space
 OPTIMISTIC_MAXITER = 6
 """Newton iterations allowed to an increment larger than ``1/steps``."""
 CHORD_RATIO = 0.25
-"""Mixed element: after a full Newton update that reduced the residual by at least this factor,
+"""Direct solves: after a full Newton update that reduced the residual by at least this factor,
 the next iteration reuses the direct factorization (a chord step); it refactorizes when a chord step
 gives no decrease or a slower one."""
 CHORD_NEAR = 1e-3
@@ -62,6 +64,9 @@ CHORD_NEAR = 1e-3
 solution, where the tangent changes little)."""
 CHORD_MAXITER_FACTOR = 3
 """Chord and Newton iterations together: at most this many times ``maxiter``."""
+INTERMEDIATE_RTOL = 1e-6
+"""Newton tolerance (relative to the force scale) of the load steps before the last; the last step
+and a state returned after a failure are converged to the full ``rtol``."""
 GROW_ITERATIONS = 4
 """A load step that converges in at most this many Newton iterations doubles the next increment."""
 LINEAR_RTOL_MAX = 1e-3
@@ -106,6 +111,9 @@ class Hyperelasticity:
     fmesh: FemMesh
     formulation: str = "hex2"
     law: str = "neo-hookean"
+    reorder: bool = True
+    """Factorize direct systems in the nested-dissection order of :attr:`order` (``False``: SuperLU's
+    minimum degree order)."""
 
     def __post_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -132,6 +140,17 @@ class Hyperelasticity:
     @cached_property
     def nullspace(self) -> np.ndarray:
         return rigid_modes(self.space.points)
+
+    @cached_property
+    def order(self) -> np.ndarray | None:
+        """Fill-reducing order of the unknowns (displacement dofs, then for the mixed element the
+        pressures) for direct factorizations, or ``None`` (:attr:`reorder` off, or no grid)."""
+        if not self.reorder:
+            return None
+        if not self.mixed:
+            return dof_order(nested_dissection(self.space.points, self.fmesh.h), self.space.n_scalar)
+        pts = np.vstack([self.space.points, self.pspace.points])
+        return dof_order(nested_dissection(pts, self.fmesh.h), self.space.n_scalar, self.pspace.n_scalar)
 
     # ---------------------------------------------------------------- state
     def _evaluate(self, U, p, s, fext, material, tangent: bool):
@@ -181,13 +200,16 @@ class Hyperelasticity:
         min_increment: float = 1e-4,
         load: np.ndarray | None = None,
         adaptive: bool = True,
+        intermediate_rtol: float | None = INTERMEDIATE_RTOL,
+        chord: bool = True,
     ) -> tuple[Solution, NewtonLog]:
         """Solve up to load factor 1: one full step first, then increments of ``1/steps`` (halved on
         failure, doubled after a fast step).
         ``load``: extra dead load vector (n_vector,), e.g. surface tractions, scaled with gravity.
         ``adaptive=False``: equal increments ``1/steps`` from the linearized predictor only (no
         full first step, no secant predictor, no growth), and linear solves to the tightest
-        tolerance."""
+        tolerance.  ``intermediate_rtol``: Newton tolerance of the load steps before the last
+        (``None``: ``rtol``); ``chord=False``: a fresh tangent at every iteration."""
         if self.mixed and material.lam <= 0:
             raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
         lam, mu = material.lam, material.G
@@ -221,9 +243,11 @@ class Hyperelasticity:
             if adaptive and prev is not None and s_done > prev[0]:
                 r = (s - s_done) / (s_done - prev[0])
                 guess = (U + r * (U - prev[1]), None if p is None else p + r * (p - prev[2]))
+            last = s >= 1.0 - 1e-14
             ok, U_new, p_new, its, res, fresh = self._step(
-                U, p, s, fext, dirichlet, material, free, atol, rtol, its_max, method, stats, C, amg_cache,
-                guess, adaptive, lu_cache if adaptive else None,
+                U, p, s, fext, dirichlet, material, free, atol,
+                rtol if (last or not adaptive or intermediate_rtol is None) else max(rtol, intermediate_rtol),
+                its_max, method, stats, C, amg_cache, guess, adaptive, lu_cache if adaptive and chord else None,
             )
             log.iterations += its
             if ok:
@@ -237,6 +261,13 @@ class Hyperelasticity:
             ds = base if optimistic else 0.5 * min(ds, s - s_done)
             if ds < min_increment:
                 log.converged = False
+                if adaptive and intermediate_rtol is not None and s_done > 0.0:  # to the full tolerance
+                    ok, U_t, p_t, its, res_t, _ = self._step(
+                        U, p, s_done, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
+                        amg_cache, None, adaptive, None)
+                    log.iterations += its
+                    if ok:
+                        U, p = U_t, p_t
                 st = self._evaluate(U, p, s_done, fext, material, tangent=False)
                 partial = Solution(U.reshape(-1, 3), p, st["Ru"], space.integrate(st["psi"]), stats)
                 raise ConvergenceError(
@@ -273,7 +304,8 @@ class Hyperelasticity:
         while fresh < maxiter and it < CHORD_MAXITER_FACTOR * maxiter:
             it += 1
             dD = target - U[D]
-            use_chord = chord and self.mixed and lu_cache is not None and "lu" in lu_cache \
+            factors = lu_cache if self.mixed else amg_cache  # where a direct solve leaves its "lu"
+            use_chord = chord and lu_cache is not None and factors is not None and "lu" in factors \
                 and not np.any(dD != 0.0)
             if not use_chord and "K" not in st:
                 st = self._evaluate(U, p, s, fext, material, tangent=True)
@@ -286,17 +318,17 @@ class Hyperelasticity:
             if not inexact:
                 eta = LINEAR_RTOL_MIN
             if use_chord:
-                du, dp = self._chord_solve(lu_cache["lu"], st, free)
+                du, dp = self._chord_solve(factors["lu"], st, free)
                 stats.calls += 1
             else:
                 fresh += 1
                 if self.mixed:
                     du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
                                           self.nullspace, 1.0 / mu + 1.0 / material.lam,
-                                          method=method, stats=stats, cache=lu_cache)
+                                          method=method, stats=stats, cache=lu_cache, order=self.order)
                 else:
                     du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
-                                   stats=stats, cache=amg_cache)
+                                   stats=stats, cache=amg_cache, order=self.order)
                     dp = None
             first = np.any(dD != 0.0)
             # Merit of the line search: the residual norm, or (displacement formulation, a

@@ -15,6 +15,15 @@ AMG-CG 2.3 s), or :data:`DIRECT_MAX_NNZ_SADDLE` for the saddle point, otherwise 
 smoothed-aggregation algebraic multigrid (pyamg) whose near-null space holds the six rigid-body
 modes; MINRES with the block-diagonal preconditioner ``diag(AMG(A), S⁻¹)``,
 ``S = M_p (1/μ_s + 1/λ)`` (a spectrally equivalent Schur complement) for the saddle point.
+
+Fill-reducing order of the direct factorizations: the callers pass ``order``, a permutation of the
+unknowns from :func:`nested_dissection` of the mesh's nodes (the voxel grid is cut recursively
+along its longest extent by a plane of element faces, whose nodes come last).  SuperLU then keeps
+that order (``permc_spec='NATURAL'``).  On the publication's meshes it halves the factorization
+time against SuperLU's own minimum degree ordering (mixed u–p on the 10×10×10 cube: 3.9 s against
+8.4 s of CPU, 30 M against 43 M non-zeros in the factors).  Without ``order`` SuperLU orders by
+minimum degree on ``AᵀA + A`` as before; any symmetric order gives the same solution to round-off
+(both systems are symmetric quasi-definite: an LDLᵀ factorization exists for every order).
 """
 
 from __future__ import annotations
@@ -65,12 +74,99 @@ def rigid_modes(points: np.ndarray) -> np.ndarray:
     return B.reshape(3 * n, 6)
 
 
-def _choose(method: str, A: sp.spmatrix, limit: int = DIRECT_MAX_NNZ) -> str:
+def nested_dissection(points: np.ndarray, h: float, leaf: int = 16) -> np.ndarray | None:
+    """Nested-dissection order of the Lagrange nodes ``points`` (n, 3) of a voxel mesh with
+    element edge ``h``: the box of elements is split at the middle element-face plane of its
+    longest extent; the nodes strictly on either side are ordered first (recursively, down to
+    ``leaf`` nodes or one element across), the nodes on the plane (a separator: no element
+    couples the two sides through it) after them.  Returns the node order, or ``None`` when the
+    nodes are not on the half-element grid of Hex1/Hex2 nodes (e.g. a distorted mesh)."""
+    p = np.asarray(points, float)
+    q = (p - p.min(axis=0)) / (0.5 * h)
+    g = np.rint(q).astype(np.int64)  # half-element units: vertices even, Hex2 mid-nodes odd
+    if len(p) == 0 or np.abs(q - g).max() > 1e-6:
+        return None
+    out = []
+    stack = [(np.arange(len(p)), np.zeros(3, np.int64), -(-g.max(axis=0) // 2))]
+    while stack:  # depth first: left box, right box, then the separator
+        item = stack.pop()
+        if isinstance(item, np.ndarray):
+            out.append(item)
+            continue
+        idx, lo, hi = item
+        ext = hi - lo
+        if len(idx) <= leaf or ext.max() < 2:
+            out.append(idx)
+            continue
+        ax = int(np.argmax(ext))
+        m = lo[ax] + ext[ax] // 2
+        c = g[idx, ax]
+        h_left, lo_right = hi.copy(), lo.copy()
+        h_left[ax] = lo_right[ax] = m
+        stack += [idx[c == 2 * m], (idx[c > 2 * m], lo_right, hi), (idx[c < 2 * m], lo, h_left)]
+    return np.concatenate(out)
+
+
+def dof_order(node_order: np.ndarray | None, n_vector_nodes: int, n_scalar: int = 0) -> np.ndarray | None:
+    """Unknowns in the order of ``node_order`` (a permutation of ``n_vector_nodes + n_scalar``
+    nodes): vector node ``k`` (< ``n_vector_nodes``) stands for dofs ``3k, 3k+1, 3k+2``, scalar
+    node ``n_vector_nodes + j`` for unknown ``3 n_vector_nodes + j`` (the pressure of a saddle point)."""
+    if node_order is None:
+        return None
+    k = np.asarray(node_order, np.int64)
+    vec = k < n_vector_nodes
+    counts = np.where(vec, 3, 1)
+    start = np.where(vec, 3 * k, 3 * n_vector_nodes + (k - n_vector_nodes))
+    first = np.cumsum(counts) - counts
+    return np.repeat(start, counts) + (np.arange(int(counts.sum())) - np.repeat(first, counts))
+
+
+class OrderedLU:
+    """SuperLU factorization (diagonal pivots) of a symmetric matrix ``A`` in the order ``perm``
+    (``None``: SuperLU's minimum degree order); :meth:`solve` takes and returns vectors in the
+    original order, :attr:`lu` solves in the permuted one.
+
+    ``permuted=True``: ``A`` is already ``A[perm][:, perm]``.  A symmetric CSR matrix is passed to
+    SuperLU as CSC without conversion (its CSR arrays are the CSC arrays of ``Aᵀ = A``)."""
+
+    def __init__(self, A: sp.spmatrix, perm: np.ndarray | None, permuted: bool = False):
+        self.perm = perm
+        Ap = sp.csr_matrix(A if (perm is None or permuted) else A[perm][:, perm])
+        Ap = sp.csc_matrix((Ap.data, Ap.indices, Ap.indptr), shape=Ap.shape)
+        self.lu = spla.splu(Ap, permc_spec="MMD_AT_PLUS_A" if perm is None else "NATURAL",
+                            diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        if self.perm is None:
+            return self.lu.solve(b)
+        x = np.empty_like(b)
+        x[self.perm] = self.lu.solve(b[self.perm])
+        return x
+
+
+def _local_order(order: np.ndarray | None, keep: np.ndarray) -> np.ndarray | None:
+    """``order`` (a permutation of all unknowns) restricted to the unknowns ``keep`` (boolean) and
+    renumbered to their positions among them."""
+    if order is None:
+        return None
+    pos = np.full(len(keep), -1, dtype=np.int64)
+    pos[keep] = np.arange(int(keep.sum()))
+    p = pos[order]
+    return p[p >= 0]
+
+
+def _choose(method: str, nnz: int, limit: int = DIRECT_MAX_NNZ) -> str:
     if method not in METHODS:
         raise ValueError(f"linear solver must be one of {', '.join(METHODS)}; got {method!r}")
     if method == "auto":
-        return "direct" if A.nnz <= limit else "amg"
+        return "direct" if nnz <= limit else "amg"
     return method
+
+
+def _submatrix_nnz(K: sp.csr_matrix, keep: np.ndarray) -> int:
+    """Stored entries of ``K[keep][:, keep]`` (without extracting it)."""
+    rows = np.repeat(keep, np.diff(K.indptr))
+    return int(np.count_nonzero(rows & keep[K.indices]))
 
 
 def _amg(A: sp.csr_matrix, B: np.ndarray):
@@ -92,6 +188,7 @@ def solve_spd(
     rtol: float = 1e-11,
     stats: SolveStats | None = None,
     cache: dict | None = None,
+    order: np.ndarray | None = None,
 ) -> np.ndarray:
     """Solve ``K u = f`` on the free dofs with ``u[D] = uD``; returns the full ``u``.
 
@@ -99,7 +196,8 @@ def solve_spd(
     the caller, e.g. across Newton iterations with the same prescribed dofs) keeps the AMG
     hierarchy of an earlier matrix as the preconditioner; it is rebuilt when CG needs more than
     twice the iterations per decade of residual reduction it needed when built.  A direct solve
-    stores its factorization of the free-dof matrix in ``cache["lu"]``.
+    stores its factorization of the free-dof matrix in ``cache["lu"]``.  ``order``: a fill-reducing
+    permutation of all ``n`` dofs for the direct factorization (see :func:`dof_order`).
     """
     n = K.shape[0]
     free = np.ones(n, dtype=bool)
@@ -107,34 +205,39 @@ def solve_spd(
     u = np.zeros(n)
     u[D] = uD
     K = sp.csr_matrix(K)
-    A = K[free][:, free].tocsr()
-    b = f[free] - K[free][:, D] @ uD
-    kind = _choose(method, A)
+    kind = _choose(method, _submatrix_nnz(K, free))
     if kind == "direct":
-        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options=dict(SymmetricMode=True))
-        x = lu.solve(b)
-        its = 1
+        # extract the free block directly in the factorization's order
+        perm = _local_order(order, free)
+        sel = np.flatnonzero(free) if perm is None else np.flatnonzero(free)[perm]
+        Kr = K[sel]
+        lu = OrderedLU(Kr[:, sel], perm, permuted=True)
+        u[sel] = lu.lu.solve(f[sel] - Kr[:, D] @ uD)
         if cache is not None:
             cache["lu"] = lu
-    else:
-        reuse = cache is not None and cache.get("n") == A.shape[0] and "M" in cache
-        M = cache["M"] if reuse else _amg(A, np.ascontiguousarray(nullspace[free]))
-        count = [0]
-        x, info = spla.cg(A, b, M=M, rtol=rtol, atol=0.0, maxiter=5000,
-                          callback=lambda xk: count.__setitem__(0, count[0] + 1))
-        if info != 0 and reuse:  # a stale preconditioner: rebuild and retry once
+        if stats is not None:
+            stats.add(kind, 1)
+        return u
+    Kr = K[free]
+    A = Kr[:, free].tocsr()
+    b = f[free] - Kr[:, D] @ uD
+    reuse = cache is not None and cache.get("n") == A.shape[0] and "M" in cache
+    M = cache["M"] if reuse else _amg(A, np.ascontiguousarray(nullspace[free]))
+    count = [0]
+    x, info = spla.cg(A, b, M=M, rtol=rtol, atol=0.0, maxiter=5000,
+                      callback=lambda xk: count.__setitem__(0, count[0] + 1))
+    if info != 0 and reuse:  # a stale preconditioner: rebuild and retry once
+        cache.clear()
+        return solve_spd(K, f, D, uD, nullspace, method, rtol, stats, cache, order)
+    if info != 0:
+        raise RuntimeError(f"AMG-preconditioned CG did not converge ({count[0]} iterations)")
+    its = count[0]
+    if cache is not None:
+        rate = max(its, 1) / max(1.0, -np.log10(rtol))  # iterations per decade
+        if not reuse:
+            cache.update(n=A.shape[0], M=M, rate0=rate)
+        elif rate > 2 * cache["rate0"]:
             cache.clear()
-            return solve_spd(K, f, D, uD, nullspace, method, rtol, stats, cache)
-        if info != 0:
-            raise RuntimeError(f"AMG-preconditioned CG did not converge ({count[0]} iterations)")
-        its = count[0]
-        if cache is not None:
-            rate = max(its, 1) / max(1.0, -np.log10(rtol))  # iterations per decade
-            if not reuse:
-                cache.update(n=A.shape[0], M=M, rate0=rate)
-            elif rate > 2 * cache["rate0"]:
-                cache.clear()
     if stats is not None:
         stats.add(kind, its)
     u[free] = x
@@ -155,13 +258,15 @@ def solve_saddle(
     rtol: float = 1e-11,
     stats: SolveStats | None = None,
     cache: dict | None = None,
+    order: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Solve ``[[A, Bᵀ], [B, −C]] [u; p] = [f; g]`` with ``u[D] = uD``; returns ``(u, p)``.
 
     ``schur_scale`` multiplies the pressure mass matrix in the preconditioner:
     ``S ≈ schur_scale · C_mass`` (use ``1/μ + 1/λ`` with ``C = M_p/λ``).  ``cache``: a dict
     that receives the factorization (``cache["lu"]``, of the system on the free dofs and the
-    pressure) when the solve is direct.
+    pressure) when the solve is direct.  ``order``: a fill-reducing permutation of the ``n + m``
+    unknowns (pressure ``j`` is unknown ``n + j``) for the direct factorization.
     """
     n, m = A.shape[0], B.shape[0]
     free = np.ones(n, dtype=bool)
@@ -176,12 +281,11 @@ def solve_saddle(
     bp = g - B[:, D] @ uD
     S = sp.bmat([[Aff, Bf.T], [Bf, -C]], format="csr")
     rhs = np.concatenate([bu, bp])
-    kind = _choose(method, S, DIRECT_MAX_NNZ_SADDLE)
+    kind = _choose(method, S.nnz, DIRECT_MAX_NNZ_SADDLE)
     if kind == "direct":
         # [[A, Bᵀ], [B, −C]] with A, C positive definite is symmetric quasi-definite: an LDLᵀ
         # factorization exists for every symmetric ordering, so no pivoting is needed.
-        lu = spla.splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options=dict(SymmetricMode=True))
+        lu = OrderedLU(S, _local_order(order, np.concatenate([free, np.ones(m, dtype=bool)])))
         x = lu.solve(rhs)
         its = 1
         if cache is not None:

@@ -30,7 +30,7 @@ import numpy as np
 from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
-from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd
+from .linalg import SolveStats, dof_order, nested_dissection, rigid_modes, solve_saddle, solve_spd
 from .mesh import FemMesh
 from .space import Space
 
@@ -55,6 +55,9 @@ class LinearElasticity:
 
     fmesh: FemMesh
     formulation: str = "hex2"
+    reorder: bool = True
+    """Factorize direct systems in the nested-dissection order of :attr:`order` (``False``: SuperLU's
+    minimum degree order)."""
 
     def __post_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -92,6 +95,17 @@ class LinearElasticity:
     def nullspace(self) -> np.ndarray:
         return rigid_modes(self.space.points)
 
+    @cached_property
+    def order(self) -> np.ndarray | None:
+        """Fill-reducing order of the unknowns (displacement dofs, then for the mixed element the
+        pressures) for direct factorizations, or ``None`` (:attr:`reorder` off, or no grid)."""
+        if not self.reorder:
+            return None
+        if not self.mixed:
+            return dof_order(nested_dissection(self.space.points, self.fmesh.h), self.space.n_scalar)
+        pts = np.vstack([self.space.points, self.pspace.points])
+        return dof_order(nested_dissection(pts, self.fmesh.h), self.space.n_scalar, self.pspace.n_scalar)
+
     def solve(
         self,
         material: Material,
@@ -112,7 +126,7 @@ class LinearElasticity:
         uD = dirichlet.values(s)
         if not self.mixed:
             K = lam * Klam + mu * Kmu
-            u = solve_spd(K, f, dirichlet.dofs, uD, self.nullspace, method=method, stats=stats)
+            u = solve_spd(K, f, dirichlet.dofs, uD, self.nullspace, method=method, stats=stats, order=self.order)
             r = K @ u - f
             energy = 0.5 * u @ (K @ u)
             return Solution(u.reshape(-1, 3), None, r, float(energy), stats)
@@ -123,7 +137,7 @@ class LinearElasticity:
         C = self.pressure_mass / lam
         g = np.zeros(B.shape[0])
         u, p = solve_saddle(A, B, C, f, g, dirichlet.dofs, uD, self.nullspace,
-                            schur_scale=1.0 / mu + 1.0 / lam, method=method, stats=stats)
+                            schur_scale=1.0 / mu + 1.0 / lam, method=method, stats=stats, order=self.order)
         r = A @ u + B.T @ p - f
         energy = 0.5 * u @ (A @ u) + 0.5 * p @ (C @ p)
         return Solution(u.reshape(-1, 3), p, r, float(energy), stats)
