@@ -40,7 +40,8 @@ brackets a limit point.  The load factor is then bisected in that bracket: a mid
 predicted state is beyond the fold in that sense moves the upper end down without Newton;
 otherwise Newton (``retry_iter`` iterations, giving up when its iterates stay out of the stable
 region) decides, converged moving the lower end up, failed the upper end down.  At a width of
-``limit_resolution`` (1 %) of the first bracket, the ordinary Newton at the upper end decides:
+``limit_resolution`` (1 %) of the first bracket, the ordinary Newton at the upper end decides
+(``limit_iter`` = 4 iterations):
 failing, :class:`StaticSolveError` reports the bracket (message as above); converging (a
 bifurcation the path passes, as with the soft modes of hybmss-fd at ν = 0.2, not a fold), the
 load stepping goes on without bracketing.  This replaces some ten failing Newton attempts of
@@ -105,6 +106,9 @@ class StaticOptions:
     """Width of the load-factor bracket a suspected limit point is located to, as a fraction of
     the load step that first pointed at it (:func:`solve_static`); None: plain halving of the
     load step down to ``min_step``."""
+    limit_iter: int = 4
+    """Newton iterations of the attempt at the upper end of a narrowed limit-point bracket that
+    decides whether the equilibrium is lost (a path through a bifurcation converges there in 1–2)."""
 
 
 @dataclass(frozen=True)
@@ -684,7 +688,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
                 guess, lu = x.copy(), None
             guess[S.fixed] = target[S.fixed]
-            ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.retry_iter, None, stats,
+            ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.limit_iter, None, stats,
                                                  opts.line_search, lu=lu, load=s_hi, fac=fac)
             if not ok:
                 raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi))
