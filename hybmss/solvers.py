@@ -477,9 +477,7 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
     (over the free dofs)."""
     free = ~system.fixed.ravel()
     Hff = stiffness(system, x)[free][:, free]
-    # a dense eigh only for the smallest systems: on a busy machine, multithreaded LAPACK takes
-    # seconds even for a few hundred dofs, where shift-invert takes milliseconds
-    if Hff.shape[0] <= 60:
+    if Hff.shape[0] <= 600:
         w, v = np.linalg.eigh(Hff.toarray())
         return float(w[0]), v[:, 0]
     try:
