@@ -1,17 +1,22 @@
 """Speed of the explicit kernels on the compression cube of SPEC §6 (issue 2, "Speed").
 
-The scene: 10×10×10 cells of 0.5 m, E = 10⁴ Pa, ρ = 1000 kg/m³, bottom clamped, top plate moved
-down by 5 % (ramp 1 s), dt = 1 ms, built by :mod:`hybmss.experiments`.  Variants: every model of
-the ``performance`` role of the registry at ν = 0.499 (hybmss-cf ignores ν: its springs alone give
-ν = 1/4), and the first of them (hybmss) at ν = 1/4 (no volume term: it must cost what hybmss-cf
-costs).  Each runs with the Numba kernel on 1 and 2 threads and with the NumPy twin (the kernels
-the model supports), the twin running fewer steps (its row says how many; ``s_per_10k_steps``
-scales it).
+The scene: n×n×n cells of 0.5 m, E = 10⁴ Pa, ρ = 1000 kg/m³, bottom clamped, top plate moved
+down by 5 % (ramp 1 s), dt = 1 ms.  :func:`time_config` times one configuration (model, ν,
+mesh, kernel, threads, precision); :func:`run_bench` a matrix of them: every model of the
+registry (:mod:`hybmss.models`) at ν = 0.499 plus the first ``performance`` model (hybmss) at
+ν = 1/4 (no volume term: it must cost what hybmss-cf costs), float64 and float32, one and two
+threads, on the 10³ and 30³ cubes (scenes built by :mod:`hybmss.experiments`).  The NumPy twin
+runs fewer steps (its row says how many; ``s_per_10k_steps`` scales it).  A configuration a
+model does not support (a kernel it does not list; float32 for baudet2009, whose corrections run
+in float64) has no row.
 
 JIT compilation is excluded (a short warm-up run first); each figure is the best of
-``repeats`` runs, since other processes on the machine only ever add time.  ``ns_per_spring_step``
-divides by the model's merged springs (the count of ``hybmss info``'s ``springs.total``).
-The ``static`` list times the static Newton solve of the same cube (:func:`static_bench`).
+``repeats`` runs, since other processes on the machine only ever add time, and configurations
+are timed round-robin so that a burst of load does not fall on one of them only.  Every row
+carries the 1-minute load average when it was measured: figures taken under a load above the
+number of cores are not the kernel's (two threads on a busy machine spin and can be 10–100×
+slower).  ``ns_per_spring_step`` divides by the model's merged springs.  The ``static`` list
+times the static Newton solve of the 10³ cube (:func:`static_bench`).
 """
 
 from __future__ import annotations
@@ -29,81 +34,136 @@ from .system import build
 MESH = (10, 10, 10)
 LE = 0.5
 DT = 1e-3
+NU = 0.499
+MESHES = ((10, 10, 10), (30, 30, 30))
+STEPS = {(10, 10, 10): 10_000, (20, 20, 20): 2_000, (30, 30, 30): 1_000}
+"""Numba steps per timed run by mesh (figures are scaled to 10,000 steps)."""
 
 
-def variants() -> list[tuple[str, float]]:
-    """(model, ν) of the explicit rows: the ``performance`` models at ν = 0.499, the first at 1/4."""
-    names = models.in_role("performance")
-    return [(m, 0.499) for m in names] + [(names[0], 0.25)]
+def default_variants() -> list[tuple[str, float]]:
+    """(model, ν) of the explicit rows: every registered model at ν = 0.499, the first
+    ``performance`` model at ν = 1/4 too."""
+    perf = models.in_role("performance")
+    return [(m, NU) for m in models.names()] + [(perf[0], 0.25)]
 
 
 def compression_scene(model: str, nu: float, mesh=MESH, le: float = LE, d: float = 0.05) -> Scene:
     """SPEC §6 compression (:mod:`hybmss.experiments`): bottom clamped, top plate moved down by d·H."""
-    return SceneSpec.default("compression", mesh=mesh, le=le, nu=nu, model=model, deformation=d).build()
+    return SceneSpec.default("compression", mesh=tuple(mesh), le=le, nu=nu, model=model, deformation=d).build()
 
 
-def _run(cfg):
-    scene, system, kernel, th, n, dc = cfg
-    r = simulate_explicit(scene, dt=DT, steps=n, kernel=kernel, threads=th, system=system,
-                          dt_crit_value=dc)
-    return r.wall_time_s, r.info["cpu_time_s"]
+def mesh_label(mesh) -> str:
+    return "x".join(str(int(n)) for n in mesh)
 
 
-def run_bench(steps: int = 10_000, kernels=("numba", "numpy"), quick: bool = False,
-              threads=(1, 2), numpy_steps: int = 500, repeats: int | None = None) -> dict:
-    """Time the explicit kernels; returns ``{"explicit": [row, ...], "static": []}``.
+def load_average() -> float | None:
+    return os.getloadavg()[0] if hasattr(os, "getloadavg") else None
 
-    Each row: ``model, nu, mesh, kernel, threads, steps`` (steps actually run),
-    ``wall_time_s`` (best of ``repeats``), ``cpu_time_s`` (process CPU time of the best run),
-    ``s_per_10k_steps``, ``springs``, ``ns_per_spring_step``, ``dt_crit_s`` and ``load_avg``
-    (the machine's 1-minute load average when measured: figures taken under load > cores are
-    not the kernel's).  Configurations are timed round-robin, so a burst of load from other
-    processes does not fall on one of them only.  ``quick`` runs 1,000 Numba and 50 NumPy steps
-    once (a smoke run, not a measurement).
-    """
-    if quick:
-        steps, numpy_steps = min(steps, 1000), min(numpy_steps, 50)
-    if repeats is None:
-        repeats = 1 if quick else 3
-    mesh = "x".join(str(n) for n in MESH)
-    configs, meta = [], []
-    for model, nu in variants():
-        scene = compression_scene(model, nu)
-        system = build(scene)
-        dc = dt_crit(system)
-        for kernel in [k for k in kernels if models.get(model).supports("explicit", k)]:
-            n = steps if kernel == "numba" else min(steps, numpy_steps)
-            for th in (threads if kernel == "numba" else (1,)):
-                # warm-up: compiles (or loads from cache) the kernel outside the timings
-                simulate_explicit(scene, dt=DT, steps=2, kernel=kernel, threads=th, system=system,
-                                  dt_crit_value=dc)
-                configs.append((scene, system, kernel, int(th), int(n), dc))
-                meta.append((model, nu, int(len(system.spring_k))))
-    best = [(float("inf"), float("inf"))] * len(configs)
-    for _ in range(repeats):
-        for i, cfg in enumerate(configs):
-            wall, cpu = _run(cfg)
-            if wall < best[i][0]:
-                best[i] = (wall, cpu)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    rows = []
-    for (scene, system, kernel, th, n, dc), (model, nu, springs), (wall, cpu) in zip(configs, meta, best):
-        rows.append({
-            "model": model,
-            "nu": nu,
-            "mesh": mesh,
-            "kernel": kernel,
-            "threads": th,
-            "steps": n,
+
+class _Config:
+    """One timed configuration: its scene, system and a warmed-up kernel."""
+
+    def __init__(self, model, nu, mesh, kernel, threads, precision, steps):
+        self.model, self.nu, self.mesh = model, float(nu), tuple(mesh)
+        self.kernel, self.threads, self.precision, self.steps = kernel, int(threads), precision, int(steps)
+        self.scene = compression_scene(model, nu, mesh=self.mesh)
+        self.system = build(self.scene)
+        self.dc = dt_crit(self.system)
+        self.best = (float("inf"), float("inf"), None)
+        # warm-up: compiles (or loads from cache) the kernel outside the timings
+        self._run(2)
+
+    def _run(self, n):
+        return simulate_explicit(self.scene, dt=DT, steps=n, kernel=self.kernel, threads=self.threads,
+                                 precision=self.precision, system=self.system, dt_crit_value=self.dc,
+                                 check_every=max(n, 1))
+
+    def time_once(self):
+        r = self._run(self.steps)
+        if r.wall_time_s < self.best[0]:
+            self.best = (r.wall_time_s, r.info["cpu_time_s"], load_average())
+
+    def row(self) -> dict:
+        wall, cpu, load = self.best
+        springs = int(len(self.system.spring_k))
+        return {
+            "model": self.model,
+            "nu": self.nu,
+            "mesh": mesh_label(self.mesh),
+            "kernel": self.kernel,
+            "precision": self.precision,
+            "threads": self.threads,
+            "steps": self.steps,
             "wall_time_s": wall,
             "cpu_time_s": cpu,
-            "s_per_10k_steps": wall * 10_000 / n,
+            "s_per_10k_steps": wall * 10_000 / self.steps,
             "springs": springs,
-            "ns_per_spring_step": wall / n / springs * 1e9,
-            "dt_crit_s": dc,
+            "ns_per_spring_step": wall / self.steps / springs * 1e9,
+            "dt_crit_s": self.dc,
             "load_avg": load,
-        })
-    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats)}
+        }
+
+
+def time_config(model: str = "hybmss", nu: float = NU, mesh=MESH, threads: int = 1, precision: str = "f64",
+                kernel: str = "numba", steps: int | None = None, repeats: int = 3) -> dict:
+    """Best-of-``repeats`` row of one configuration (see :func:`run_bench` for the fields)."""
+    if steps is None:
+        steps = STEPS.get(tuple(mesh), 1000) if kernel == "numba" else 200
+    cfg = _Config(model, nu, mesh, kernel, threads, precision, steps)
+    for _ in range(max(1, int(repeats))):
+        cfg.time_once()
+    return cfg.row()
+
+
+def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool = False,
+              threads=(1, 2), numpy_steps: int = 500, repeats: int | None = None,
+              meshes=None, precisions=("f64", "f32"), variants=None, static: bool = True) -> dict:
+    """Time the explicit kernels; returns ``{"explicit": [row, ...], "static": [...]}``.
+
+    Each row: ``model, nu, mesh, kernel, precision, threads, steps`` (steps actually run),
+    ``wall_time_s`` (best of ``repeats``), ``cpu_time_s`` (process CPU time of the best run, all
+    threads), ``s_per_10k_steps``, ``springs``, ``ns_per_spring_step``, ``dt_crit_s`` and
+    ``load_avg`` (the 1-minute load average at the best run).  ``steps`` overrides the Numba
+    steps of every mesh (default :data:`STEPS`); the NumPy twin runs ``numpy_steps`` on the
+    first mesh only, one thread, float64.  ``quick``: the 10³ cube only, float64, one thread, a
+    tenth of the steps, one repeat (a smoke run, not a measurement).
+    """
+    if quick:  # one mesh, one thread, float64: each configuration compiles a kernel of its own
+        meshes, threads, precisions = meshes or (MESH,), (1,), ("f64",)
+    meshes = tuple(tuple(m) for m in (meshes or MESHES))
+    variants = tuple(variants) if variants is not None else tuple(default_variants())
+    if repeats is None:
+        repeats = 1 if quick else 3
+    configs = []
+
+    def add(*cfg):
+        if not models.get(cfg[0]).supports("explicit", cfg[3]):
+            return
+        try:
+            configs.append(_Config(*cfg))
+        except ValueError:  # a precision or kernel the model's forces do not have
+            pass
+
+    for mesh in meshes:
+        n_nb = steps or STEPS.get(mesh, 1000)
+        if quick:
+            n_nb, numpy_steps = max(10, n_nb // 10), min(numpy_steps, 20)
+        for model, nu in variants:
+            for kernel in kernels:
+                if kernel == "numpy":
+                    if mesh != meshes[0]:
+                        continue
+                    add(model, nu, mesh, "numpy", 1, "f64", min(n_nb, numpy_steps))
+                    continue
+                for prec in precisions:
+                    for th in threads:
+                        add(model, nu, mesh, kernel, th, prec, n_nb)
+    for _ in range(repeats):
+        for cfg in configs:
+            cfg.time_once()
+    rows = [c.row() for c in configs]
+    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats) if static else [],
+            "cores": os.cpu_count()}
 
 
 def static_cases() -> list[tuple[str, float, float]]:
@@ -135,62 +195,59 @@ def static_bench(quick: bool = False, repeats: int | None = None) -> list[dict]:
     return rows
 
 
-def _ratio(rows, kernel, threads, num, den):
-    def get(model, nu):
-        for r in rows:
-            if (r["model"], r["nu"], r["kernel"], r["threads"]) == (model, nu, kernel, threads):
-                return r["s_per_10k_steps"]
-        return None
-
-    a, b = get(*num), get(*den)
-    return None if a is None or b is None else a / b
+def _pick(rows, **key):
+    for r in rows:
+        if all(r.get(k) == v for k, v in key.items()):
+            return r
+    return None
 
 
 def format_bench(d: dict) -> str:
-    """Readable table of :func:`run_bench`'s result, with the ratios of [G20] Figs 11–12."""
+    """Readable table of :func:`run_bench`'s result, with the ratios measured in the same run:
+    float32 / float64, two threads / one, Numba / NumPy, and each model over the fastest one
+    (float64, one thread; [G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)."""
     rows = d.get("explicit", [])
-    out = ["explicit dynamics, compression cube (dt = 1 ms; time per 10,000 steps)", ""]
-    head = f"{'model':<10} {'nu':>6} {'mesh':>9} {'kernel':>6} {'thr':>3} {'steps':>6} " \
-           f"{'wall s':>8} {'cpu s':>8} {'s/10k':>8} {'springs':>7} {'ns/spr/step':>11} {'dt_crit s':>9}"
+    out = ["explicit dynamics, compression cube (dt = 1 ms; time per 10,000 steps, best of the repeats)", ""]
+    head = (f"{'model':<10} {'nu':>6} {'mesh':>9} {'kernel':>6} {'prec':>4} {'thr':>3} {'steps':>6} "
+            f"{'wall s':>8} {'cpu s':>8} {'s/10k':>8} {'ns/spr/step':>11} {'load':>5}")
     out += [head, "-" * len(head)]
     for r in rows:
+        load = r.get("load_avg")
         out.append(
-            f"{r['model']:<10} {r['nu']:>6g} {r['mesh']:>9} {r['kernel']:>6} {r['threads']:>3} "
-            f"{r['steps']:>6} {r['wall_time_s']:>8.3f} {r.get('cpu_time_s', float('nan')):>8.3f} "
-            f"{r['s_per_10k_steps']:>8.3f} "
-            f"{r.get('springs', 0):>7} {r.get('ns_per_spring_step', float('nan')):>11.2f} "
-            f"{r.get('dt_crit_s', float('nan')):>9.4g}"
+            f"{r['model']:<10} {r['nu']:>6g} {r['mesh']:>9} {r['kernel']:>6} {r.get('precision', 'f64'):>4} "
+            f"{r['threads']:>3} {r['steps']:>6} {r['wall_time_s']:>8.3f} {r.get('cpu_time_s', float('nan')):>8.3f} "
+            f"{r['s_per_10k_steps']:>8.3f} {r.get('ns_per_spring_step', float('nan')):>11.2f} "
+            f"{load if load is not None else float('nan'):>5.2f}"
         )
-    if rows and "load_avg" in rows[0]:
-        out.append(f"(1-min load average {rows[0]['load_avg']:.2f} on {os.cpu_count()} cores at the end)")
-    combos = sorted({(r["kernel"], r["threads"]) for r in rows})
-    seen = {(r["model"], r["nu"]) for r in rows}
-    pairs = [v for v in variants() if v in seen]
-    if combos:
-        out += ["", "ratios of the time per step to the fastest variant of each kernel "
-                    "([G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)"]
-        for kernel, th in combos:
-            own = [(r["s_per_10k_steps"], r["model"], r["nu"]) for r in rows
-                   if (r["kernel"], r["threads"]) == (kernel, th)]
-            base = min(own)
-            parts = [f"  {kernel} {th} thread(s):"]
-            for model, nu in pairs:
-                val = _ratio(rows, kernel, th, (model, nu), base[1:])
-                if val is not None:
-                    parts.append(f"{model}(nu={nu:g})/{base[1]}(nu={base[2]:g}) {val:.2f}")
-            out.append("  ".join(parts))
-        for model, nu in pairs:
-            pick = {}
-            for r in rows:
-                if (r["model"], r["nu"]) == (model, nu):
-                    pick[(r["kernel"], r["threads"])] = r["s_per_10k_steps"]
+    loads = [r["load_avg"] for r in rows if r.get("load_avg") is not None]
+    if loads:
+        out.append(f"(1-min load average {min(loads):.2f}-{max(loads):.2f} on {d.get('cores') or os.cpu_count()} "
+                   "cores during the runs: above the core count, figures are not the kernel's)")
+    out += ["", "ratios in this run (time per step)"]
+    meshes = sorted({r["mesh"] for r in rows}, key=lambda m: int(m.split("x")[0]))
+    for mesh in meshes:
+        own = [(r["s_per_10k_steps"], r["model"], r["nu"]) for r in rows if r["mesh"] == mesh
+               and (r["kernel"], r.get("precision", "f64"), r["threads"]) == ("numba", "f64", 1)]
+        fastest = min(own) if own else None
+        for model, nu in sorted({(r["model"], r["nu"]) for r in rows if r["mesh"] == mesh}):
+            base = dict(mesh=mesh, model=model, nu=nu, kernel="numba")
             parts = []
-            if ("numba", 1) in pick and ("numba", 2) in pick:
-                parts.append(f"speed-up of 2 threads over 1: {pick[('numba', 1)] / pick[('numba', 2)]:.2f}")
-            if ("numba", 1) in pick and ("numpy", 1) in pick:
-                parts.append(f"numba over numpy: {pick[('numpy', 1)] / pick[('numba', 1)]:.0f}")
+            for th in (1, 2):
+                a, b = _pick(rows, **base, precision="f32", threads=th), _pick(rows, **base, precision="f64", threads=th)
+                if a and b:
+                    parts.append(f"f32/f64 ({th} thr) {a['s_per_10k_steps'] / b['s_per_10k_steps']:.2f}")
+            for prec in ("f64", "f32"):
+                a, b = _pick(rows, **base, precision=prec, threads=1), _pick(rows, **base, precision=prec, threads=2)
+                if a and b:
+                    parts.append(f"speed-up 2 thr/1 ({prec}) {a['s_per_10k_steps'] / b['s_per_10k_steps']:.2f}")
+            a = _pick(rows, **base, precision="f64", threads=1)
+            b = _pick(rows, mesh=mesh, model=model, nu=nu, kernel="numpy")
+            if a and b:
+                parts.append(f"numba/numpy {a['s_per_10k_steps'] / b['s_per_10k_steps']:.3f}")
+            if a and fastest and (model, nu) != fastest[1:]:
+                parts.append(f"/{fastest[1]}(nu={fastest[2]:g}) {a['s_per_10k_steps'] / fastest[0]:.2f}")
             if parts:
-                out.append(f"  {model} nu={nu:g}: " + ";  ".join(parts))
+                out.append(f"  {mesh} {model} nu={nu:g}: " + ";  ".join(parts))
     static = d.get("static", [])
     if static:
         out += ["", "static solves"]

@@ -273,8 +273,14 @@ def build_parser() -> tuple[Parser, Options]:
              help=f"test strain (allowed [1e-06, 0.01]; default {DEFAULTS['uniaxial']['deformation']:g})")
 
     q = command("bench", "speed of the explicit kernels and the static solver", commands.bench)
-    opts.add(q, "--steps", type=positive_int, default=10_000, help="explicit steps (integer >= 1; default 10000)")
+    opts.add(q, "--steps", type=positive_int, default=None,
+             help="explicit steps per timed run (integer >= 1; default 10000 on 10x10x10, 1000 on 30x30x30)")
     opts.add(q, "--quick", action="store_true", help="fewer, smaller runs (a smoke run, not a measurement)")
+    add_scene_options(q, opts, names=("model", "nu", "mesh"))
+    opts.add(q, "--threads", type=positive_int, default=None,
+             help="threads of one timed configuration (integer >= 1; default 1)")
+    opts.add(q, "--precision", choices=("f64", "f32"), default=None,
+             help="precision of one timed configuration (default f64)")
 
     q = command("fem", "FEM reference (scikit-fem) of one scene", commands.fem)
     opts.add(q, "--scene", choices=SCENES, default=None, help="experiment (default compression)")

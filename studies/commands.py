@@ -190,9 +190,16 @@ def moduli(args):
 
 # ------------------------------------------------------------------------------- bench
 def bench(args):
-    from hybmss.bench import format_bench, run_bench
+    from hybmss.bench import MESH, NU, format_bench, run_bench, time_config
 
-    d = run_bench(steps=args.steps, quick=args.quick)
+    one = {k: getattr(args, k, None) for k in ("model", "nu", "mesh", "threads", "precision")}
+    if any(v is not None for v in one.values()):  # time one configuration
+        row = time_config(model=one["model"] or "hybmss", nu=NU if one["nu"] is None else one["nu"],
+                          mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
+                          precision=one["precision"] or "f64", steps=args.steps, repeats=1 if args.quick else 3)
+        d = {"explicit": [row], "static": []}
+    else:
+        d = run_bench(steps=args.steps, quick=args.quick)
     return d, format_bench(d)
 
 

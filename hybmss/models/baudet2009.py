@@ -15,7 +15,7 @@ class Baudet2009(ModelBase):
     style = Style("#8c564b", "v")
     conservative = False
     solvers = ("static", "explicit")
-    kernels = ("numpy",)
+    kernels = ("numba", "numpy")  # the Numba kernel runs its corrections (float64)
     order = 3
     studies = ("tables", "b09")
 

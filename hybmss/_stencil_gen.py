@@ -1,0 +1,430 @@
+"""Source of the explicit stencil kernel, generated per lattice and compiled by Numba.
+
+The kernel of :mod:`hybmss._kernels` is fast only if LLVM vectorizes its square roots and
+divisions (8 doubles or 16 floats per AVX-512 instruction).  It does so when every array access
+is ``W[C + a]``: one flat array ``W`` holding all state, ``C`` a literal integer and ``a`` a
+loop index known to be non-negative, inside loops of literal length.  LLVM then needs no
+run-time alias checks and Numba no negative-index wrap test.  So the kernel source is written
+for one lattice size, one set of terms, one precision and one thread count, and compiled.
+
+Layout of ``W`` (:class:`Layout`): regions of ``L`` entries, each with a front pad of ``F``
+entries (F ≥ the largest flat offset ``H = s0 + s1 + 1``) and a back pad of ``F``; node q of
+region r is ``W[r L + F + q]``.  Regions, in order: two position buffers (``XA``, ``XB``, three
+rows each; steps alternate between them, so a thread never reads a position another thread is
+writing), velocities ``V`` (3), one spring-constant row per active offset ``K_j``, κ per cell
+``KAP`` (volume term only), ``1/m`` ``IM``, gravity ``GA`` (3, only with gravity), external
+forces ``FE`` (3, only when the system has forces the kernel does not generate), and per thread
+the partial sums ``R``: three rows for each offset o of ``roff`` (o = 0 first).
+
+One step is one pass over blocks of 64 nodes.  Loop 1 over the cell bases p of a block computes
+what base p gives to node p + o: ``R_0[p] = Σ_j t_j[p] + G_0[p]`` and, for o > 0,
+``R_o[p] = −t_o[p] ± G_c[p]`` (the spring tension ``t = k (1 − l0/l) d`` of the spring p → p + o
+and the volume gradient of the corner c at offset o of the cell whose lowest corner is p).
+Loop 2 over the nodes q of the block gathers ``f[q] = Σ_o R_o[q − o]`` (every base q − o ≤ q
+was done in this block or an earlier one) and integrates ``v ← (v + dt (f/m + g)) damp``,
+``x ← x + dt v`` into the other position buffer.  With T threads, thread t owns the blocks
+``[b_t, b_{t+1})`` and first recomputes, in its own R rows, the halo bases ``[b_t − H, b_t)``
+(loop 1 only) instead of waiting for the thread below: one parallel region per step, no
+barrier inside it, and the same arithmetic per node whatever T (threads agree bit for bit).
+
+Precision ``f64`` stores positions x and evaluates the formulas of :mod:`hybmss.forces`.
+Precision ``f32`` stores displacements u = x − X (positions of a few metres keep only ~1e-7 m
+in float32, displacements keep 1e-7 of themselves) and avoids the cancellations of small
+strains: a spring of rest vector D (a literal) has ``l² − l0² = 2 D·Δu + |Δu|²`` and
+``k (1 − l0/l) = k (l² − l0²)/(l (l + l0))``; a cell ``det(le I + Δ) − le³ = le² tr Δ +
+le M₂(Δ) + det Δ`` (M₂ the sum of the principal 2×2 minors of the averaged edge increments Δ).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+
+BLOCK = 64
+"""Nodes per block of the two loops (a multiple of the vector width of either precision)."""
+
+GENERATOR_VERSION = 2
+"""Bumped whenever the generated source changes meaning (it is part of the cache key)."""
+
+# corner c of a cell (grid offset (c & 1, c >> 1 & 1, c >> 2 & 1)) gets sign · G[slot] of the cell
+# whose lowest corner is p = q − coff[c] (see the module docstring of hybmss._kernels)
+CORNER_SLOT = (0, 3, 2, 1, 1, 2, 3, 0)
+CORNER_SIGN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0)
+SLOT_SIGNS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
+
+
+def _round_up(n: int, m: int) -> int:
+    return -(-n // m) * m
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything the generated source depends on (its cache key)."""
+
+    shape: tuple[int, int, int]  # grid nodes per axis
+    offsets: tuple[tuple[int, int, int], ...]  # active spring offsets (grid), lexicographically > 0
+    has_volume: bool
+    squared: bool
+    has_gravity: bool
+    has_external: bool  # external-force rows FE (dead loads, [B09] corrections)
+    baudet: bool  # FE recomputed every step: dead loads + [B09] corrections
+    precision: str  # "f64" or "f32"
+    threads: int
+    le: float  # lattice spacing (f32: the rest vectors D are literals)
+
+    def key(self) -> str:
+        return hashlib.sha1(repr((GENERATOR_VERSION, self)).encode()).hexdigest()[:20]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Region offsets of the flat state array (see the module docstring)."""
+
+    cfg: Config
+    N: int
+    s0: int
+    s1: int
+    H: int
+    F: int
+    L: int
+    nblocks: int
+    roff: tuple[int, ...]  # flat offsets of the partial sums, 0 first
+    regions: dict  # name -> region index
+
+    def base(self, name: str) -> int:
+        """Index in W of node 0 of region ``name``."""
+        return self.regions[name] * self.L + self.F
+
+    @property
+    def size(self) -> int:
+        return len(self.regions) * self.L
+
+    def bounds(self) -> list[int]:
+        """Block boundaries [b_0 = 0, …, b_T = nblocks) of the threads."""
+        T = self.cfg.threads
+        step = -(-self.nblocks // T)
+        return [min(t * step, self.nblocks) for t in range(T)] + [self.nblocks]
+
+
+def layout(cfg: Config) -> Layout:
+    n0, n1, n2 = cfg.shape
+    s0, s1 = n1 * n2, n2
+    N = n0 * n1 * n2
+    H = s0 + s1 + 1
+    F = _round_up(H, BLOCK)
+    nblocks = -(-N // BLOCK)
+    L = F + nblocks * BLOCK + F
+    flat = [o[0] * s0 + o[1] * s1 + o[2] for o in cfg.offsets]
+    # distinct grid offsets can share a flat offset on a thin grid (n1 = 2: (1, −1, k) and (0, 1, k));
+    # at any base at most one of them is a spring (the other joins across the flattening, k = 0),
+    # and both reach the same node, so they share one row of partial sums
+    roff = [0]
+    for o in flat:
+        if o not in roff:
+            roff.append(o)
+    if cfg.has_volume:
+        for c in range(1, 8):
+            o = (c & 1) * s0 + ((c >> 1) & 1) * s1 + ((c >> 2) & 1)
+            if o not in roff:
+                roff.append(o)
+    names = ["XA0", "XA1", "XA2"] + (["XB0", "XB1", "XB2"] if cfg.threads > 1 else []) + ["V0", "V1", "V2"]
+    names += [f"K{j}" for j in range(len(flat))]
+    if cfg.has_volume:
+        names.append("KAP")
+    names.append("IM")
+    if cfg.has_gravity:
+        names += ["GA0", "GA1", "GA2"]
+    if cfg.has_external:
+        names += ["FE0", "FE1", "FE2"]
+    for t in range(cfg.threads):
+        for o in roff:
+            names += [f"R{t}_{o}_{d}" for d in range(3)]
+    return Layout(cfg, N, s0, s1, H, F, L, nblocks, tuple(roff), {n: i for i, n in enumerate(names)})
+
+
+# ------------------------------------------------------------------------------ source
+class _Src:
+    def __init__(self):
+        self.lines: list[str] = []
+
+    def __call__(self, indent: int, text: str):
+        self.lines.append("    " * indent + text)
+
+
+def _lit(v: float, f32: bool) -> str:
+    return f"np.float32({float(v)!r})" if f32 else repr(float(v))
+
+
+def _loop1(S: _Src, ind: int, lay: Layout, t: int, xr: str):
+    """Partial sums of the bases ``a`` (one block), from the position rows ``xr`` (XA or XB)."""
+    cfg = lay.cfg
+    f32 = cfg.precision == "f32"
+    B = lay.base
+    X = [B(f"{xr}{d}") for d in range(3)]
+    s0, s1 = lay.s0, lay.s1
+
+    def pos(d, o):  # position (f64) or displacement (f32) component d of node a + o
+        return f"W[{X[d] + o} + a]"
+
+    contrib = {o: [[] for _ in range(3)] for o in lay.roff}
+    for j, (gi, gj, gk) in enumerate(cfg.offsets):
+        o = gi * s0 + gj * s1 + gk
+        D = (gi * cfg.le, gj * cfg.le, gk * cfg.le)
+        for d in range(3):
+            if f32:
+                S(ind, f"e{d} = {pos(d, o)} - {pos(d, 0)}")
+            else:
+                S(ind, f"e{d} = {pos(d, o)} - {pos(d, 0)}")
+        if f32:
+            # l² − l0² = 2 D·e + |e|² (no cancellation), l = |D + e|
+            dot = " + ".join(f"{_lit(2.0 * D[d], True)} * e{d}" for d in range(3) if D[d] != 0.0)
+            S(ind, f"g = ({dot}) + (e0 * e0 + e1 * e1 + e2 * e2)")
+            for d in range(3):
+                if D[d] != 0.0:
+                    S(ind, f"e{d} = e{d} + {_lit(D[d], True)}")
+            S(ind, "l = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)")
+            S(ind, f"c = W[{B(f'K{j}')} + a] * g / (l * (l + l0_{j}))")
+        else:
+            S(ind, "l = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)")
+            S(ind, f"c = W[{B(f'K{j}')} + a] * (1.0 - l0_{j} / l)")
+        for d in range(3):
+            S(ind, f"t{j}_{d} = c * e{d}")
+            contrib[0][d].append(f"t{j}_{d}")
+            contrib[o][d].append(f"-t{j}_{d}")
+    if cfg.has_volume:
+        le = cfg.le
+        # averaged edge vectors A[d] (axis d, components) = ¼ Σ of the 4 parallel edges
+        for ax in range(3):
+            od = (s0, s1, 1)[ax]
+            e1 = (s0, s1, 1)[(ax + 1) % 3]
+            e2 = (s0, s1, 1)[(ax + 2) % 3]
+            for c in range(3):
+                terms = [f"({pos(c, b + od)} - {pos(c, b)})" for b in (0, e1, e2, e1 + e2)]
+                S(ind, f"m{ax}{c} = {_lit(0.25, f32)} * (({terms[0]} + {terms[1]}) + ({terms[2]} + {terms[3]}))")
+        # m = Δ (f32: increments of the rest edges le·I) or the edge vectors themselves (f64)
+        if f32:
+            # det(le I + Δ) − le³ = le² tr Δ + le M₂ + det Δ
+            S(ind, "tr = m00 + m11 + m22")
+            S(ind, "M2 = (m00 * m11 - m01 * m10) + (m00 * m22 - m02 * m20) + (m11 * m22 - m12 * m21)")
+            S(ind, "dd = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)")
+            S(ind, f"dV = {_lit(le * le, True)} * tr + {_lit(le, True)} * M2 + dd")
+            for ax in range(3):
+                S(ind, f"m{ax}{ax} = m{ax}{ax} + {_lit(le, True)}")
+        # b×c, c×a, a×b (rows of the cofactor matrix)
+        for r in range(3):
+            u, w = (r + 1) % 3, (r + 2) % 3
+            for c in range(3):
+                c1, c2 = (c + 1) % 3, (c + 2) % 3
+                S(ind, f"k{r}{c} = m{u}{c1} * m{w}{c2} - m{u}{c2} * m{w}{c1}")
+        kap = f"W[{B('KAP')} + a]"
+        if f32:
+            if cfg.squared:
+                S(ind, f"wp = {_lit(0.25, True)} * {kap} * (dV * (dV + V0 + V0)) / (V0 * V0 + V0 * V0) * (V0 + dV) / V0")
+            else:
+                S(ind, f"wp = {_lit(0.25, True)} * {kap} * dV / V0")
+        else:
+            S(ind, "vv = m00 * k00 + m01 * k01 + m02 * k02")
+            if cfg.squared:
+                S(ind, f"wp = 0.25 * {kap} * ((vv * vv - V0 * V0) / (2.0 * V0 * V0)) * vv / V0")
+            else:
+                S(ind, f"wp = 0.25 * {kap} * (vv - V0) / V0")
+        for g, (sb, sc) in enumerate(SLOT_SIGNS):
+            for c in range(3):
+                ob = "+" if sb > 0 else "-"
+                oc = "+" if sc > 0 else "-"
+                S(ind, f"G{g}_{c} = wp * ((k0{c} {ob} k1{c}) {oc} k2{c})")
+        for cn in range(8):
+            o = (cn & 1) * s0 + ((cn >> 1) & 1) * s1 + ((cn >> 2) & 1)
+            sg = "" if CORNER_SIGN[cn] > 0 else "-"
+            for d in range(3):
+                contrib[o][d].append(f"{sg}G{CORNER_SLOT[cn]}_{d}")
+    for o in lay.roff:
+        for d in range(3):
+            terms = contrib[o][d]
+            expr = _tree(terms) if terms else _lit(0.0, f32)
+            S(ind, f"W[{B(f'R{t}_{o}_{d}')} + a] = {expr}")
+
+
+def _tree(terms: list[str]) -> str:
+    """Pairwise sum (fixed order, shallow dependency chains)."""
+    if len(terms) == 1:
+        return terms[0]
+    h = len(terms) // 2
+    return f"({_tree(terms[:h])} + {_tree(terms[h:])})"
+
+
+def _loop2(S: _Src, ind: int, lay: Layout, t: int, xr: str, xw: str):
+    cfg = lay.cfg
+    B = lay.base
+    for d in range(3):
+        terms = [f"W[{B(f'R{t}_{o}_{d}') - o} + q]" for o in lay.roff]
+        if cfg.has_external:
+            terms.append(f"W[{B(f'FE{d}')} + q]")
+        S(ind, f"f{d} = {_tree(terms)}")
+    S(ind, f"im = W[{B('IM')} + q]")
+    for d in range(3):
+        acc = f"f{d} * im" + (f" + W[{B(f'GA{d}')} + q]" if cfg.has_gravity else "")
+        S(ind, f"v{d} = (W[{B(f'V{d}')} + q] + dt * ({acc})) * damp")
+        S(ind, f"W[{B(f'V{d}')} + q] = v{d}")
+        S(ind, f"W[{B(f'{xw}{d}')} + q] = W[{B(f'{xr}{d}')} + q] + dt * v{d}")
+
+
+def source(cfg: Config) -> str:
+    """Python source of the kernel module for ``cfg``: ``step_<parity>_<thread>(W, prm)`` and
+    ``steps(W, prm, parity)`` (one step, all threads)."""
+    lay = layout(cfg)
+    f32 = cfg.precision == "f32"
+    S = _Src()
+    S(0, f'"""Generated by hybmss._stencil_gen for {cfg!r}."""')
+    S(0, "import numpy as np")
+    S(0, "from numba import njit, prange")
+    S(0, "from hybmss._kernels import end_of_step, external_forces, plate_scratch")
+    S(0, "_OPTS = dict(cache=True, error_model='numpy', fastmath=False, nogil=True, boundscheck=False)")
+    nl = len(cfg.offsets)
+    bounds = lay.bounds()
+    # one thread updates the positions in place (loop 1 of a block reads only nodes at or above
+    # the block, which loop 2 has not reached yet); several threads alternate two buffers
+    buffers = (("XA", "XA"),) if cfg.threads == 1 else (("XA", "XB"), ("XB", "XA"))
+    for parity, (xr, xw) in enumerate(buffers):
+        for t in range(cfg.threads):
+            S(0, "")
+            S(0, "@njit(**_OPTS)")
+            S(0, f"def step_{parity}_{t}(W, prm):")
+            for j in range(nl):
+                S(1, f"l0_{j} = prm[{j}]")
+            S(1, f"dt = prm[{nl}]")
+            S(1, f"damp = prm[{nl + 1}]")
+            S(1, f"V0 = prm[{nl + 2}]")
+            lo, hi = bounds[t], bounds[t + 1]
+            if hi <= lo:
+                S(1, "return")
+                continue
+            halo = max(0, lo - -(-lay.H // BLOCK))
+            S(1, f"for blk in range({halo}, {hi}):")
+            S(2, f"b = blk * {BLOCK}")
+            S(2, f"for i in range({BLOCK}):")
+            S(3, "a = b + i")
+            _loop1(S, 3, lay, t, xr)
+            if halo < lo:
+                S(2, f"if blk >= {lo}:")
+                ind = 3
+            else:
+                ind = 2
+            S(ind, f"for i in range({BLOCK}):")
+            S(ind + 1, "q = b + i")
+            _loop2(S, ind + 1, lay, t, xr, xw)
+    S(0, "")
+    if cfg.threads == 1:
+        S(0, "@njit(**_OPTS)")
+        S(0, "def step(W, prm, parity):")
+        S(1, "step_0_0(W, prm)")
+    else:
+        S(0, "@njit(parallel=True, **_OPTS)")
+        S(0, "def step(W, prm, parity):")
+        S(1, f"for t in prange({cfg.threads}):")
+        for parity in (0, 1):
+            S(2, f"{'if' if parity == 0 else 'else:'}{f' parity == 0:' if parity == 0 else ''}")
+            for t in range(cfg.threads):
+                kw = "if" if t == 0 else "elif"
+                S(3, f"{kw} t == {t}:")
+                S(4, f"step_{parity}_{t}(W, prm)")
+    del f32
+    S(0, "")
+    B = lay.base
+    S(0, "@njit(**_OPTS)")
+    S(0, "def run(W, prm, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle,")
+    S(0, "        step0, nsteps, check_every, limit2, parity0, dt, ramp_time, F0, kc, coff, le, c, P, Fc):")
+    S(1, '"""Advance ``nsteps`` steps from global step ``step0``, the current positions in buffer')
+    S(1, '``parity0`` (0: XA).  Returns (steps done, bad node or -1)."""')
+    S(1, "R, u_old, u_new = plate_scratch(pl_ptr)")
+    S(1, "for n in range(nsteps):")
+    S(2, f"par = (parity0 + n) % {len(buffers)}")
+    if cfg.baudet:
+        xr = f"{B('XA0')} if par == 0 else {B('XB0')}" if cfg.threads > 1 else f"{B('XA0')}"
+        S(2, f"external_forces(W, {xr}, {B('FE0')}, {lay.L}, {lay.N}, "
+             "F0, kc, coff, le, c, P, Fc)")
+    S(2, "step(W, prm, par)")
+    S(2, f"xb = {B('XB0')} if par == 0 else {B('XA0')}" if cfg.threads > 1 else f"xb = {B('XA0')}")
+    S(2, f"bad = end_of_step(W, xb, {B('V0')}, {lay.L}, {lay.N}, {cfg.precision == 'f64'}, X, pl_nodes, pl_U1, "
+         "pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, "
+         "u_new, n, nsteps, check_every, limit2)")
+    S(2, "if bad >= 0:")
+    S(3, "return n + 1, bad")
+    S(1, "return nsteps, -1")
+    return "\n".join(S.lines) + "\n"
+
+
+def cache_dir() -> str:
+    """Folder of the generated modules (and Numba's cache of them): ``$HYBMSS_KERNEL_CACHE``, else
+    ``$XDG_CACHE_HOME/hybmss/kernels``, else ``~/.cache/hybmss/kernels``, else a temporary folder."""
+    d = os.environ.get("HYBMSS_KERNEL_CACHE")
+    if not d:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        d = os.path.join(base, "hybmss", "kernels")
+    try:
+        os.makedirs(d, exist_ok=True)
+        return d
+    except OSError:
+        d = os.path.join(tempfile.gettempdir(), "hybmss-kernels")
+        os.makedirs(d, exist_ok=True)
+        return d
+
+
+_MODULES: dict = {}
+
+
+def kernel_module(cfg: Config):
+    """The compiled kernel module of ``cfg`` (written to :func:`cache_dir` once, atomically, and
+    imported; Numba caches its machine code beside it)."""
+    key = cfg.key()
+    mod = _MODULES.get(key)
+    if mod is not None:
+        return mod
+    d = cache_dir()
+    name = f"hybmss_stencil_{key}"
+    path = os.path.join(d, name + ".py")
+    src = source(cfg)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            same = fh.read() == src
+    except OSError:
+        same = False
+    if not same:
+        fd, tmp = tempfile.mkstemp(dir=d, suffix=".tmp")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(src)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    _MODULES[key] = mod
+    return mod
+
+
+def instruction_mix(cfg: Config) -> dict:
+    """Square roots and divisions in the machine code of the step of ``cfg`` (thread 0), by kind
+    and register: ``{("sqrt" | "div", "scalar" | "xmm" | "ymm" | "zmm"): count}``.  Compiled
+    afresh (a kernel loaded from Numba's cache has no assembly to show): load-independent
+    evidence that LLVM vectorized the loops."""
+    import re
+
+    from numba import njit
+
+    mod = kernel_module(cfg)
+    fn = njit(error_model="numpy", fastmath=False, boundscheck=False)(mod.step_0_0.py_func)
+    dt = np.float32 if cfg.precision == "f32" else np.float64
+    fn(np.zeros(layout(cfg).size, dtype=dt), np.zeros(len(cfg.offsets) + 3, dtype=dt))
+    asm = "\n".join(fn.inspect_asm().values())
+    out = {}
+    for op, name in (("sqrt", "vsqrt"), ("div", "vdiv")):
+        out[(op, "scalar")] = len(re.findall(rf"\b{name}s[sd]\b", asm))
+        for reg in ("xmm", "ymm", "zmm"):
+            out[(op, reg)] = len(re.findall(rf"\b{name}p[sd]\s+[^\n]*%{reg}", asm))
+    return out
