@@ -29,6 +29,23 @@ result records in ``info['regularized_steps']`` how often this happened.
 dilation; at large tension the equilibrium disappears.  When the load step cannot be reduced
 further, :class:`StaticSolveError` reports the load factor reached and the smallest eigenvalue of
 the constrained Hessian there, naming this cause when κ < 0.
+
+**Locating the limit point.**  Near a fold at ``s*`` the stable branch is ``x(s) ≈ x* − c√(s* − s) e``
+with λ_min ∝ √(s* − s), so the linear predictor from an equilibrium at ``s < s*`` over a step
+``h`` lands on a state whose Hessian is indefinite once ``h > 2 (s* − s)``: beyond the fold.
+With κ < 0 (energy mode, ``limit_resolution`` set), a predicted state that dilates the body and
+whose smallest eigenvalue is below ``−FOLD_MARGIN`` (0.1) times that of the stable equilibrium it
+was predicted from (a failed Cholesky of the shifted Hessian, no Newton needed) therefore
+brackets a limit point.  The load factor is then bisected in that bracket: a midpoint whose
+predicted state is beyond the fold in that sense moves the upper end down without Newton;
+otherwise Newton (``retry_iter`` iterations, giving up when its iterates stay out of the stable
+region) decides, converged moving the lower end up, failed the upper end down.  At a width of
+``limit_resolution`` (1 %) of the first bracket, the ordinary Newton at the upper end decides
+(``limit_iter`` = 4 iterations):
+failing, :class:`StaticSolveError` reports the bracket (message as above); converging (a
+bifurcation the path passes, as with the soft modes of hybmss-fd at ν = 0.2, not a fold), the
+load stepping goes on without bracketing.  This replaces some ten failing Newton attempts of
+8–20 iterations with a few predictors, factorizations and short Newton solves.
 """
 
 from __future__ import annotations
@@ -85,6 +102,13 @@ class StaticOptions:
     check_stability: bool = True
     """Check the smallest eigenvalue of the constrained Hessian at the solution and leave saddles."""
     max_escapes: int = 5
+    limit_resolution: float | None = 0.01
+    """Width of the load-factor bracket a suspected limit point is located to, as a fraction of
+    the load step that first pointed at it (:func:`solve_static`); None: plain halving of the
+    load step down to ``min_step``."""
+    limit_iter: int = 4
+    """Newton iterations of the attempt at the upper end of a narrowed limit-point bracket that
+    decides whether the equilibrium is lost (a path through a bifurcation converges there in 1–2)."""
 
 
 @dataclass(frozen=True)
@@ -263,7 +287,7 @@ def _factor_general(A):
 
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
             inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True,
-            lu=None, load: float = 1.0, fac: _Factorizer | None = None):
+            lu=None, load: float = 1.0, fac: _Factorizer | None = None, definite_after: int | None = None):
     """Newton's method over the free dofs from ``x`` at load factor ``load``, in one of two modes:
 
     - **energy** (every force conservative): minimize Π (+ the inertia term ``½ Σ w_a |x_a − x̃_a|²``
@@ -282,6 +306,10 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     the next step (a chord step) as long as it reduced the residual at least 5-fold and gives a
     descent direction; otherwise the exact Hessian at the current point is factorized.  The
     converged state does not depend on this (the residual test uses the exact forces).
+    ``definite_after`` (energy mode, with ``fac``): give up when the unshifted Hessian is still (or
+    again) not positive definite after that many iterations, as near a limit point, where iterates
+    that stay out of the stable region are taken as the sign that no equilibrium is near
+    (:func:`solve_static` then brackets the fold).
     Returns (converged, x, f_total, residual_norm, scale).
     """
     residual = not system.conservative
@@ -368,6 +396,8 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                             lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
                             if mu == 0.0 and fac is not None and fac.failed > failed:
                                 indefinite = True
+                                if definite_after is not None and it >= definite_after:
+                                    return False, x, f, rnorm, scale
                         dx = lu.solve(r)
                     ok = np.all(np.isfinite(dx)) and (residual or float(r @ dx) > 0.0)
                 except RuntimeError:  # exactly singular
@@ -452,7 +482,15 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
         return float(w[0]), v[:, 0]
     try:
         shift = -1e-3 * abs(Hff.diagonal()).max()
-        vals, vecs = spla.eigsh(Hff.tocsc(), k=1, sigma=shift, which="LM")
+        A = Hff.tocsc()
+        # shift-invert with the factorization of A − σI the Newton solves use (Cholesky, or the
+        # minimum-degree symmetric LU when it is indefinite), not splu's default COLAMD ordering
+        with np.errstate(all="ignore"):
+            F = _factor((A - shift * sp.identity(A.shape[0], format="csc")).tocsc(), _Factorizer())
+        op = spla.LinearOperator(A.shape, matvec=F.solve, dtype=float)
+        vals, vecs = spla.eigsh(A, k=1, sigma=shift, which="LM", OPinv=op)
+        if not np.isfinite(vals[0]):
+            raise ArithmeticError("shift-invert without pivoting broke down")
         return float(vals[0]), vecs[:, 0]
     except Exception:  # pragma: no cover - fall back to a dense solve
         w, v = np.linalg.eigh(Hff.toarray())
@@ -527,6 +565,46 @@ def _result(system: System, solver: str, x: np.ndarray, f_total: np.ndarray, par
 
 
 # --------------------------------------------------------------------------------- static
+FOLD_MARGIN = 0.1
+"""A predicted state lies beyond a limit point when its smallest eigenvalue is below
+``−FOLD_MARGIN`` times that of the stable equilibrium it was predicted from: past a fold it is of
+the order of minus that one (−0.4 to −8 N/m against 1.6–2.4 N/m on the ν = 0 beams of 4×4×24), while
+round-off and slightly soft modes stay above.  It only steers the bisection: a bifurcation
+(hybmss-fd at ν = 0.2 in tension dips to −0.35 against 0.32 N/m on a path that goes on) is told
+apart by the ordinary Newton at the end of the bracket."""
+
+
+def _not_definite(Hff, shift: float, fac: _Factorizer) -> bool:
+    """Whether ``Hff + shift·I`` is not positive definite (a failed Cholesky; without cvxopt, an
+    LDLᵀ pivot ≤ 0)."""
+    A = (Hff + sp.identity(Hff.shape[0], format="csc") * shift).tocsc()
+    if cholmod is not None:
+        return fac.cholesky(A) is None
+    try:
+        with np.errstate(all="ignore"):
+            pivots = _superlu_symmetric(A).U.diagonal()
+    except RuntimeError:  # exactly singular
+        return True
+    return not (np.all(np.isfinite(pivots)) and pivots.min() > 0.0)
+
+
+def _fold_suspected(S: System, guess: np.ndarray, free: np.ndarray, fac: _Factorizer, load: float,
+                    lam_x) -> bool:
+    """Whether a predicted state ``guess`` of a κ < 0 body lies beyond a limit point: it dilates
+    the body and the smallest eigenvalue of its constrained Hessian is below ``−FOLD_MARGIN ·
+    lam_x()`` (``lam_x``: the smallest eigenvalue at the equilibrium predicted from, computed only
+    when the Hessian at ``guess`` is not positive definite; no fold is suspected unless it is > 0).
+    ``fac`` is a factorizer of its own, so the factor the predictor hands to Newton stays valid."""
+    vols = cell_volumes(guess, S.lattice.cells)
+    if np.any(vols <= 0.0) or not float(vols.sum()) > float(S.lattice.cell_volumes(S.X).sum()):
+        return False
+    Hff = stiffness(S, guess, load)[free][:, free].tocsc()
+    if not _not_definite(Hff, 0.0, fac):
+        return False
+    lam = lam_x()
+    return bool(lam > 0.0 and _not_definite(Hff, FOLD_MARGIN * lam, fac))
+
+
 def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: float, s_new: float) -> str:
     """Why the load could not be increased past ``s``: the smallest eigenvalue of the
     constrained Hessian at the last equilibrium and at the predicted state just beyond it."""
@@ -583,8 +661,40 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     x_prev, s_prev = None, None
     load_steps = 0
     failed_before = False
+    # a bracketed limit point (module docstring): no equilibrium found at s_hi > s, bisected until
+    # s_hi − s <= s_tol
+    fold_check = not residual and S.kappa < 0 and opts.limit_resolution is not None
+    fold_fac = _Factorizer()
+    lam_at = {}  # smallest eigenvalue at the equilibrium of a load factor, computed once when needed
+
+    def lam_x():
+        """Smallest eigenvalue at the current equilibrium if it is stable (its Hessian factorizes
+        by Cholesky: shift-invert alone can miss a negative eigenvalue far below the shift), else 0."""
+        if s not in lam_at:
+            Hx = stiffness(S, x, s)[free][:, free].tocsc()
+            lam_at[s] = 0.0 if _not_definite(Hx, 0.0, fold_fac) else smallest_eigenvalue(S, x)
+        return lam_at[s]
+
+    s_hi, s_tol = None, 0.0
     while s < 1.0 - 1e-14:
-        s_new = min(1.0, s + ds)
+        if s_hi is not None and s_hi - s <= s_tol:
+            # the bracket is narrow: the ordinary Newton at its upper end decides.  Failing, the
+            # limit point is reported; converging (a bifurcation the path passes, not a fold), the
+            # load stepping goes on without the bracketing
+            target = S.prescribed(s_hi)
+            guess, lu = _tangent_predictor(S, x, target, free, s_hi, fac)
+            if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
+                guess, lu = x.copy(), None
+            guess[S.fixed] = target[S.fixed]
+            ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.limit_iter, None, stats,
+                                                 opts.line_search, lu=lu, load=s_hi, fac=fac)
+            if not ok:
+                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi))
+            load_steps += 1
+            x_prev, s_prev, x, s = x, s, x_new, s_hi
+            ds, s_hi, fold_check = 2.0 * s_tol, None, False
+            continue
+        s_new = 0.5 * (s + s_hi) if s_hi is not None else min(1.0, s + ds)
         target = S.prescribed(s_new)
         # a step that changes nothing (a zero load: no plate motion, no body load) is already in
         # equilibrium: the rest state is the answer, exactly
@@ -601,14 +711,26 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
                 guess += (x - x_prev) * ((s_new - s) / (s - s_prev))
         guess[S.fixed] = target[S.fixed]
-        iters = opts.max_iter if not failed_before else opts.retry_iter
+        if fold_check and _fold_suspected(S, guess, free, fold_fac, s_new, lam_x):
+            # beyond a limit point as it stands: bracket it (or narrow the bracket) without Newton
+            if s_hi is None:
+                s_tol = opts.limit_resolution * (s_new - s)
+            s_hi = s_new
+            continue
+        # inside a bracket, Newton gives up when its iterates stay out of the stable region
+        iters = opts.max_iter if not (failed_before or s_hi is not None) else opts.retry_iter
         ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, iters, None, stats,
-                                             opts.line_search, lu=lu, load=s_new, fac=fac)
+                                             opts.line_search, lu=lu, load=s_new, fac=fac,
+                                             definite_after=3 if s_hi is not None else None)
         failed_before = not ok
         if ok:
             load_steps += 1
             x_prev, s_prev, x, s = x, s, x_new, s_new
-            ds = min(opts.max_step, ds * 1.5)
+            if s_hi is None:
+                ds = min(opts.max_step, ds * 1.5)
+            continue
+        if s_hi is not None:
+            s_hi = s_new
             continue
         ds *= 0.5
         if ds < opts.min_step:
