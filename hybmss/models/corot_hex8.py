@@ -376,7 +376,7 @@ class CorotHex8Model(ModelBase):
     solvers = ("static", "explicit")
     kernels = ("numba", "numpy")
     order = 20
-    studies = tuple(r for r in STUDY_ROLES if r != "regression")
+    studies = tuple(r for r in STUDY_ROLES if r not in ("regression", "bending"))
     sri = False
 
     def terms(self, p, scene, lattice, consts):

@@ -466,7 +466,7 @@ class XpbdNHModel(ModelBase):
     solvers = ("static", "explicit")
     kernels = ("numba", "numpy")
     order = 22
-    studies = tuple(r for r in STUDY_ROLES if r != "regression")
+    studies = tuple(r for r in STUDY_ROLES if r not in ("regression", "bending"))
 
     def terms(self, p, scene, lattice, consts):
         return (XpbdNH(lattice, scene.material),)
