@@ -27,12 +27,19 @@ def wait_for_rows(store: Store, n: int, p: subprocess.Popen, timeout: float = 18
         time.sleep(0.05)
 
 
+def _terminal_sigint() -> None:
+    """SIGINT as at a terminal.  A command started in the background of a non-interactive shell
+    (as a CI job may run this suite) inherits SIGINT ignored, and Python then installs no
+    KeyboardInterrupt handler: such a ``run`` rightly keeps going, like any nohup'd job."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("executor, signals", [("local", 2), ("dask", 1)])
 def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_path):
     store = Store(tmp_path)
     p = subprocess.Popen(hybmss("run", "--study", "compression", "--quick", "--jobs", "2", "--executor", executor,
                                 "--out", str(tmp_path), "--no-progress"),
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stderr=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=_terminal_sigint)
     try:
         wait_for_rows(store, 2, p)
         workers = [c for c in psutil.Process(p.pid).children(recursive=True)
