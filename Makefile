@@ -24,7 +24,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=15
 
 # hybmss bench: f64 and f32 per-10k-step times of every model on 10³ and 30³, one and two threads,
 # with the load average and the ratios of one run; then the asv suite once on the 10³ cube
