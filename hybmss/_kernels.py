@@ -70,6 +70,19 @@ def plate_displacement(X, nodes, U1, kind, axis, center, angle, disp, s, R, u):
                 u[d, i] = s * U1[d, i]
 
 
+def particle_state(x: np.ndarray, v: np.ndarray):
+    """The state of a particle-indexed kernel: one flat array ``W = [x; v]`` (positions stored)
+    with its two ``(3, n)`` views, laid out for :func:`apply_plates`, :func:`find_bad` and
+    :func:`end_of_step` with ``xb = 0``, ``vb = 3n``, ``L = N = n``.  ``x``, ``v``: (n, 3)."""
+    n = len(x)
+    W = np.empty(6 * n)
+    xg = W[:3 * n].reshape(3, n)
+    vg = W[3 * n:].reshape(3, n)
+    xg[:] = np.asarray(x).T
+    vg[:] = np.asarray(v).T
+    return W, xg, vg
+
+
 @njit(**_OPTS)
 def apply_plates(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                  pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new):

@@ -130,11 +130,14 @@ def corot_forces(x, X, cells, Ke, XI, inv4le, f, Rs, U, G):
 
 
 @njit(**_OPTS)
-def run_serial(x, v, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp, ramp_time, pl_nodes, pl_U1,
+def run_serial(W, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp, ramp_time, pl_nodes, pl_U1,
                pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, step0, nsteps, check_every,
                limit2, f):
-    """Advance ``nsteps`` steps from global step ``step0``.  Returns (steps done, bad node or −1)."""
-    n = x.shape[1]
+    """Advance ``nsteps`` steps from global step ``step0`` on the state ``W`` of
+    :func:`hybmss._kernels.particle_state`.  Returns (steps done, bad node or −1)."""
+    n = X.shape[1]
+    x = W[:3 * n].reshape((3, n))
+    v = W[3 * n:].reshape((3, n))
     R, u_old, u_new = plate_scratch(pl_ptr)
     m = cells.shape[0]
     Rs = np.empty((m, 3, 3))
@@ -151,7 +154,7 @@ def run_serial(x, v, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp
                 for q in range(n):
                     v[d, q] = (v[d, q] + dt * (f[d, q] * invm[q])) * damp
                     x[d, q] += dt * v[d, q]
-        bad = end_of_step(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+        bad = end_of_step(W, 0, 3 * n, n, n, True, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
                           pl_angle, step0 + it, dt, ramp_time, R, u_old, u_new, it, nsteps, check_every, limit2)
         if bad >= 0:
             return it + 1, bad
@@ -167,10 +170,11 @@ def forces(x, X, cells, Ke, XI, le):
     return f.T.copy()
 
 
-def advance(x, v, X, cells, Ke, XI, le, invm, gacc, has_gravity, dt, damp, ramp_time, plates, step0, nsteps,
+def advance(W, X, cells, Ke, XI, le, invm, gacc, has_gravity, dt, damp, ramp_time, plates, step0, nsteps,
             check_every, limit2, f):
-    """Run ``nsteps`` steps on the (3, n) state ``x, v`` in place; (steps done, bad particle or −1)."""
-    done, bad = run_serial(x, v, X, cells, Ke, XI, 1.0 / (4.0 * le), invm, gacc, bool(has_gravity), float(dt),
+    """Run ``nsteps`` steps on the state ``W`` (:func:`hybmss._kernels.particle_state`) in place;
+    (steps done, bad particle or −1)."""
+    done, bad = run_serial(W, X, cells, Ke, XI, 1.0 / (4.0 * le), invm, gacc, bool(has_gravity), float(dt),
                            float(damp), float(ramp_time), *plates.args(), np.int64(step0), np.int64(nsteps),
                            np.int64(max(1, check_every)), float(limit2), f)
     return int(done), int(bad)

@@ -140,14 +140,17 @@ def project_all(x, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled
 
 
 @njit(**_OPTS)
-def run(x, v, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
+def run(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
         pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, sub0, nsub, iterations,
         coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb):
     """Advance ``nsub`` substeps from global substep ``sub0``.  Every ``check_every`` substeps: a
     diverged node stops the run; after substep ``rest_after`` (the end of the ramp; −1: never) the
     run also stops once no node moved more than ``rest_disp`` over the last ``check_every``
-    substeps.  Returns (substeps done, bad node or −1, 1 if at rest else 0)."""
-    n = x.shape[1]
+    substeps.  ``W``: the state of :func:`hybmss._kernels.particle_state`.  Returns (substeps
+    done, bad node or −1, 1 if at rest else 0)."""
+    n = X.shape[1]
+    x = W[:3 * n].reshape((3, n))
+    v = W[3 * n:].reshape((3, n))
     R, u_old, u_new = plate_scratch(pl_ptr)
     xcheck = x.copy()
     for k in range(nsub):
@@ -161,7 +164,7 @@ def run(x, v, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, da
                 xprev[d, q] = x[d, q]
                 x[d, q] += h * v[d, q]
         if pl_ptr.shape[0] > 1:
-            apply_plates(x, v, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+            apply_plates(W, 0, 3 * n, n, True, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
                          pl_angle, ramp(step * h, ramp_time), ramp((step + 1) * h, ramp_time), h, R, u_old,
                          u_new)
         project_all(x, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
@@ -169,7 +172,7 @@ def run(x, v, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, da
             for q in range(n):
                 v[d, q] = (x[d, q] - xprev[d, q]) / h
         if (k + 1) % check_every == 0 or k == nsub - 1:
-            bad = find_bad(x, X, limit2)
+            bad = find_bad(W, 0, n, n, True, X, limit2)
             if bad >= 0:
                 return k + 1, bad, 0
             if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0:

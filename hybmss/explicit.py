@@ -135,6 +135,65 @@ def _aligned_zeros(n: int, dtype) -> np.ndarray:
     return buf[off:off + n]
 
 
+@dataclass(frozen=True, eq=False)
+class PlateArrays:
+    """Plates of a system in the layout of :func:`hybmss._kernels.apply_plates`: node numbers of
+    the kernel (particle indices, or grid indices of the stencil kernel), the displacement at full
+    load ``U1`` (3, n), and per plate its prescribed components, motion kind and parameters."""
+
+    nodes: np.ndarray
+    U1: np.ndarray
+    ptr: np.ndarray
+    mask: np.ndarray
+    kind: np.ndarray
+    disp: np.ndarray
+    axis: np.ndarray
+    center: np.ndarray
+    angle: np.ndarray
+
+    def args(self) -> tuple:
+        return (self.nodes, self.U1, self.ptr, self.mask, self.kind, self.disp, self.axis, self.center,
+                self.angle)
+
+
+def plate_arrays(system: System, node: np.ndarray | None = None) -> PlateArrays:
+    """The plates of ``system`` for the kernels, particle ``a`` being kernel node ``node[a]``
+    (``None``: the particle index).  Raises ``ValueError`` for a motion neither linear in the load
+    factor nor a rotation (the kernels know only those two)."""
+    le = system.scene.body.le
+    nodes, U1, ptr, mask, kind, disp, axis, center, angle = [], [], [0], [], [], [], [], [], []
+    for plate, ps in zip(system.scene.plates, system.plates):
+        m = plate.motion
+        Xp = system.X[ps.particles]
+        u1 = m.displacement_at(Xp, 1.0)
+        if m.kind != "rotate" and not np.allclose(m.displacement_at(Xp, 0.5), 0.5 * u1, rtol=1e-12,
+                                                  atol=1e-12 * le):
+            raise ValueError(f"plate {plate.name!r}: the numba kernels need a motion linear in the load factor "
+                             f"or a rotation, got {m.kind!r}; use kernel='numpy'")
+        nodes.append(ps.particles if node is None else node[ps.particles])
+        U1.append(u1.T)
+        ptr.append(ptr[-1] + len(ps.particles))
+        mask.append(ps.constrained)
+        kind.append(1 if m.kind == "rotate" else 0)
+        disp.append(m.displacement)
+        axis.append(m.axis)
+        center.append(m.center if m.center is not None else Xp.mean(axis=0))
+        angle.append(m.angle)
+    n_pl = len(system.plates)
+    return PlateArrays(
+        nodes=np.concatenate(nodes).astype(np.int64) if nodes else np.zeros(0, dtype=np.int64),
+        U1=np.ascontiguousarray(np.concatenate(U1, axis=1)) if U1 else np.zeros((3, 0)),
+        ptr=np.asarray(ptr, dtype=np.int64),
+        mask=np.asarray(mask, dtype=np.bool_).reshape(n_pl, 3),
+        kind=np.asarray(kind, dtype=np.int64),
+        disp=np.asarray(disp, dtype=float).reshape(n_pl, 3),
+        axis=np.asarray(axis, dtype=float).reshape(n_pl, 3),
+        center=np.asarray(center, dtype=float).reshape(n_pl, 3),
+        angle=np.asarray(angle, dtype=float),
+    )
+
+
+
 @dataclass(eq=False)
 class Stencil:
     """A system laid out on its full grid for the generated kernel (:mod:`hybmss._stencil_gen`),
@@ -374,25 +433,7 @@ def stencil(system: System, dt: float, ramp_time: float, precision: str = "f64",
         F0[:, flat] = np.asarray(dead, dtype=float).T
     gcorr = GridCorrections.from_system(system) if corr is not None else None
 
-    nodes, U1, ptr, mask, kind, disp, axis, center, angle = [], [], [0], [], [], [], [], [], []
-    for plate, ps in zip(scene.plates, system.plates):
-        m = plate.motion
-        Xp = system.X[ps.particles]
-        u1 = m.displacement_at(Xp, 1.0)
-        if m.kind != "rotate" and not np.allclose(m.displacement_at(Xp, 0.5), 0.5 * u1, rtol=1e-12,
-                                                  atol=1e-12 * le):
-            raise ValueError(f"plate {plate.name!r}: the stencil kernel needs a motion linear in the "
-                             f"load factor or a rotation, got {m.kind!r}; use kernel='numpy'")
-        nodes.append(flat[ps.particles])
-        U1.append(u1.T)
-        ptr.append(ptr[-1] + len(ps.particles))
-        mask.append(ps.constrained)
-        kind.append(1 if m.kind == "rotate" else 0)
-        disp.append(m.displacement)
-        axis.append(m.axis)
-        center.append(m.center if m.center is not None else system.X[ps.particles].mean(axis=0))
-        angle.append(m.angle)
-    n_pl = len(scene.plates)
+    plates = plate_arrays(system, flat)
     c = system.scene.damping if damping is None else float(damping)
     return Stencil(
         shape=shape,
@@ -417,15 +458,15 @@ def stencil(system: System, dt: float, ramp_time: float, precision: str = "f64",
         ramp_time=float(ramp_time),
         precision=precision,
         threads=int(threads),
-        pl_nodes=np.concatenate(nodes).astype(np.int64) if nodes else np.zeros(0, dtype=np.int64),
-        pl_U1=np.ascontiguousarray(np.concatenate(U1, axis=1)) if U1 else np.zeros((3, 0)),
-        pl_ptr=np.asarray(ptr, dtype=np.int64),
-        pl_mask=np.asarray(mask, dtype=np.bool_).reshape(n_pl, 3),
-        pl_kind=np.asarray(kind, dtype=np.int64),
-        pl_disp=np.asarray(disp, dtype=float).reshape(n_pl, 3),
-        pl_axis=np.asarray(axis, dtype=float).reshape(n_pl, 3),
-        pl_center=np.asarray(center, dtype=float).reshape(n_pl, 3),
-        pl_angle=np.asarray(angle, dtype=float),
+        pl_nodes=plates.nodes,
+        pl_U1=plates.U1,
+        pl_ptr=plates.ptr,
+        pl_mask=plates.mask,
+        pl_kind=plates.kind,
+        pl_disp=plates.disp,
+        pl_axis=plates.axis,
+        pl_center=plates.center,
+        pl_angle=plates.angle,
         le=float(le),
     )
 

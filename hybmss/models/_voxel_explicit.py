@@ -4,77 +4,18 @@ The competitors (:mod:`hybmss.models.corot_hex8`, :mod:`hybmss.models.xpbd_nh`) 
 voxel grid as the MSS: nodes are the lattice particles, masses the lumped ``ρ Vc / 8`` per cell
 corner, the plates and their ramp ``s(t) = ½(1 − cos(π t/T))`` those of
 :mod:`hybmss.explicit`, and a run that leaves the physical range raises the same
-:class:`hybmss.explicit.DivergenceError`.  This module holds what they share: the plate arrays of
-the Numba kernels on particle-indexed ``(3, n)`` layouts (read by
-:func:`hybmss._kernels.end_of_step`), the divergence check of the NumPy twins and the
+:class:`hybmss.explicit.DivergenceError`.  This module holds what they share beyond the plate arrays of
+:func:`hybmss.explicit.plate_arrays`: the divergence check of the NumPy twins and the
 :class:`~hybmss.result.Result` of a run.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..explicit import BLOWUP_FACTOR, RAMP_LAW, DivergenceError
 from ..result import Result, reaction_from_nodal
 from ..system import System
-
-
-@dataclass(frozen=True, eq=False)
-class PlateArrays:
-    """Plates of a system in the layout of :func:`hybmss._kernels.apply_plates`, with particle
-    indices as node numbers (the kernels of the competitors work on ``(3, n)`` particle arrays)."""
-
-    nodes: np.ndarray
-    U1: np.ndarray
-    ptr: np.ndarray
-    mask: np.ndarray
-    kind: np.ndarray
-    disp: np.ndarray
-    axis: np.ndarray
-    center: np.ndarray
-    angle: np.ndarray
-
-    def args(self) -> tuple:
-        return (self.nodes, self.U1, self.ptr, self.mask, self.kind, self.disp, self.axis, self.center,
-                self.angle)
-
-
-def plate_arrays(system: System) -> PlateArrays:
-    """The plates of ``system`` for the kernels.  Raises ``ValueError`` for a motion neither linear
-    in the load factor nor a rotation (the kernels know only those two)."""
-    le = system.scene.body.le
-    nodes, U1, ptr, mask, kind, disp, axis, center, angle = [], [], [0], [], [], [], [], [], []
-    for plate, ps in zip(system.scene.plates, system.plates):
-        m = plate.motion
-        Xp = system.X[ps.particles]
-        u1 = m.displacement_at(Xp, 1.0)
-        if m.kind != "rotate" and not np.allclose(m.displacement_at(Xp, 0.5), 0.5 * u1, rtol=1e-12,
-                                                  atol=1e-12 * le):
-            raise ValueError(f"plate {plate.name!r}: the kernel needs a motion linear in the load factor "
-                             f"or a rotation, got {m.kind!r}; use kernel='numpy'")
-        nodes.append(ps.particles)
-        U1.append(u1.T)
-        ptr.append(ptr[-1] + len(ps.particles))
-        mask.append(ps.constrained)
-        kind.append(1 if m.kind == "rotate" else 0)
-        disp.append(m.displacement)
-        axis.append(m.axis)
-        center.append(m.center if m.center is not None else Xp.mean(axis=0))
-        angle.append(m.angle)
-    n_pl = len(system.plates)
-    return PlateArrays(
-        nodes=np.concatenate(nodes).astype(np.int64) if nodes else np.zeros(0, dtype=np.int64),
-        U1=np.ascontiguousarray(np.concatenate(U1, axis=1)) if U1 else np.zeros((3, 0)),
-        ptr=np.asarray(ptr, dtype=np.int64),
-        mask=np.asarray(mask, dtype=np.bool_).reshape(n_pl, 3),
-        kind=np.asarray(kind, dtype=np.int64),
-        disp=np.asarray(disp, dtype=float).reshape(n_pl, 3),
-        axis=np.asarray(axis, dtype=float).reshape(n_pl, 3),
-        center=np.asarray(center, dtype=float).reshape(n_pl, 3),
-        angle=np.asarray(angle, dtype=float),
-    )
 
 
 def blowup_limit2(system: System) -> float:

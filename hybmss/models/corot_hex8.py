@@ -40,13 +40,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .. import _kernels_corot
-from ..explicit import ramp
+from .._kernels import particle_state
+from ..explicit import plate_arrays, ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
 from ..system import System, build
 from .base import STUDY_ROLES, ModelBase, Style
-from ._voxel_explicit import blowup_limit2, divergence, find_bad, plate_arrays, run_result
+from ._voxel_explicit import blowup_limit2, divergence, find_bad, run_result
 
 XI = np.ascontiguousarray(2.0 * CORNERS - 1.0)
 """(8, 3) natural coordinates of the corners."""
@@ -282,7 +283,7 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
         dt_c = dt_crit(system, term)
 
     if kernel == "numba":
-        xg, vg = np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
+        W, xg, vg = particle_state(x, v)
         f = np.empty_like(xg)
         gacc = np.zeros_like(xg)
         if system.gravity is not None:
@@ -290,7 +291,7 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
         Xg, invm, plates = np.ascontiguousarray(system.X.T), 1.0 / system.mass, plate_arrays(system)
 
         def advance(step0, n):
-            return _kernels_corot.advance(xg, vg, Xg, term.cells, term.Ke, XI, term.le, invm, gacc,
+            return _kernels_corot.advance(W, Xg, term.cells, term.Ke, XI, term.le, invm, gacc,
                                           system.gravity is not None, dt, damp, ramp_time, plates, step0, n,
                                           check_every, limit2, f)
 

@@ -55,7 +55,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _kernels_xpbd
-from ..explicit import ramp
+from .._kernels import particle_state
+from ..explicit import plate_arrays, ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
@@ -63,7 +64,7 @@ from ..solvers import StaticSolveError
 from ..system import System, build
 from .base import STUDY_ROLES, ModelBase, Style, check
 from .corot_hex8 import CorotHex8, frequency_range
-from ._voxel_explicit import blowup_limit2, divergence, find_bad, plate_arrays, run_result
+from ._voxel_explicit import blowup_limit2, divergence, find_bad, run_result
 
 KERNELS = ("numba", "numpy")
 
@@ -272,7 +273,7 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
     winv = inverse_masses(system)
 
     if kernel == "numba":
-        xg, vg = np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
+        W, xg, vg = particle_state(x, v)
         gacc = np.zeros_like(xg)
         if system.gravity is not None:
             gacc[:] = system.gravity[:, None]
@@ -281,7 +282,7 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
 
         def advance(sub0, n):
             done, bad, rest = _kernels_xpbd.run(
-                xg, vg, Xg, wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam, term.gamma, gacc,
+                W, Xg, wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam, term.gamma, gacc,
                 system.gravity is not None, h, damp, float(ramp_time), *plates.args(), np.int64(sub0), np.int64(n),
                 np.int64(iterations), bool(coupled), np.int64(check_sub), float(limit2), np.int64(rest_after),
                 float(rest_disp), xprev, lamb)
