@@ -47,7 +47,7 @@ from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
 from .laws import LAWS, deviatoric, volumetric
-from .linalg import SolveStats, dof_order, nested_dissection, rigid_modes, solve_saddle, solve_spd
+from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd, unknown_order
 from .linear import FORMULATIONS, Solution
 from .mesh import FemMesh
 from .space import Space
@@ -147,10 +147,7 @@ class Hyperelasticity:
         pressures) for direct factorizations, or ``None`` (:attr:`reorder` off, or no grid)."""
         if not self.reorder:
             return None
-        if not self.mixed:
-            return dof_order(nested_dissection(self.space.points, self.fmesh.h), self.space.n_scalar)
-        pts = np.vstack([self.space.points, self.pspace.points])
-        return dof_order(nested_dissection(pts, self.fmesh.h), self.space.n_scalar, self.pspace.n_scalar)
+        return unknown_order(self.space, self.fmesh.h, self.pspace if self.mixed else None)
 
     # ---------------------------------------------------------------- state
     def _evaluate(self, U, p, s, fext, material, tangent: bool):

@@ -316,3 +316,12 @@ def solve_saddle(
         stats.add(kind if kind == "direct" else "amg-minres", its)
     u[free] = x[: int(free.sum())]
     return u, x[int(free.sum()):]
+
+
+def unknown_order(space, h: float, pspace=None) -> np.ndarray | None:
+    """Fill-reducing order of the unknowns of ``space`` (displacement dofs, then the pressures of
+    ``pspace`` for a mixed element) by nested dissection of their nodes, or ``None`` (no grid)."""
+    if pspace is None:
+        return dof_order(nested_dissection(space.points, h), space.n_scalar)
+    pts = np.vstack([space.points, pspace.points])
+    return dof_order(nested_dissection(pts, h), space.n_scalar, pspace.n_scalar)

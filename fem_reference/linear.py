@@ -30,7 +30,7 @@ import numpy as np
 from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
-from .linalg import SolveStats, dof_order, nested_dissection, rigid_modes, solve_saddle, solve_spd
+from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd, unknown_order
 from .mesh import FemMesh
 from .space import Space
 
@@ -101,10 +101,7 @@ class LinearElasticity:
         pressures) for direct factorizations, or ``None`` (:attr:`reorder` off, or no grid)."""
         if not self.reorder:
             return None
-        if not self.mixed:
-            return dof_order(nested_dissection(self.space.points, self.fmesh.h), self.space.n_scalar)
-        pts = np.vstack([self.space.points, self.pspace.points])
-        return dof_order(nested_dissection(pts, self.fmesh.h), self.space.n_scalar, self.pspace.n_scalar)
+        return unknown_order(self.space, self.fmesh.h, self.pspace if self.mixed else None)
 
     def solve(
         self,

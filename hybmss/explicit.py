@@ -135,6 +135,17 @@ def _aligned_zeros(n: int, dtype) -> np.ndarray:
     return buf[off:off + n]
 
 
+def initial_state(system: System, x0, v0, ramp_time: float) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities (n, 3) at t = 0: ``x0``/``v0`` (default: rest, zero velocity),
+    with the plates' prescribed components at the start of their ramp and at rest."""
+    x = system.X.copy() if x0 is None else np.array(x0, dtype=float).reshape(system.n, 3)
+    v = np.zeros((system.n, 3)) if v0 is None else np.array(v0, dtype=float).reshape(system.n, 3)
+    P0 = system.prescribed(ramp(0.0, ramp_time))
+    x[system.fixed] = P0[system.fixed]
+    v[system.fixed] = 0.0
+    return x, v
+
+
 @dataclass(frozen=True, eq=False)
 class PlateArrays:
     """Plates of a system in the layout of :func:`hybmss._kernels.apply_plates`: node numbers of
@@ -713,11 +724,7 @@ def simulate_explicit(
     limit2 = limit * limit
     check_every = max(1, int(check_every))
 
-    x = sys_.X.copy() if x0 is None else np.array(x0, dtype=float).reshape(sys_.n, 3)
-    v = np.zeros((sys_.n, 3)) if v0 is None else np.array(v0, dtype=float).reshape(sys_.n, 3)
-    P0 = sys_.prescribed(ramp(0.0, ramp_time))
-    x[sys_.fixed] = P0[sys_.fixed]
-    v[sys_.fixed] = 0.0
+    x, v = initial_state(sys_, x0, v0, ramp_time)
 
     dt_c = dt_crit_value
     t_dc = 0.0

@@ -41,7 +41,7 @@ import scipy.sparse.linalg as spla
 
 from .. import _kernels_corot
 from .._kernels import particle_state
-from ..explicit import plate_arrays, ramp
+from ..explicit import initial_state, plate_arrays, ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
@@ -273,11 +273,7 @@ def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: 
     damp = 1.0 / (1.0 + system.scene.damping * dt)
     limit2 = blowup_limit2(system)
     check_every = max(1, int(check_every))
-    x = system.X.copy() if x0 is None else np.array(x0, dtype=float).reshape(system.n, 3)
-    v = np.zeros((system.n, 3)) if v0 is None else np.array(v0, dtype=float).reshape(system.n, 3)
-    P0 = system.prescribed(ramp(0.0, ramp_time))
-    x[system.fixed] = P0[system.fixed]
-    v[system.fixed] = 0.0
+    x, v = initial_state(system, x0, v0, ramp_time)
     dt_c = dt_crit_value
     if dt_c is None and compute_dt_crit:
         dt_c = dt_crit(system, term)

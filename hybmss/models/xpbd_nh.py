@@ -56,7 +56,7 @@ import numpy as np
 
 from .. import _kernels_xpbd
 from .._kernels import particle_state
-from ..explicit import plate_arrays, ramp
+from ..explicit import initial_state, plate_arrays, ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
@@ -265,11 +265,7 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
     nsub = steps * substeps
     rest_after = int(math.ceil(ramp_time / h)) if until_rest else -1
     rest_disp = rest_tol * system.scene.body.le
-    x = system.X.copy() if x0 is None else np.array(x0, dtype=float).reshape(system.n, 3)
-    v = np.zeros((system.n, 3)) if v0 is None else np.array(v0, dtype=float).reshape(system.n, 3)
-    P0 = system.prescribed(ramp(0.0, ramp_time))
-    x[system.fixed] = P0[system.fixed]
-    v[system.fixed] = 0.0
+    x, v = initial_state(system, x0, v0, ramp_time)
     winv = inverse_masses(system)
 
     if kernel == "numba":
