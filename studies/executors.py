@@ -1,5 +1,6 @@
 """Where the runs of a sweep are computed: in this process, on a local process pool, or on a
-``dask.distributed`` cluster.
+``dask.distributed`` cluster (:mod:`studies.dask_cluster`, imported only when one is asked for:
+Dask is an optional dependency and takes a second to import).
 
 An executor only computes: it is handed ``(key, task)`` pairs and gives back each run's row and
 arrays (``compute(task)``); the process that runs the sweep stores them (:mod:`studies.runner`).
@@ -16,7 +17,6 @@ the runs of a worker that dies (killed, out of memory) to another worker, up to 
 
 from __future__ import annotations
 
-import logging
 import multiprocessing
 import os
 import signal
@@ -24,11 +24,6 @@ import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
-
-try:  # optional: pip install 'hybmss[dask]'
-    from distributed import WorkerPlugin
-except ImportError:  # pragma: no cover - the local executor needs no Dask
-    WorkerPlugin = object
 
 EXECUTORS = ("local", "dask")
 
@@ -91,17 +86,32 @@ class InProcess:
         self.queue.clear()
 
 
+WORKER_START = "studies.pool_worker"
+"""The module a local pool's worker processes import first (one BLAS thread per worker)."""
+
+
+def worker_context():
+    """The multiprocessing context of the local pool: workers forked from a server process that
+    has imported :data:`WORKER_START` (:mod:`studies.pool_worker`: the BLAS and OpenMP thread
+    variables set to 1 before numpy is imported, then the runner and the solvers).  Forking
+    this process instead would hand every worker the BLAS thread pool numpy started here, one
+    thread per core, whatever the variables say afterwards."""
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([WORKER_START])  # read when the server starts (once per process)
+    return ctx
+
+
 class LocalPool:
-    """A pool of ``jobs`` worker processes on this machine."""
+    """A pool of ``jobs`` worker processes on this machine (:func:`worker_context`)."""
 
     dashboard = None
 
     def __init__(self, fn: Callable, jobs: int):
         self.fn, self.jobs = fn, jobs
-        before = set(multiprocessing.active_children())
-        self.pool = ProcessPoolExecutor(max_workers=jobs, initializer=ignore_interrupt)
-        self.pool.submit(os.getpid).result()  # start the workers now (all at once with fork)
-        self.procs = [p for p in multiprocessing.active_children() if p not in before]
+        self._before = set(multiprocessing.active_children())
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=worker_context(),
+                                        initializer=ignore_interrupt)
+        self.procs: list = []
         self.futures: dict = {}
 
     def capacity(self) -> int:
@@ -109,6 +119,8 @@ class LocalPool:
 
     def submit(self, key: str, task) -> None:
         self.futures[self.pool.submit(self.fn, task, key)] = key
+        # workers are started as runs are submitted, up to ``jobs``
+        self.procs += [p for p in multiprocessing.active_children() if p not in self._before and p not in self.procs]
 
     def wait_one(self):
         done, _ = wait(list(self.futures), return_when=FIRST_COMPLETED)
@@ -131,111 +143,8 @@ class LocalPool:
         self.pool.shutdown(wait=True)
 
 
-# ------------------------------------------------------------------------------------ dask
-class DaskCluster:
-    """Runs on a ``dask.distributed`` cluster: the scheduler at ``scheduler`` or, without one, a
-    ``LocalCluster`` of ``jobs`` single-threaded workers (all cores by default).  ``jobs`` is also
-    the number of runs submitted at a time (default: the cluster's worker threads); runs are
-    claimed in the store when submitted, so a second sweep on the same folder takes other runs."""
-
-    def __init__(self, fn: Callable, jobs: int | None = None, scheduler: str | None = None):
-        import dask
-        from distributed import Client, LocalCluster, as_completed
-
-        self.fn, self.jobs, self.cluster = fn, jobs, None
-        if scheduler:
-            try:
-                self.client = Client(scheduler, timeout="10s")
-            except (OSError, TimeoutError, ValueError, TypeError) as exc:
-                raise ValueError(f"scheduler {scheduler!r}: cannot connect "
-                                 f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]}); the "
-                                 "address of a running dask scheduler, e.g. tcp://host:8786, is "
-                                 "required") from None
-        else:
-            with dask.config.set({"distributed.scheduler.allowed-failures": DASK_ALLOWED_FAILURES}):
-                self.cluster = LocalCluster(n_workers=jobs or os.cpu_count() or 1, threads_per_worker=1,
-                                            processes=True, silence_logs=logging.CRITICAL,
-                                            dashboard_address=":0")
-            self.client = Client(self.cluster)
-            self.client.register_plugin(_IgnoreInterrupt(), name="hybmss-ignore-interrupt")
-        services = self.client.scheduler_info().get("services", {})
-        self.dashboard = self.client.dashboard_link if "dashboard" in services else None
-        self.completed = as_completed()
-        self.futures: dict = {}
-
-    def capacity(self) -> int:
-        if self.jobs:
-            return self.jobs
-        return max(1, sum(self.client.nthreads().values()))
-
-    def submit(self, key: str, task) -> None:
-        fut = self.client.submit(self.fn, task, key, key=f"hybmss-run-{key}", pure=False)
-        self.futures[fut] = key
-        self.completed.add(fut)
-
-    def wait_one(self):
-        from distributed import KilledWorker
-
-        fut = next(self.completed)
-        key = self.futures.pop(fut)
-        try:
-            if fut.status == "error":
-                exc = fut.exception()
-                if isinstance(exc, KilledWorker):
-                    return key, WorkerDied(
-                        f"KilledWorker: the run's worker died (killed or out of memory) on "
-                        f"{exc.allowed_failures + 1} attempts (the scheduler's allowed-failures is "
-                        f"{exc.allowed_failures})")
-                raise SweepError(f"run {key} failed on a worker outside its solver "
-                                 f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]}); every "
-                                 "worker needs hybmss installed at the same version (README)")
-            if fut.status == "cancelled":
-                raise SweepError(f"run {key} was cancelled by the dask scheduler; rerun to resume")
-            return key, fut.result()
-        finally:
-            fut.release()
-
-    def abandon(self) -> None:
-        """Cancel every submitted run and shut a cluster started here down."""
-        futs = list(self.futures)
-        self.futures.clear()
-        try:
-            if futs:
-                self.client.cancel(futs, force=True)
-        finally:
-            self.close(fast=True)
-
-    def close(self, fast: bool = False) -> None:
-        """Close the client and a cluster started here (``fast``: short timeouts, then the
-        worker processes that are left are killed)."""
-        procs = []
-        if self.cluster is not None:
-            procs = [p for p in multiprocessing.active_children()
-                     if p.name.startswith("Dask Worker process")]
-        timeout = 1 if fast else 10
-        try:
-            self.client.close(timeout=timeout)
-        except Exception:  # noqa: BLE001 - a client that cannot close cleanly is dropped
-            pass
-        if self.cluster is not None:
-            try:
-                self.cluster.close(timeout=timeout)
-            except Exception:  # noqa: BLE001 - workers busy in a run: killed below
-                pass
-            kill_processes(procs)
-            self.cluster.shutdown_on_close = False  # closed here; nothing left for exit time
-
-
-class _IgnoreInterrupt(WorkerPlugin):
-    """Worker plugin: SIGINT ignored in the workers of a cluster started by the runner."""
-
-    def setup(self, worker):
-        ignore_interrupt()
-
-
-def make_executor(kind: str, fn: Callable, jobs: int | None, scheduler: str | None, todo: int):
-    """The executor for a sweep of ``todo`` runs."""
-    if kind == "dask":
-        return DaskCluster(fn, jobs, scheduler)
+def local_executor(fn: Callable, jobs: int | None, todo: int):
+    """The executor of a sweep of ``todo`` runs on this machine: in this process for one job,
+    else a pool of ``jobs`` workers (all cores by default)."""
     n = min(jobs or os.cpu_count() or 1, max(todo, 1))
     return InProcess(fn) if n == 1 else LocalPool(fn, n)

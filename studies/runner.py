@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .scenes import BEAM_LENGTH, SceneSpec
-from .executors import EXECUTORS, SweepError, WorkerDied, make_executor
+from .executors import EXECUTORS, SweepError, WorkerDied, local_executor
 from .store import DamagedRun, Store, code_version, environment
 
 SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
@@ -180,7 +180,6 @@ def base_row(task: Task, key: str | None = None) -> dict:
 def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
     the process that runs the sweep stores them)."""
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
     row = base_row(task, key)
     t0 = time.perf_counter()
     arrays = None
@@ -302,7 +301,9 @@ class Runner:
     # -------------------------------------------------------------- dask session
     def __enter__(self):
         if self.executor == "dask" and self._dask is None:
-            self._dask = make_executor("dask", compute, self.jobs, self.scheduler, 0)
+            from .dask_cluster import DaskCluster  # optional dependency, imported when asked for
+
+            self._dask = DaskCluster(compute, self.jobs, self.scheduler)
             if self._dask.dashboard:
                 self._write(f"dask dashboard: {self._dask.dashboard}")
         return self
@@ -349,8 +350,7 @@ class Runner:
         claims: dict = {}
         try:
             if todo:
-                ex = self._dask if self.executor == "dask" else make_executor(
-                    "local", compute, self.jobs, None, len(todo))
+                ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo))
                 self._sweep(ex, todo, store, s, bar, claims)
         except KeyboardInterrupt:
             main = threading.current_thread() is threading.main_thread()
