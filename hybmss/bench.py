@@ -16,7 +16,8 @@ are timed round-robin so that a burst of load does not fall on one of them only.
 carries the 1-minute load average when it was measured: figures taken under a load above the
 number of cores are not the kernel's (two threads on a busy machine spin and can be 10–100×
 slower).  ``ns_per_spring_step`` divides by the model's merged springs.  The ``static`` list
-times the static Newton solve of the 10³ cube (:func:`static_bench`).
+times the static Newton solve of the first cube of the run (:func:`static_bench`; the 10³ cube
+by default).  A quick run (a smoke run of the whole matrix, not a measurement) uses the 3³ cube.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ LE = 0.5
 DT = 1e-3
 NU = 0.499
 MESHES = ((10, 10, 10), (30, 30, 30))
+QUICK_MESH = (3, 3, 3)
+"""The cube of a quick run: every configuration compiles a kernel of its own, in seconds."""
 STEPS = {(10, 10, 10): 10_000, (20, 20, 20): 2_000, (30, 30, 30): 1_000}
 """Numba steps per timed run by mesh (figures are scaled to 10,000 steps)."""
 
@@ -125,11 +128,12 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
     threads), ``s_per_10k_steps``, ``springs``, ``ns_per_spring_step``, ``dt_crit_s`` and
     ``load_avg`` (the 1-minute load average at the best run).  ``steps`` overrides the Numba
     steps of every mesh (default :data:`STEPS`); the NumPy twin runs ``numpy_steps`` on the
-    first mesh only, one thread, float64.  ``quick``: the 10³ cube only, float64, one thread, a
-    tenth of the steps, one repeat (a smoke run, not a measurement).
+    first mesh only, one thread, float64.  The static rows solve the first mesh.  ``quick``: the
+    :data:`QUICK_MESH` cube only, float64, one thread, a tenth of the steps, one repeat (a smoke
+    run, not a measurement).
     """
-    if quick:  # one mesh, one thread, float64: each configuration compiles a kernel of its own
-        meshes, threads, precisions = meshes or (MESH,), (1,), ("f64",)
+    if quick:  # one small mesh, one thread, float64: each configuration compiles a kernel of its own
+        meshes, threads, precisions = meshes or (QUICK_MESH,), (1,), ("f64",)
     meshes = tuple(tuple(m) for m in (meshes or MESHES))
     variants = tuple(variants) if variants is not None else tuple(default_variants())
     if repeats is None:
@@ -162,7 +166,7 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
         for cfg in configs:
             cfg.time_once()
     rows = [c.row() for c in configs]
-    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats) if static else [],
+    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats, mesh=meshes[0]) if static else [],
             "cores": os.cpu_count()}
 
 
@@ -174,14 +178,16 @@ def static_cases() -> list[tuple[str, float, float]]:
             + [(names[0], 0.25, 0.20)])
 
 
-def static_bench(quick: bool = False, repeats: int | None = None) -> list[dict]:
-    """Wall time of the static Newton solve of the compression cube (best of ``repeats``, after a
-    warm-up of the sparsity pattern cache)."""
+def static_bench(quick: bool = False, repeats: int | None = None, mesh=None) -> list[dict]:
+    """Wall time of the static Newton solve of the compression cube ``mesh`` (default the 10³
+    cube, :data:`QUICK_MESH` when ``quick``; best of ``repeats``, after a warm-up of the
+    sparsity pattern cache).  ``quick``: the first case of :func:`static_cases` only."""
     reps = repeats or (1 if quick else 3)
+    mesh = tuple(mesh) if mesh is not None else (QUICK_MESH if quick else MESH)
     cases = static_cases()[:1] if quick else static_cases()
     rows = []
     for model, nu, d in cases:
-        scene = compression_scene(model, nu, d=d)
+        scene = compression_scene(model, nu, mesh=mesh, d=d)
         system = build(scene)
         solve_static(scene, system=system)  # warm-up
         best, res = float("inf"), None
@@ -189,7 +195,7 @@ def static_bench(quick: bool = False, repeats: int | None = None) -> list[dict]:
             t0 = time.perf_counter()
             res = solve_static(scene, system=system)
             best = min(best, time.perf_counter() - t0)
-        rows.append({"scene": f"compression d={100 * d:g}% {model} nu={nu:g}", "mesh": "x".join(map(str, MESH)),
+        rows.append({"scene": f"compression d={100 * d:g}% {model} nu={nu:g}", "mesh": mesh_label(mesh),
                      "wall_time_s": best, "newton_iterations": res.iterations,
                      "load_steps": res.info["load_steps"]})
     return rows
