@@ -5,8 +5,11 @@ stderr naming the parameter, its value and the allowed range, refused before any
 valid simulation that failed, one line (and with ``--json`` one object with ``status`` and
 ``message``).  Never a traceback.
 
-The refused invocations start no solver, so each costs one interpreter start; the few that solve
-use meshes of 2³ cells or fewer.
+Every refused invocation is run through :func:`studies.cli.main` (the ``hybmss`` console
+script's entry point) in this process, in a working folder of its own, with stdout and stderr
+captured; a representative subset (every subcommand and every kind of refusal) is run again
+through the real ``hybmss`` script in a fresh interpreter.  The invocations that solve go through
+the real script and use meshes of 2³ cells or fewer.
 """
 
 from __future__ import annotations
@@ -161,25 +164,65 @@ REFUSED = [
 ]
 
 
+BY_THE_SCRIPT = [
+    ["compare", "compression", "--E", "-1e4"],                  # a negative value, by range
+    ["fem", "--E", "-1e4", "--json"],                           # the same with --json
+    ["moduli", "--nu", "0.7"],                                  # the model's own check
+    ["info", "--mesh", "0x2x2"],                                # a value type
+    ["bench", "--steps", "-5", "--json"],                       # bench
+    ["fem", "--mesh", "1000x1000x1000", "--json"],              # the size guard
+    ["fem", "--scene-json", "{text}"],                          # a stored scene that is not one
+    ["run", "--out", "{file}", "--study", "bending"],           # run: the results folder
+    ["compare", "compression", "--no-such-option"],             # the parser itself
+    [],                                                         # no command
+]
+"""The refusals run again through the real ``hybmss`` script (indices into :data:`REFUSED`)."""
+SCRIPT_SUBSET = [[a for a, _ in REFUSED].index(argv) for argv in BY_THE_SCRIPT]
+
+
 @pytest.fixture(scope="module")
-def refused_runs(tmp_path_factory):
-    """Every refused invocation, run four at a time (each is one interpreter start), in its own
-    empty working folder."""
+def refusal_files(tmp_path_factory):
     d = tmp_path_factory.mktemp("cli")
     files = {"list": d / "list.json", "empty": d / "empty.json", "text": d / "text.json", "file": d / "afile"}
     files["list"].write_text("[]")
     files["empty"].write_text("{}")
     files["text"].write_text("not json {")
     files["file"].write_text("x")
+    return d, files
 
-    def one(i):
-        argv = [a.format(**files) if a.startswith("{") else a for a in REFUSED[i][0]]
+
+def _argv(i, files):
+    return [a.format(**files) if a.startswith("{") else a for a in REFUSED[i][0]]
+
+
+@pytest.fixture(scope="module")
+def refused_runs(refusal_files, cli_in_process):
+    """Every refused invocation through ``studies.cli.main`` in this process, each in its own
+    empty working folder."""
+    d, files = refusal_files
+    runs = []
+    for i in range(len(REFUSED)):
         cwd = d / f"cwd{i}"
         cwd.mkdir()
-        return hybmss(*argv, cwd=cwd), cwd
+        proc = cli_in_process(*_argv(i, files), cwd=cwd)
+        INVOCATIONS.append((REFUSED[i][0], proc.returncode))
+        runs.append((proc, cwd))
+    return runs
+
+
+@pytest.fixture(scope="module")
+def scripted_runs(refusal_files):
+    """The subset :data:`SCRIPT_SUBSET` through the real ``hybmss`` script, four at a time (each is
+    one interpreter start), each in its own empty working folder."""
+    d, files = refusal_files
+
+    def one(i):
+        cwd = d / f"script{i}"
+        cwd.mkdir()
+        return hybmss(*_argv(i, files), cwd=cwd), cwd
 
     with ThreadPoolExecutor(max_workers=4) as pool:
-        return list(pool.map(one, range(len(REFUSED))))
+        return dict(zip(SCRIPT_SUBSET, pool.map(one, SCRIPT_SUBSET)))
 
 
 @pytest.mark.parametrize("i", range(len(REFUSED)), ids=[" ".join(a) or "(none)" for a, _ in REFUSED])
@@ -189,15 +232,25 @@ def test_refused_before_work(i, refused_runs):
     assert list(cwd.iterdir()) == []  # nothing written: refused before any work
 
 
+@pytest.mark.parametrize("i", SCRIPT_SUBSET, ids=[" ".join(REFUSED[i][0]) or "(none)" for i in SCRIPT_SUBSET])
+def test_refused_by_the_real_command(i, scripted_runs, refused_runs):
+    proc, cwd = scripted_runs[i]
+    check(proc, 2, REFUSED[i][1])
+    assert list(cwd.iterdir()) == []
+    inproc = refused_runs[i][0]  # the same refusal as through the entry point in this process
+    assert (proc.stdout, proc.stderr) == (inproc.stdout, inproc.stderr)
+
+
 def test_debug_shows_the_traceback():
     proc = hybmss("compare", "compression", "--E", "-1", "--debug")
     assert proc.returncode == 2
     assert "Traceback" in proc.stderr and proc.stderr.rstrip().splitlines()[-1].startswith("hybmss: error:")
 
 
-def test_help_states_the_contract():
+def test_help_states_the_contract(cli_in_process, tmp_path):
+    # the script once, the subcommands' help through its entry point in this process
     for argv in (["--help"], ["compare", "--help"], ["fem", "-h"]):
-        proc = hybmss(*argv)
+        proc = hybmss(*argv) if argv == ["--help"] else cli_in_process(*argv, cwd=tmp_path)
         check(proc, 0)
         assert "exit status and output" in proc.stdout and "strict JSON" in proc.stdout
     assert "allowed (-180, 180)" in " ".join(proc.stdout.split())  # ranges from the scene specification
@@ -278,6 +331,7 @@ def test_failed_simulation_exits_3():
 def test_bench_quick():
     out = check(hybmss("bench", "--quick", "--steps", "10", "--json"), 0)
     assert {r["kernel"] for r in out["explicit"]} == {"numba", "numpy"} and out["static"]
+    assert {r["mesh"] for r in out["explicit"] + out["static"]} == {"3x3x3"}  # a smoke run: the small cube
 
 
 def test_run_a_quick_study(tmp_path):

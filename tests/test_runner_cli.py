@@ -64,10 +64,32 @@ def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_p
     assert not list(store.runs.glob(".*.tmp"))
 
 
+GATED = """\
+import pathlib, sys, time
+from studies.cli import main
+pathlib.Path(sys.argv[1]).touch()  # imported: ready
+while not pathlib.Path(sys.argv[2]).exists():
+    time.sleep(0.01)
+sys.exit(main(sys.argv[3:]))
+"""
+"""The ``hybmss`` command (:func:`studies.cli.main`), started once the file ``argv[2]`` exists."""
+
+
 def test_two_run_processes_compute_each_run_once(tmp_path):
-    cmd = hybmss("run", "--study", "bending", "--quick", "--jobs", "1", "--out", str(tmp_path), "--no-progress",
-                 "--json")
-    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    """Both processes start their sweeps together (each waits, after its imports, for a go): the
+    second cannot find every run computed by the first, however the machine schedules their
+    interpreter starts."""
+    out, gate = tmp_path / "results", tmp_path / "go"
+    args = ["run", "--study", "bending", "--quick", "--jobs", "1", "--out", str(out), "--no-progress", "--json"]
+    ready = [tmp_path / f"ready{i}" for i in range(2)]
+    procs = [subprocess.Popen([sys.executable, "-c", GATED, str(r), str(gate), *args], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for r in ready]
+    deadline = time.monotonic() + 180
+    while not all(r.exists() for r in ready):
+        assert all(p.poll() is None for p in procs), [p.stderr.read() for p in procs]
+        assert time.monotonic() < deadline, "the processes did not start"
+        time.sleep(0.01)
+    gate.touch()
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [e for _, e in outs]
     res = [json.loads(o) for o, _ in outs]
@@ -76,25 +98,26 @@ def test_two_run_processes_compute_each_run_once(tmp_path):
     assert sum(r["computed"] for r in res) == runs  # each run computed by exactly one of them
     assert all(r["computed"] + r["stored"] + r["by_other"] == runs for r in res)
     assert all(r["computed"] > 0 for r in res)  # the second process took runs of its own
-    rows, damaged = Store(tmp_path).scan()
+    rows, damaged = Store(out).scan()
     assert len(rows) == runs and damaged == []
 
 
 @pytest.mark.parametrize("args, words", [
     (["--jobs", "0"], "jobs 0"), (["--out", ""], "--out ''"), (["--out", "/dev/null/r"], "/dev/null"),
     (["--all", "--study", "bending"], "--all and --study"), (["--scheduler", "tcp://h:1"], "needs executor dask")])
-def test_run_options_not_allowed_exit_2_with_one_line(args, words, tmp_path):
+def test_run_options_not_allowed_exit_2_with_one_line(args, words, tmp_path, cli_in_process):
+    # through the command's entry point in this process (tests/test_cli_contract.py runs such
+    # refusals through the real script too)
     out = [] if "--out" in args else ["--out", str(tmp_path / "r")]
-    p = subprocess.run(hybmss("run", "--quick", *out, *args), capture_output=True, text=True, timeout=60)
+    p = cli_in_process("run", "--quick", *out, *args, cwd=tmp_path)
     assert p.returncode == 2 and p.stdout == ""
     assert len(p.stderr.strip().splitlines()) == 1 and words in p.stderr, p.stderr
-    assert not (tmp_path / "r").exists()  # refused before any work
+    assert list(tmp_path.iterdir()) == []  # refused before any work
 
 
-def test_run_out_on_a_file_exits_2(tmp_path):
+def test_run_out_on_a_file_exits_2(tmp_path, cli_in_process):
     f = tmp_path / "results"
     f.write_text("not a folder")
-    p = subprocess.run(hybmss("run", "--quick", "--study", "bending", "--out", str(f)), capture_output=True,
-                       text=True, timeout=60)
+    p = cli_in_process("run", "--quick", "--study", "bending", "--out", str(f), cwd=tmp_path)
     assert p.returncode == 2 and "is a file" in p.stderr and len(p.stderr.strip().splitlines()) == 1
-    assert f.read_text() == "not a folder"
+    assert f.read_text() == "not a folder" and list(tmp_path.iterdir()) == [f]

@@ -73,11 +73,28 @@ def test_dask_and_local_store_the_same_runs(cluster, tmp_path):
     assert {p: p.stat().st_mtime_ns for p in dask.runs.iterdir()} == mtimes
 
 
+def long_run(steps: int) -> Task:
+    """A damped explicit run of ``steps`` NumPy steps on a 2³ cube (nothing to compile; at rest
+    after 10,000 steps): about 0.1 ms a step, so a run of known, long duration (``steps = 10**6``:
+    minutes) that a kill lands in."""
+    spec = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.25, deformation=0.05, damping=2.0)
+    return Task(spec, SolverSpec("explicit", steps=steps, kernel="numpy"), "compression")
+
+
+def worker_running(client, task: Task):
+    """The worker that holds ``task``'s run, or None."""
+    key = f"hybmss-run-{task.key()}"
+    return next((w for w, keys in client.processing().items() if key in keys), None)
+
+
 def test_a_killed_worker_loses_nothing(cluster, tmp_path):
     """One worker is killed (SIGKILL) while it computes a run: the scheduler resubmits the run,
-    the sweep finishes, every run is computed and stored once and every file is intact."""
+    the sweep finishes, every run is computed and stored once and every file is intact.  The run
+    killed is a 10,000-step explicit run (a second or more), submitted last: the kill lands while it runs,
+    after other runs are stored, whatever the machine's load."""
     c, client = cluster
-    tasks = small_tasks(mesh=(4, 4, 4))
+    slow = long_run(10_000)
+    tasks = small_tasks(mesh=(4, 4, 4)) + [slow]
     store = Store(tmp_path)
     runner = Runner("dask", scheduler=c.scheduler_address, progress=False)
     failure = []
@@ -93,9 +110,9 @@ def test_a_killed_worker_loses_nothing(cluster, tmp_path):
     killed = None
     deadline = time.monotonic() + 120
     while killed is None and th.is_alive() and time.monotonic() < deadline:
-        busy = [w for w, keys in client.processing().items() if keys]
-        if busy and store.keys():  # some runs stored, one in progress on `busy[0]`
-            pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+        busy = worker_running(client, slow)
+        if busy and store.keys():  # some runs stored, the slow one in progress on `busy`
+            pid = client.run(os.getpid, workers=[busy])[busy]
             os.kill(pid, signal.SIGKILL)
             killed = pid
         time.sleep(0.02)
@@ -115,9 +132,10 @@ def _allow_failures(n, dask_scheduler=None):
 
 def test_a_run_whose_workers_keep_dying_is_a_failed_row(cluster, tmp_path):
     """With no worker death allowed, a killed run comes back as a stored failed row naming the
-    cause (the sweep goes on and stores it)."""
+    cause (the sweep goes on and stores it).  The run would take minutes: it cannot finish before
+    the kill lands."""
     c, client = cluster
-    task = Task(SceneSpec.default("compression", mesh=(8, 8, 8), nu=0.25), SolverSpec("static"), "compression")
+    task = long_run(10**6)
     store = Store(tmp_path)
     runner = Runner("dask", scheduler=c.scheduler_address, progress=False)
     old = client.run_on_scheduler(_allow_failures, 0)
@@ -125,11 +143,12 @@ def test_a_run_whose_workers_keep_dying_is_a_failed_row(cluster, tmp_path):
         th = threading.Thread(target=runner.run, args=([task], store))
         th.start()
         deadline = time.monotonic() + 120
-        busy = []
-        while time.monotonic() < deadline and not busy:
-            busy = [w for w, keys in client.processing().items() if keys]
+        busy = None
+        while time.monotonic() < deadline and busy is None:
+            busy = worker_running(client, task)
             time.sleep(0.005)
-        os.kill(client.run(os.getpid, workers=[busy[0]])[busy[0]], signal.SIGKILL)
+        assert busy is not None, "the run never started"
+        os.kill(client.run(os.getpid, workers=[busy])[busy], signal.SIGKILL)
         th.join(timeout=180)
         assert not th.is_alive()
     finally:
