@@ -50,9 +50,11 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
   harness estimate it from the system's stiffness and masses (the default);
 - ``solve_static``, ``simulate_explicit``: None (the default) to use the harness's Newton and
   explicit integrator, or methods ``solve_static(self, scene, options=None, system=None)`` and
-  ``simulate_explicit(self, scene, **kw)`` (the keywords of :func:`hybmss.explicit.simulate_explicit`)
-  returning a :class:`hybmss.result.Result`, for a model that brings its own (e.g. a
-  position-based integrator whose static answer is the rest state of a damped run).
+  ``simulate_explicit(self, scene, **kw)`` (the keywords of :func:`hybmss.explicit.simulate_explicit`
+  except ``damping``, applied to the scene first, and ``rest_rtol``/``compile_first``; a
+  ``precision`` or ``threads`` it does not have raises :class:`ValueError`) returning a
+  :class:`hybmss.result.Result`, for a model that brings its own (e.g. a position-based integrator
+  whose static answer is the rest state of a damped run).
   :func:`hybmss.solvers.solve_static` and :func:`hybmss.explicit.simulate_explicit` hand the
   scene to them; :func:`hybmss.explicit.dt_crit` returns the model's ``dt_crit`` when it has one.
   ``simulate_explicit`` refuses a kernel that is not in ``kernels``, ``solve_static`` a model
