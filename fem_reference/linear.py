@@ -140,7 +140,8 @@ class LinearElasticity:
         C = self.pressure_mass / lam
         g = np.zeros(B.shape[0])
         u, p = solve_saddle(A, B, C, f, g, dirichlet.dofs, uD, self.nullspace,
-                            schur_scale=1.0 / mu + 1.0 / lam, method=method, stats=stats, order=self.order)
+                            schur_scale=1.0 / mu + 1.0 / lam, method=method, stats=stats, order=self.order,
+                            separator=self.separator)
         r = A @ u + B.T @ p - f
         energy = 0.5 * u @ (A @ u) + 0.5 * p @ (C @ p)
         return Solution(u.reshape(-1, 3), p, r, float(energy), stats)

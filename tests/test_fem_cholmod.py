@@ -6,7 +6,10 @@
   pattern or other prescribed dofs get a new analysis;
 - a matrix that is not positive definite falls back to SuperLU's LU;
 - a Hex2 Newton solve on CHOLMOD (chord steps on its factor) reaches the equilibrium of the
-  AMG-preconditioned CG path to 1e-8.
+  AMG-preconditioned CG path to 1e-8;
+- the mixed u–p saddle point solved by eliminating the pressure (CG on the Schur complement with
+  CHOLMOD's factor of the displacement block) equals SuperLU's factorization of the whole system:
+  to 1e-10 for a linear solve, to 1e-8 at the end of a finite-strain Newton solve.
 """
 
 import numpy as np
@@ -134,3 +137,26 @@ def test_separator_size_picks_cholmod_for_slender_and_small_bodies():
     assert linalg._choose_spd("auto", 10**6, 3_000) == "amg"  # a thick body: AMG-CG
     assert linalg._choose_spd("auto", 5 * 10**6, None) == "amg"  # no order known: the SuperLU limit
     assert linalg._choose_spd("amg", 10, 10) == "amg" and linalg._choose_spd("direct", 10**9, 10**6) == "direct"
+
+
+def test_mixed_schur_elimination_matches_the_factorized_saddle_point():
+    from fem_reference.linear import LinearElasticity
+
+    body = Body.box(2, 2, 3, 0.1)
+    sc = Scene(body, Material(1e4, 0.499, 1000.0),
+               plates=(Plate("bottom", Region("z-")), Plate("top", Region("z+"), Motion("translate", (0.02, 0.0, -0.06)))))
+    fm = build_mesh(body, 1)
+    le = LinearElasticity(fm, "mixed")
+    d = plate_dirichlet(sc, le.space)
+    a = le.solve(sc.material, d, method="auto")
+    b = le.solve(sc.material, d, method="direct")
+    assert a.stats.method == "cholmod-schur" and b.stats.method == "direct"
+    assert np.abs(a.U - b.U).max() <= 1e-10 * np.abs(b.U).max()
+    assert np.abs(a.p - b.p).max() <= 1e-10 * np.abs(b.p).max()
+    assert np.abs(a.r[d.dofs] - b.r[d.dofs]).max() <= 1e-10 * np.abs(b.r[d.dofs]).max()
+    hy = Hyperelasticity(fm, "mixed", "neo-hookean")
+    sa, _ = hy.solve(sc.material, d, method="auto")
+    sb, _ = hy.solve(sc.material, d, method="direct")
+    assert sa.stats.method == "cholmod-schur" and sb.stats.method == "direct"
+    assert np.abs(sa.U - sb.U).max() <= 1e-8 * np.abs(sb.U).max()
+    assert np.abs(sa.p - sb.p).max() <= 1e-8 * np.abs(sb.p).max()
