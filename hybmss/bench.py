@@ -106,9 +106,11 @@ class _Config:
         }
 
 
-def time_config(model: str = "hybmss", nu: float = NU, mesh=MESH, threads: int = 1, precision: str = "f64",
+def time_config(model: str | None = None, nu: float = NU, mesh=MESH, threads: int = 1, precision: str = "f64",
                 kernel: str = "numba", steps: int | None = None, repeats: int = 3) -> dict:
-    """Best-of-``repeats`` row of one configuration (see :func:`run_bench` for the fields)."""
+    """Best-of-``repeats`` row of one configuration (see :func:`run_bench` for the fields);
+    ``model`` None is the registry's default model."""
+    model = models.default_name() if model is None else model
     if steps is None:
         steps = STEPS.get(tuple(mesh), 1000) if kernel == "numba" else 200
     cfg = _Config(model, nu, mesh, kernel, threads, precision, steps)
