@@ -63,7 +63,7 @@ try:  # CHOLMOD (SuiteSparse) through cvxopt's wheels: supernodal Cholesky, symb
 except ImportError:  # pragma: no cover - SuperLU's symmetric LU does everything, slower
     cvxopt = cholmod = None
 
-from .forces import cell_volumes, energy_forces, hessian, stiffness
+from .forces import cell_volumes, energy_forces, free_pattern, hessian_pattern, stiffness
 from .result import Reaction, Result, reaction_from_nodal
 from .scene import Scene
 from .system import System, build
@@ -215,8 +215,75 @@ def _energy_shifts(mu_last: float):
         mu = 1e-6 if mu == 0.0 else mu * 100.0
 
 
+class _Tangent:
+    """The constrained Hessian ``H_ff`` (+ a diagonal) at one state; ``J`` the full (3n × 3n) one.
+
+    When ``J`` is a Hessian of springs and volume cells only (no term adds stiffness) its data
+    lies on the fixed pattern of :func:`hybmss.forces.free_pattern`: ``H_ff``, its lower
+    triangle and their shifts ``H_ff + σ I`` are gathers of ``J.data`` with the same pattern,
+    explicit zeros kept, so the Cholesky's symbolic analysis holds for all of them.  Otherwise
+    (a term's own stiffness, nonsymmetric in residual mode) ``H_ff`` is sliced out of ``J``."""
+
+    def __init__(self, J, free: np.ndarray, pat=None, diag: np.ndarray | None = None, _data=None, _csc=None):
+        self.J, self.free, self.pat = J, free, pat
+        if pat is not None:
+            if _data is None:
+                _data = J.data[pat.full_map]
+                if diag is not None:
+                    _data[pat.full_diag] += diag
+            self._data = _data
+            self._csc = None
+        else:
+            if _csc is None:
+                _csc = J[free][:, free].tocsc()
+                _csc.sort_indices()
+                if diag is not None:
+                    _csc.setdiag(_csc.diagonal() + diag)
+            self._csc = _csc
+        self.shape = (int(np.count_nonzero(free)),) * 2
+
+    def diagonal(self) -> np.ndarray:
+        return self._data[self.pat.full_diag] if self.pat is not None else self._csc.diagonal()
+
+    def shifted(self, sigma: float) -> "_Tangent":
+        """``H_ff + σ I`` on the same pattern."""
+        if self.pat is not None:
+            data = self._data.copy()
+            data[self.pat.full_diag] += sigma
+            return _Tangent(self.J, self.free, self.pat, _data=data)
+        A = self._csc.copy()
+        A.setdiag(A.diagonal() + sigma)
+        return _Tangent(self.J, self.free, None, _csc=A)
+
+    def csc(self):
+        """``H_ff`` as a CSC matrix (both triangles)."""
+        if self._csc is None:
+            p = self.pat
+            self._csc = sp.csc_matrix((self._data, p.full_indices, p.full_indptr), shape=self.shape)
+        return self._csc
+
+    def lower(self):
+        """``(key, indptr, rows, cols, data)`` of the lower triangle in CSC order; ``key`` is the
+        pattern (None: compare the arrays)."""
+        if self.pat is not None:
+            p = self.pat
+            return p, p.lower_indptr, p.lower_rows, p.lower_cols, self._data[p.lower_pos]
+        L = sp.tril(self._csc, format="csc")
+        L.sort_indices()
+        return None, L.indptr, L.indices, None, L.data
+
+
+def _tangent(S: System, x: np.ndarray, load: float, free: np.ndarray, diag: np.ndarray | None = None) -> _Tangent:
+    """The constrained tangent at ``x`` (:class:`_Tangent`), plus ``diag`` on its diagonal."""
+    J = stiffness(S, x, load)
+    indptr, indices, _ = hessian_pattern(S)
+    fixed_pattern = J.indices is indices or (J.indices.shape == indices.shape and np.array_equal(J.indptr, indptr)
+                                             and np.array_equal(J.indices, indices))
+    return _Tangent(J, free, free_pattern(S, free) if fixed_pattern and S.conservative else None, diag)
+
+
 def _factor(A, fac: "_Factorizer | None" = None):
-    """Factorization of a symmetric matrix ``A`` (CSC) with a ``solve`` method: CHOLMOD's Cholesky
+    """Factorization of a symmetric matrix ``A`` (CSC or :class:`_Tangent`) with a ``solve`` method: CHOLMOD's Cholesky
     when ``A`` is positive definite (through ``fac``, which keeps the symbolic analysis), else
     SuperLU's LU in symmetric mode with a minimum-degree ordering of A+Aᵀ (3× faster than the
     default COLAMD on the lattice Hessians; no pivoting, so its pivots are the D of LDLᵀ)."""
@@ -228,6 +295,8 @@ def _factor(A, fac: "_Factorizer | None" = None):
 
 
 def _superlu_symmetric(A):
+    if isinstance(A, _Tangent):
+        A = A.csc()
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
@@ -253,24 +322,35 @@ class _Factorizer:
     returns None."""
 
     def __init__(self):
-        self._indptr = self._indices = None
+        self._key = self._indptr = self._indices = None
         self._A = self._F = None
         self.numeric = self.symbolic = self.failed = 0
 
     def cholesky(self, A) -> _CholeskyFactor | None:
+        """Cholesky of ``A`` (a :class:`_Tangent` or a symmetric sparse matrix), None if it is
+        not positive definite."""
         if cholmod is None:
             return None
-        L = sp.tril(A, format="csc")
-        L.sort_indices()
-        if (self._F is None or L.shape != self._A.size or not np.array_equal(L.indptr, self._indptr)
-                or not np.array_equal(L.indices, self._indices)):
-            self._indptr, self._indices = L.indptr.copy(), L.indices.copy()
-            cols = np.repeat(np.arange(L.shape[1]), np.diff(L.indptr))
-            self._A = cvxopt.spmatrix(L.data, L.indices.astype(np.int64), cols, L.shape)
+        if isinstance(A, _Tangent):
+            key, indptr, rows, cols, data = A.lower()
+        else:
+            L = sp.tril(A, format="csc")
+            L.sort_indices()
+            key, indptr, rows, cols, data = None, L.indptr, L.indices, None, L.data
+        shape = A.shape
+        same = self._F is not None and shape == self._A.size and (
+            (key is not None and key is self._key) or (key is None and self._key is None and np.array_equal(
+                indptr, self._indptr) and np.array_equal(rows, self._indices)))
+        if not same:
+            self._key, self._indptr, self._indices = key, np.array(indptr), np.array(rows)
+            if cols is None:
+                cols = np.repeat(np.arange(shape[1]), np.diff(indptr))
+            self._A = cvxopt.spmatrix(data, np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64),
+                                      shape)
             self._F = cholmod.symbolic(self._A, uplo="L")
             self.symbolic += 1
         else:
-            self._A.V = cvxopt.matrix(L.data)
+            self._A.V = cvxopt.matrix(data)
         self.numeric += 1
         try:
             cholmod.numeric(self._A, self._F)
@@ -373,10 +453,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                 lu = None
         fresh = chord is None
         if fresh:
-            J = stiffness(system, x, load)
-            if inertia is not None:
-                J = J + sp.diags(np.repeat(inertia[0], 3))
-            Jff = J[free][:, free].tocsc()
+            Jff = _tangent(system, x, load, free, None if inertia is None else np.repeat(inertia[0], 3)[free])
             diag_mean = float(np.abs(Jff.diagonal()).mean())
             shifts = _RESIDUAL_SHIFTS if residual else _energy_shifts(mu_last)
         else:
@@ -386,11 +463,11 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             if mu is None:
                 dx = chord
             else:
-                A = Jff if mu == 0.0 else (Jff + sp.identity(Jff.shape[0], format="csc") * (mu * diag_mean))
+                A = Jff if mu == 0.0 else Jff.shifted(mu * diag_mean)
                 try:
                     with np.errstate(all="ignore"):
                         if residual:
-                            lu = _factor_general(A)
+                            lu = _factor_general(A.csc())
                         else:
                             failed = fac.failed if fac is not None else 0
                             lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
@@ -450,17 +527,15 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
     by Newton).  Residual mode: J is shifted by 1e-8 · mean diag against zero-stiffness modes and
     ``lu`` is None.  ``(None, None)`` if it fails."""
     residual = not system.conservative
-    J = stiffness(system, x, load)
+    Jff = _tangent(system, x, load, free)
     delta = (target - x).ravel().copy()
     delta[free] = 0.0
     _, f, _ = energy_forces(system, x, load)
-    rhs = f.ravel()[free] - (J @ delta)[free]
-    Jff = J[free][:, free].tocsc()
+    rhs = f.ravel()[free] - (Jff.J @ delta)[free]
     try:
         with np.errstate(all="ignore"):
             if residual:
-                shift = sp.identity(Jff.shape[0], format="csc") * (1e-8 * float(np.abs(Jff.diagonal()).mean()))
-                lu = _factor_general(Jff + shift)
+                lu = _factor_general(Jff.shifted(1e-8 * float(np.abs(Jff.diagonal()).mean())).csc())
             else:
                 lu = _factor(Jff, fac)
             d_f = lu.solve(rhs)
@@ -476,17 +551,18 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
     """Smallest eigenvalue (N/m) of the constrained Hessian at ``x`` and its eigenvector
     (over the free dofs)."""
     free = ~system.fixed.ravel()
-    Hff = stiffness(system, x)[free][:, free]
+    T = _tangent(system, x, 1.0, free)
+    Hff = T.csc()
     if Hff.shape[0] <= 600:
         w, v = np.linalg.eigh(Hff.toarray())
         return float(w[0]), v[:, 0]
     try:
         shift = -1e-3 * abs(Hff.diagonal()).max()
-        A = Hff.tocsc()
+        A = Hff
         # shift-invert with the factorization of A − σI the Newton solves use (Cholesky, or the
         # minimum-degree symmetric LU when it is indefinite), not splu's default COLAMD ordering
         with np.errstate(all="ignore"):
-            F = _factor((A - shift * sp.identity(A.shape[0], format="csc")).tocsc(), _Factorizer())
+            F = _factor(T.shifted(-shift), _Factorizer())
         op = spla.LinearOperator(A.shape, matvec=F.solve, dtype=float)
         vals, vecs = spla.eigsh(A, k=1, sigma=shift, which="LM", OPinv=op)
         if not np.isfinite(vals[0]):
@@ -507,7 +583,7 @@ def _stability(S: System, x: np.ndarray, free: np.ndarray, fac: _Factorizer | No
     the constrained Hessian is positive definite; otherwise its inertia comes from the symmetric
     LU (no pivoting: the pivots are the D of LDLᵀ, Sylvester's law); only when a pivot is
     negative or tiny is the smallest eigenpair computed (shift-invert)."""
-    Hff = stiffness(S, x)[free][:, free].tocsc()
+    Hff = _tangent(S, x, 1.0, free)
     if fac is not None and fac.cholesky(Hff) is not None:
         return True, float("nan"), None
     tol = 1e-9 * float(np.abs(Hff.diagonal()).mean())
@@ -577,7 +653,7 @@ apart by the ordinary Newton at the end of the bracket."""
 def _not_definite(Hff, shift: float, fac: _Factorizer) -> bool:
     """Whether ``Hff + shift·I`` is not positive definite (a failed Cholesky; without cvxopt, an
     LDLᵀ pivot ≤ 0)."""
-    A = (Hff + sp.identity(Hff.shape[0], format="csc") * shift).tocsc()
+    A = Hff.shifted(shift) if shift != 0.0 else Hff
     if cholmod is not None:
         return fac.cholesky(A) is None
     try:
@@ -598,7 +674,7 @@ def _fold_suspected(S: System, guess: np.ndarray, free: np.ndarray, fac: _Factor
     vols = cell_volumes(guess, S.lattice.cells)
     if np.any(vols <= 0.0) or not float(vols.sum()) > float(S.lattice.cell_volumes(S.X).sum()):
         return False
-    Hff = stiffness(S, guess, load)[free][:, free].tocsc()
+    Hff = _tangent(S, guess, load, free)
     if not _not_definite(Hff, 0.0, fac):
         return False
     lam = lam_x()
@@ -671,7 +747,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         """Smallest eigenvalue at the current equilibrium if it is stable (its Hessian factorizes
         by Cholesky: shift-invert alone can miss a negative eigenvalue far below the shift), else 0."""
         if s not in lam_at:
-            Hx = stiffness(S, x, s)[free][:, free].tocsc()
+            Hx = _tangent(S, x, s, free)
             lam_at[s] = 0.0 if _not_definite(Hx, 0.0, fold_fac) else smallest_eigenvalue(S, x)
         return lam_at[s]
 
