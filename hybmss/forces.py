@@ -227,8 +227,13 @@ def _pattern(n, a_bytes, b_bytes, cells_bytes):
     indptr = np.empty(3 * n + 1, dtype=np.int64)
     indptr[:-1] = (9 * P[:, None] + 3 * ij[None, :] * deg[:, None]).reshape(-1)
     indptr[-1] = 9 * len(uniq)
-    nb = np.split(c, np.cumsum(deg)[:-1])
-    indices = np.concatenate([np.tile((3 * cc[:, None] + ij[None, :]).reshape(-1), 3) for cc in nb])
+    # entry (i, j) of the block of node pair t (row r_t, column c_t) sits at slot
+    # 9 P_r + 3 i deg(r) + 3 (t − P_r) + j and holds column 3 c_t + j
+    t = np.arange(len(uniq))
+    slot0 = 9 * P[r] + 3 * (t - P[r])
+    slots = slot0[:, None, None] + 3 * ij[None, :, None] * deg[r][:, None, None] + ij[None, None, :]
+    indices = np.empty(9 * len(uniq), dtype=np.int64)
+    indices[slots.reshape(-1)] = np.broadcast_to(3 * c[:, None, None] + ij[None, None, :], slots.shape).reshape(-1)
     idx = np.int32 if len(indices) < 2**31 - 1 else np.int64  # scipy's own index type: no copy per matrix
     return indptr.astype(idx), indices.astype(idx), inv
 

@@ -348,7 +348,11 @@ class _PermutedLU:
     those of the permuted matrix: the same inertia)."""
 
     def __init__(self, lu, p: np.ndarray):
-        self._lu, self._p, self.U = lu, p, lu.U
+        self._lu, self._p = lu, p
+
+    @property
+    def U(self):
+        return self._lu.U  # built on demand: forming it costs a quarter of the factorization
 
     def solve(self, r: np.ndarray) -> np.ndarray:
         x = np.empty_like(r)
@@ -756,10 +760,13 @@ def _fold_suspected(S: System, guess: np.ndarray, free: np.ndarray, fac: _Factor
     return bool(lam > 0.0 and _not_definite(Hff, FOLD_MARGIN * lam, fac))
 
 
-def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: float, s_new: float) -> str:
+def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: float, s_new: float,
+                     lam: float | None = None) -> str:
     """Why the load could not be increased past ``s``: the smallest eigenvalue of the
-    constrained Hessian at the last equilibrium and at the predicted state just beyond it."""
-    lam = smallest_eigenvalue(S, x)
+    constrained Hessian at the last equilibrium (``lam`` when already known) and at the
+    predicted state just beyond it."""
+    if lam is None:
+        lam = smallest_eigenvalue(S, x)
     lam_next = smallest_eigenvalue(S, guess)
     head = (f"static solve of scene {scene.name or '(unnamed)'} failed at load factor s={s_new:.6g} "
             f"(last converged s={s:.6g}); smallest eigenvalue of the constrained Hessian: {lam:.4g} N/m at "
@@ -840,7 +847,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.limit_iter, None, stats,
                                                  opts.line_search, lu=lu, load=s_hi, fac=fac)
             if not ok:
-                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi))
+                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi, lam_at.get(s) or None))
             load_steps += 1
             x_prev, s_prev, x, s = x, s, x_new, s_hi
             ds, s_hi, fold_check = 2.0 * s_tol, None, False
@@ -886,7 +893,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         ds *= 0.5
         if ds < opts.min_step:
             raise StaticSolveError(_residual_failure_message(S, scene, s, s_new, rnorm) if residual
-                                   else _failure_message(S, scene, x, guess, s, s_new))
+                                   else _failure_message(S, scene, x, guess, s, s_new, lam_at.get(s) or None))
     # Stability of the equilibrium found: Newton converges to any stationary point, so check the
     # smallest eigenvalue of the constrained Hessian and, at a saddle (e.g. the buckled zero-energy
     # modes of hybmss-fd under compression), descend along the unstable mode and solve again.
