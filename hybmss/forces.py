@@ -1,4 +1,7 @@
-"""Energies, forces and exact Hessians in plain NumPy: the readable reference.
+"""Energies, forces and exact Hessians in plain NumPy: the readable reference, and the totals
+(:func:`energy_forces`, :func:`hessian`, :func:`stiffness`, :func:`cell_volumes`) that run their
+Numba twins of :mod:`hybmss._kernels_static` by default (``kernel="numpy"``: this module's
+functions; tests/test_static_kernels.py holds the two together).
 
 Springs ([G20] eq. 5.1): energy ``½ k (l − l0)²`` with ``l = |x_b − x_a|``; force on a
 ``f_a = k (x_b − x_a)(1 − l0/l)``; Hessian block ``K = k [(1 − l0/l) I + (l0/l) d dᵀ]`` with

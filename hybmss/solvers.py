@@ -46,6 +46,13 @@ failing, :class:`StaticSolveError` reports the bracket (message as above); conve
 bifurcation the path passes, as with the soft modes of hybmss-fd at ν = 0.2, not a fold), the
 load stepping goes on without bracketing.  This replaces some ten failing Newton attempts of
 8–20 iterations with a few predictors, factorizations and short Newton solves.
+
+**Linear algebra.**  The energies, forces and Hessians are the Numba twins of
+:mod:`hybmss.forces`; the Hessian is written into one fixed CSR pattern, and the constrained
+Hessian, its lower triangle and its shifts are gathers of it on that pattern
+(:class:`_Tangent`), explicit zeros kept, so CHOLMOD's symbolic analysis is done once per solve.
+CHOLMOD's Cholesky (and SuperLU where a matrix is not positive definite, or in residual mode)
+factorize in a nested-dissection order of the lattice nodes (:func:`_grid_dissection`).
 """
 
 from __future__ import annotations
