@@ -19,7 +19,8 @@ MESHES = os.environ.get("HYBMSS_ASV_MESHES", "10x10x10,20x20x20,30x30x30,beam-8x
 MODELS = models.names()
 
 
-def scene(mesh: str, model: str = "hybmss", nu: float = 0.3, d: float = 0.05) -> Scene:
+def scene(mesh: str, model: str | None = None, nu: float = 0.3, d: float = 0.05) -> Scene:
+    model = models.default_name() if model is None else model
     if mesh.startswith("beam-"):
         n = tuple(int(v) for v in mesh[5:].split("x"))
         le, sign = 0.4 / n[0], 1.0

@@ -11,6 +11,9 @@ gravity.  One step:
 2. ``v ← (v + dt (f/m + g)) / (1 + c dt)``, ``x ← x + dt v``;
 3. plates and the divergence check of :func:`hybmss._kernels.end_of_step`.
 
+Precision: the state ``W`` holds float64 positions or float32 displacements (``posmode`` False,
+:mod:`hybmss.models._voxel_explicit`); the element arithmetic is float64 in both.
+
 The readable twin is :mod:`hybmss.models.corot_hex8` (NumPy, vectorized over cells).
 """
 
@@ -57,12 +60,14 @@ def polar_rotation(F, R, T):
 
 
 @njit(**_OPTS)
-def corot_forces(x, X, cells, Ke, XI, inv4le, f, Rs, U, G):
+def corot_forces(x, X, posmode, cells, Ke, XI, inv4le, f, Rs, U, G):
     """Internal forces f (3, n) of the corotational hexahedra at positions x (3, n) (overwritten).
 
     Three passes: per cell the rotation ``Rs[e]`` and local displacement ``U[e]`` (24,); then
     ``G = U K_e`` for all cells at once (one matrix product, K_e symmetric); then the scatter of
-    ``−R_e G_e`` to the corners.  ``Rs`` (m, 3, 3), ``U`` and ``G`` (m, 24) are scratch."""
+    ``−R_e G_e`` to the corners.  ``Rs`` (m, 3, 3), ``U`` and ``G`` (m, 24) are scratch.
+    ``x`` holds positions (``posmode``) or displacements from ``X`` (the float32 state: the element
+    arithmetic is float64 on ``X + u``, relative positions ``(X_c − X̄) + (u_c − ū)``)."""
     n = x.shape[1]
     m = cells.shape[0]
     F = np.empty((3, 3))
@@ -78,9 +83,9 @@ def corot_forces(x, X, cells, Ke, XI, inv4le, f, Rs, U, G):
         Xb2 = 0.0
         for c in range(8):
             q = cells[e, c]
-            xb0 += x[0, q]
-            xb1 += x[1, q]
-            xb2 += x[2, q]
+            xb0 += np.float64(x[0, q])
+            xb1 += np.float64(x[1, q])
+            xb2 += np.float64(x[2, q])
             Xb0 += X[0, q]
             Xb1 += X[1, q]
             Xb2 += X[2, q]
@@ -95,12 +100,17 @@ def corot_forces(x, X, cells, Ke, XI, inv4le, f, Rs, U, G):
                 F[a, b] = 0.0
         for c in range(8):
             q = cells[e, c]
-            xl[c, 0] = x[0, q] - xb0
-            xl[c, 1] = x[1, q] - xb1
-            xl[c, 2] = x[2, q] - xb2
+            xl[c, 0] = np.float64(x[0, q]) - xb0
+            xl[c, 1] = np.float64(x[1, q]) - xb1
+            xl[c, 2] = np.float64(x[2, q]) - xb2
+            if not posmode:  # displacements: relative positions (X_c − X̄) + (u_c − ū)
+                xl[c, 0] += X[0, q] - Xb0
+                xl[c, 1] += X[1, q] - Xb1
+                xl[c, 2] += X[2, q] - Xb2
             for a in range(3):
+                xa = np.float64(x[a, q]) if posmode else X[a, q] + np.float64(x[a, q])
                 for b in range(3):
-                    F[a, b] += x[a, q] * XI[c, b]
+                    F[a, b] += xa * XI[c, b]
         for a in range(3):
             for b in range(3):
                 F[a, b] *= inv4le
@@ -130,11 +140,12 @@ def corot_forces(x, X, cells, Ke, XI, inv4le, f, Rs, U, G):
 
 
 @njit(**_OPTS)
-def run_serial(W, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp, ramp_time, pl_nodes, pl_U1,
+def run_serial(W, posmode, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp, ramp_time, pl_nodes, pl_U1,
                pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, step0, nsteps, check_every,
                limit2, f):
     """Advance ``nsteps`` steps from global step ``step0`` on the state ``W`` of
-    :func:`hybmss._kernels.particle_state`.  Returns (steps done, bad node or −1)."""
+    :func:`hybmss._kernels.particle_state` (``posmode``: positions, float64; else displacements
+    from ``X``, float32).  Returns (steps done, bad node or −1)."""
     n = X.shape[1]
     x = W[:3 * n].reshape((3, n))
     v = W[3 * n:].reshape((3, n))
@@ -144,7 +155,7 @@ def run_serial(W, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp, r
     U = np.empty((m, 24))
     G = np.empty((m, 24))
     for it in range(nsteps):
-        corot_forces(x, X, cells, Ke, XI, inv4le, f, Rs, U, G)
+        corot_forces(x, X, posmode, cells, Ke, XI, inv4le, f, Rs, U, G)
         for d in range(3):
             if has_gravity:
                 for q in range(n):
@@ -154,7 +165,7 @@ def run_serial(W, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt, damp, r
                 for q in range(n):
                     v[d, q] = (v[d, q] + dt * (f[d, q] * invm[q])) * damp
                     x[d, q] += dt * v[d, q]
-        bad = end_of_step(W, 0, 3 * n, n, n, True, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+        bad = end_of_step(W, 0, 3 * n, n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
                           pl_angle, step0 + it, dt, ramp_time, R, u_old, u_new, it, nsteps, check_every, limit2)
         if bad >= 0:
             return it + 1, bad
@@ -165,16 +176,16 @@ def forces(x, X, cells, Ke, XI, le):
     """Internal forces (n, 3) at positions ``x`` (n, 3): the kernel's force stage alone."""
     f = np.empty((3, len(x)))
     m = len(cells)
-    corot_forces(np.ascontiguousarray(x.T), np.ascontiguousarray(X.T), cells, Ke, XI, 1.0 / (4.0 * le), f,
+    corot_forces(np.ascontiguousarray(x.T), np.ascontiguousarray(X.T), True, cells, Ke, XI, 1.0 / (4.0 * le), f,
                  np.empty((m, 3, 3)), np.empty((m, 24)), np.empty((m, 24)))
     return f.T.copy()
 
 
 def advance(W, X, cells, Ke, XI, le, invm, gacc, has_gravity, dt, damp, ramp_time, plates, step0, nsteps,
-            check_every, limit2, f):
-    """Run ``nsteps`` steps on the state ``W`` (:func:`hybmss._kernels.particle_state`) in place;
-    (steps done, bad particle or −1)."""
-    done, bad = run_serial(W, X, cells, Ke, XI, 1.0 / (4.0 * le), invm, gacc, bool(has_gravity), float(dt),
+            check_every, limit2, f, posmode=True):
+    """Run ``nsteps`` steps on the state ``W`` (:func:`hybmss._kernels.particle_state`; positions,
+    or with ``posmode`` False float32 displacements) in place; (steps done, bad particle or −1)."""
+    done, bad = run_serial(W, bool(posmode), X, cells, Ke, XI, 1.0 / (4.0 * le), invm, gacc, bool(has_gravity), float(dt),
                            float(damp), float(ramp_time), *plates.args(), np.int64(step0), np.int64(nsteps),
                            np.int64(max(1, check_every)), float(limit2), f)
     return int(done), int(bad)

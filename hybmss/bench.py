@@ -80,6 +80,7 @@ class _Config:
 
     def time_once(self):
         r = self._run(self.steps)
+        self.substeps = int(r.info.get("substeps", 1))
         if r.wall_time_s < self.best[0]:
             self.best = (r.wall_time_s, r.info["cpu_time_s"], load_average())
 
@@ -100,13 +101,16 @@ class _Config:
             "springs": springs,
             "ns_per_spring_step": wall / self.steps / springs * 1e9 if springs else None,  # None: no springs
             "dt_crit_s": self.dc,
+            "substeps": getattr(self, "substeps", 1),  # per step of dt: position-based models
             "load_avg": load,
         }
 
 
-def time_config(model: str = "hybmss", nu: float = NU, mesh=MESH, threads: int = 1, precision: str = "f64",
+def time_config(model: str | None = None, nu: float = NU, mesh=MESH, threads: int = 1, precision: str = "f64",
                 kernel: str = "numba", steps: int | None = None, repeats: int = 3) -> dict:
-    """Best-of-``repeats`` row of one configuration (see :func:`run_bench` for the fields)."""
+    """Best-of-``repeats`` row of one configuration (see :func:`run_bench` for the fields);
+    ``model`` None is the registry's default model."""
+    model = models.default_name() if model is None else model
     if steps is None:
         steps = STEPS.get(tuple(mesh), 1000) if kernel == "numba" else 200
     cfg = _Config(model, nu, mesh, kernel, threads, precision, steps)
@@ -204,8 +208,9 @@ def _pick(rows, **key):
 
 def format_bench(d: dict) -> str:
     """Readable table of :func:`run_bench`'s result, with the ratios measured in the same run:
-    float32 / float64, two threads / one, Numba / NumPy, and each model over the fastest one
-    (float64, one thread; [G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)."""
+    float32 / float64, two threads / one, Numba / NumPy, each model over the fastest one and over
+    the reference model (the first ``performance`` model, hybmss) at the same ν (float64, one
+    thread; [G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)."""
     rows = d.get("explicit", [])
     out = ["explicit dynamics, compression cube (dt = 1 ms; time per 10,000 steps, best of the repeats)", ""]
     head = (f"{'model':<10} {'nu':>6} {'mesh':>9} {'kernel':>6} {'prec':>4} {'thr':>3} {'steps':>6} "
@@ -224,6 +229,7 @@ def format_bench(d: dict) -> str:
         out.append(f"(1-min load average {min(loads):.2f}-{max(loads):.2f} on {d.get('cores') or os.cpu_count()} "
                    "cores during the runs: above the core count, figures are not the kernel's)")
     out += ["", "ratios in this run (time per step)"]
+    reference = models.in_role("performance")[0]
     meshes = sorted({r["mesh"] for r in rows}, key=lambda m: int(m.split("x")[0]))
     for mesh in meshes:
         own = [(r["s_per_10k_steps"], r["model"], r["nu"]) for r in rows if r["mesh"] == mesh
@@ -246,6 +252,11 @@ def format_bench(d: dict) -> str:
                 parts.append(f"numba/numpy {a['s_per_10k_steps'] / b['s_per_10k_steps']:.3f}")
             if a and fastest and (model, nu) != fastest[1:]:
                 parts.append(f"/{fastest[1]}(nu={fastest[2]:g}) {a['s_per_10k_steps'] / fastest[0]:.2f}")
+            ref = _pick(rows, mesh=mesh, model=reference, nu=nu, kernel="numba", precision="f64", threads=1)
+            if a and ref and model != reference:
+                parts.append(f"/{reference}(nu={nu:g}) {a['s_per_10k_steps'] / ref['s_per_10k_steps']:.2f}")
+            if a and a.get("substeps", 1) > 1:
+                parts.append(f"{a['substeps']} substeps per step")
             if parts:
                 out.append(f"  {mesh} {model} nu={nu:g}: " + ";  ".join(parts))
     static = d.get("static", [])

@@ -115,10 +115,18 @@ def param(default, help: str, unit: str = "", ranges=None, experiments=None, fla
     """A :class:`SceneSpec` field with what a user needs to set it: ``help`` and ``unit``; the
     values a user may ask for, ``ranges`` (a :class:`Range`, a dict experiment → Range, or
     ``None``: checked by the scene's own types); the ``experiments`` and ``solvers`` that use it
-    (``None``: every one); extra command-line ``flags``."""
-    return dataclasses.field(default=default, metadata={
-        "help": help, "unit": unit, "ranges": ranges, "experiments": experiments, "flags": tuple(flags),
-        "solvers": solvers})
+    (``None``: every one); extra command-line ``flags``.  A callable ``default`` is a factory,
+    called when the field is not given (:func:`field_default` reads either)."""
+    meta = {"help": help, "unit": unit, "ranges": ranges, "experiments": experiments, "flags": tuple(flags),
+            "solvers": solvers}
+    if callable(default):
+        return dataclasses.field(default_factory=default, metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def field_default(f: dataclasses.Field):
+    """The default of a :class:`SceneSpec` field (its factory's value for a factory)."""
+    return f.default_factory() if f.default is dataclasses.MISSING else f.default
 
 
 class ParameterError(ValueError):
@@ -145,7 +153,7 @@ class SceneSpec:
     nu: float = param(0.25, "Poisson ratio (the static and implicit mass-spring solvers and moduli take "
                       "[-0.99, 0.49999])", "", Range(-1.0, 0.5, lo_open=True, hi_open=True))
     rho: float = param(1000.0, "density", "kg/m^3", Range(0.0))
-    model: str = param("hybmss", "mass-spring model", solvers=MSS_SOLVERS)
+    model: str = param(models.default_name, "mass-spring model", solvers=MSS_SOLVERS)
     params: tuple[tuple[str, object], ...] = ()
     deformation: float = param(0.05, "plate displacement / height d (0.05 = 5 %)", "", {
         "compression": Range(0.0, 1.0, hi_open=True), "tension": Range(0.0), "shear": FINITE,

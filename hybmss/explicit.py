@@ -690,11 +690,20 @@ def simulate_explicit(
     if kernel not in model.kernels:
         raise ValueError(f"model {model.name} has no {kernel} kernel (its kernels: {', '.join(model.kernels)}); "
                          f"use kernel={model.kernels[0]!r}")
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+    if damping is not None:
+        damping = float(damping)
+        if not (damping >= 0 and math.isfinite(damping)):
+            raise ValueError(f"damping must be >= 0 (1/s), got {damping}")
+        scene = dataclasses.replace(scene, damping=damping)
+        if system is not None:
+            system = dataclasses.replace(system, scene=scene)
     if model.simulate_explicit is not None:  # a model with its own integrator (hybmss.models.base)
         return model.simulate_explicit(scene, dt=dt, steps=steps, kernel=kernel, ramp_time=ramp_time,
                                        threads=threads, record_every=record_every, system=system, x0=x0, v0=v0,
                                        dt_crit_value=dt_crit_value, compute_dt_crit=compute_dt_crit,
-                                       check_every=check_every)
+                                       check_every=check_every, precision=precision)
     dt = float(dt)
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be > 0 s, got {dt}")
@@ -706,15 +715,6 @@ def simulate_explicit(
     threads = int(threads)
     if threads < 1:
         raise ValueError(f"threads must be >= 1, got {threads}")
-    if precision not in PRECISIONS:
-        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
-    if damping is not None:
-        damping = float(damping)
-        if not (damping >= 0 and math.isfinite(damping)):
-            raise ValueError(f"damping must be >= 0 (1/s), got {damping}")
-        scene = dataclasses.replace(scene, damping=damping)
-        if system is not None:
-            system = dataclasses.replace(system, scene=scene)
     t_setup = time.perf_counter()
     sys_ = system if system is not None else build(scene)
     if (sys_.mass <= 0).any():

@@ -203,13 +203,14 @@ class Model:
     by the model (:mod:`hybmss.models`) and missing or ``None`` ones take its defaults, so that
     ``to_dict`` (and the scene digest) records every parameter.  ``model.A`` reads a parameter;
     ``model.spec`` is the registered model object (name, style, solvers, calibration, ...).
+    Without a name it is the registry's default model (:func:`hybmss.models.default_name`).
     """
 
     name: str
     params: object
 
-    def __init__(self, name: str = "hybmss", **params):
-        spec = registry.get(name)
+    def __init__(self, name: str | None = None, **params):
+        spec = registry.get(registry.default_name() if name is None else name)
         object.__setattr__(self, "name", spec.name)
         object.__setattr__(self, "params", spec.parameters(**params))
 

@@ -141,6 +141,8 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     warnings: list[str] = []
     warnings += [f"damaged run left out: {d} (run 'hybmss run' again to recompute it)"
                  for d in results.damaged]
+    warnings += [f"table {n} was written by another code version and is left out (run the studies again)"
+                 for n in results.other_version_tables]
     vtu_files = vtu.export_all(results, out / "vtu")
     log(f"{len(vtu_files)} VTU files")
     with palette.models(results.table("models")):  # the models' own plot styles, as stored
@@ -332,10 +334,11 @@ def _finding(sid: str, results: Results):
     if sid == "pareto":
         return findings.budget_sentence(findings.budget_answers(results.table("pareto"), results.table("budget"))), None
     if sid == "performance":
-        return (findings.performance_sentence(results.table("performance_summary"), tables.paper_table("g20_performance")),
+        return (findings.performance_sentence(results.table("performance_summary")),
                 tables.performance_short(results))
     if sid == "stability":
-        return findings.stability_sentence(results.table("stability_extreme"), results.table("dt_stability")), None
+        return findings.stability_sentence(results.table("stability_extreme"), results.table("dt_stability"),
+                                           results.published_model("proposed")), None
     if sid == "damping":
         return findings.damping_sentence(results.table("damping_steps")), tables.damping_short(results)
     if sid == "limit":

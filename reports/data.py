@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from studies.store import DamagedRun, Store
+from studies.paper import printed as printed_match
+from studies.store import DamagedRun, Store, table_is_current
 
 #: lattice corner c = di + 2 dj + 4 dk  ->  VTK hexahedron order
 VTK_HEX_ORDER = [0, 1, 3, 2, 4, 5, 7, 6]
@@ -26,10 +27,13 @@ def is_fem(solver: str) -> bool:
 
 
 class Results:
-    """A results folder, read lazily."""
+    """A results folder, read lazily.  Only runs and tables of the current code version are read
+    (:func:`studies.store.is_current`, :func:`studies.store.table_is_current`), so a report never
+    mixes results of two versions; ``all_versions`` reads every stored run and table."""
 
-    def __init__(self, root):
+    def __init__(self, root, all_versions: bool = False):
         self.root = Path(root)
+        self.all_versions = bool(all_versions)
         self.runs_dir = self.root / "runs"
         self.tables_dir = self.root / "tables"
         self._arrays: dict[str, dict] = {}
@@ -42,7 +46,7 @@ class Results:
     @cached_property
     def rows(self) -> pd.DataFrame:
         """Every stored run, one row each, with ``variant``, ``method`` and ``load`` columns."""
-        recs, self._damaged = Store(self.root).scan()
+        recs, self._damaged = Store(self.root).scan(all_versions=self.all_versions)
         if not recs:
             return pd.DataFrame()
         df = pd.DataFrame(recs)
@@ -104,13 +108,23 @@ class Results:
 
     # ----------------------------------------------------------------- tables
     def table_names(self) -> list[str]:
+        """The stored tables of the current code version (every one with ``all_versions``)."""
         if not self.tables_dir.is_dir():
             return []
-        return sorted(p.stem for p in self.tables_dir.glob("*.csv"))
+        return sorted(p.stem for p in self.tables_dir.glob("*.csv") if self.all_versions or table_is_current(p))
+
+    @property
+    def other_version_tables(self) -> list[str]:
+        """Stored tables written by another code version (left out of the report)."""
+        if self.all_versions or not self.tables_dir.is_dir():
+            return []
+        return sorted(p.stem for p in self.tables_dir.glob("*.csv") if not table_is_current(p))
 
     def table(self, name: str) -> pd.DataFrame | None:
         path = self.tables_dir / f"{name}.csv"
         if not path.exists():
+            return None
+        if not (self.all_versions or table_is_current(path)):
             return None
         try:
             df = pd.read_csv(path)
@@ -136,8 +150,9 @@ class Results:
 
     # ----------------------------------------------------------------- lookup
     def find(self, experiment: str, *, nu=None, mesh=None, deformation=None, angle_deg=None, E=None,
-             method=None, law=None, fem=None, study=None, ok_only=True) -> pd.DataFrame:
-        """Rows matching the given scene parameters (floats compared with a tolerance)."""
+             method=None, law=None, fem=None, study=None, ok_only=True, printed=False) -> pd.DataFrame:
+        """Rows matching the given scene parameters: their exact stored values, or with
+        ``printed`` values printed by a publication (:func:`studies.paper.printed`)."""
         df = self.ok() if ok_only else self.rows
         if df.empty:
             return df
@@ -145,7 +160,7 @@ class Results:
         for col, val in (("scene_nu", nu), ("scene_deformation", deformation), ("scene_angle_deg", angle_deg),
                          ("scene_E", E)):
             if val is not None:
-                m &= np.isclose(df[col].astype(float), float(val))
+                m &= printed_match(df[col], val) if printed else df[col].astype(float) == float(val)
         if mesh is not None:
             m &= df["scene_mesh"] == mesh
         if method is not None:
@@ -178,15 +193,70 @@ class Results:
                 df = df[df["study"] == experiment]
         return tuple(sorted(float(v) for v in df["scene_nu"].dropna().unique()))
 
-    def reference(self, experiment: str, **scene) -> pd.Series | None:
-        """The FEM reference run of a scene (law of :meth:`reference_law`, refine 1)."""
+    def reference(self, experiment: str, printed: bool = False, **scene) -> pd.Series | None:
+        """The FEM reference run of a scene (law of :meth:`reference_law`, refine 1; ``printed``
+        as for :meth:`find`)."""
         law = self.reference_law(experiment, scene.get("deformation") or 0.0, scene.get("angle_deg") or 0.0)
         if law is None:
             return None
-        sub = self.find(experiment, fem=True, law=law, **scene)
+        sub = self.find(experiment, fem=True, law=law, printed=printed, **scene)
         if "solver_refine" in sub:
             sub = sub[sub["solver_refine"].fillna(1).astype(int) == 1]
         return None if sub.empty else sub.iloc[0]
+
+    # ----------------------------------------------------------------- the publications' models
+    def published(self, publication: str = "G20") -> pd.DataFrame:
+        """The models ``publication`` compares that are registered, as the studies stored them
+        (``tables/published_models.csv``: ``name`` in its tables, ``role``, ``model``), in the
+        registry's order (``tables/models.csv``)."""
+        t = self.table("published_models")
+        if t is None:
+            return pd.DataFrame(columns=["publication", "name", "role", "description", "model"])
+        t = t[(t["publication"] == publication) & t["model"].notna() & (t["model"].astype(str) != "")]
+        order = self.model_order()
+        return t.assign(_o=t["model"].map(lambda m: order.get(m, 99))).sort_values("_o", kind="stable").drop(
+            columns="_o").reset_index(drop=True)
+
+    def published_model(self, role: str, publication: str = "G20") -> str | None:
+        """The registered model that plays ``role`` in ``publication`` (None if none)."""
+        t = self.published(publication)
+        hit = t[t["role"] == role]
+        return None if hit.empty else str(hit["model"].iloc[0])
+
+    def published_name(self, model: str | None, publication: str = "G20") -> str | None:
+        """The name ``publication``'s tables give ``model`` (None if it reports none)."""
+        t = self.published(publication)
+        hit = t[t["model"] == model]
+        return None if hit.empty else str(hit["name"].iloc[0])
+
+    def in_design(self, variant: str, nu) -> bool:
+        """Whether the studies compare ``variant`` at Poisson ratio ``nu`` (``tables/study_variants.csv``;
+        True where that table or the variant's model is not listed)."""
+        t = self.table("study_variants")
+        if t is None or variant not in set(t["variant"]):
+            return True
+        return bool(((t["variant"] == variant) & (t["nu"] == float(nu))).any())
+
+    def model_order(self) -> dict:
+        """Variant name -> listing position of its model (``tables/models.csv``); the variant
+        with its model's defaults (named as the model) first."""
+        t = self.table("models")
+        if t is None:
+            return {}
+        return {r.variant: (r.variant != r.model, int(r.order)) for r in t.itertuples()}
+
+    def method_order(self, methods) -> list[str]:
+        """``methods`` ("<variant> <solver>" and FEM methods): the models' in registry order
+        (:meth:`model_order`), then any other, then the FEM's, each sorted."""
+        order = self.model_order()
+
+        def key(m: str):
+            variant = m.rsplit(" ", 1)[0]
+            if is_fem(m):
+                return (2, (False, 0), m)
+            return (0, order[variant], m) if variant in order else (1, (False, 0), m)
+
+        return sorted(methods, key=key)
 
     def primary_mesh(self, experiment: str) -> str | None:
         """The finest mesh of an experiment's own study in the results (the one the figures show)."""
@@ -228,14 +298,3 @@ def paper_source(name: str) -> str:
         return text[len("Source:"):].strip() if text.startswith("Source:") else text
     except (FileNotFoundError, OSError, ModuleNotFoundError):
         return ""
-
-
-def mesh_counts(nx: int, ny: int | None = None, nz: int | None = None) -> dict:
-    """Counts of an nx×ny×nz lattice (SPEC §1): volumes, vertices, springs without face diagonals
-    (edges + 4 inner diagonals per cell) and with 12 unmerged face diagonals per cell."""
-    ny = nx if ny is None else ny
-    nz = nx if nz is None else nz
-    cells = nx * ny * nz
-    edges = nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz
-    return {"volumes": cells, "vertices": (nx + 1) * (ny + 1) * (nz + 1), "springs_no_fd": edges + 4 * cells,
-            "springs_with_fd": edges + 16 * cells}

@@ -21,7 +21,10 @@ import pandas as pd
 from . import findings, palette
 from .data import Results, mesh_size, paper_table
 
-MSS_METHODS = ("hybmss-fd static", "hybmss static")
+def mss_methods(results: Results) -> list[str]:
+    """The static methods [G20]'s figures draw over the FEM: its model without face diagonals and
+    its proposed one."""
+    return [f"{m} static" for m in (results.published_model(r) for r in ("no-face-diagonals", "proposed")) if m]
 
 
 @dataclass
@@ -68,9 +71,7 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
         return None
     meshes = sorted(df["scene_mesh"].astype(str).unique(), key=mesh_size)
     Es = sorted(df["scene_E"].astype(float).unique(), reverse=True)
-    methods = [m for m in ("hybmss static", "hybmss-fd static", "hybmss-cf static") if m in set(df["method"])]
-    methods += sorted(m for m in df["method"].unique() if m.startswith("fem"))
-    methods += sorted(m for m in df["method"].unique() if m not in methods)
+    methods = results.method_order(df["method"].unique())
     with palette.style() as plt:
         fig, axes = plt.subplots(len(meshes), len(Es), figsize=(3.4 * len(Es), 2.5 * len(meshes) + 0.4),
                                  squeeze=False, sharex=True)
@@ -161,7 +162,7 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
                     G, _ = _layer_grid(A["X"], A["X"] + A["u"], axis, a, b)
                     _draw_grid(ax, G, color=palette.color(ref["solver"]), lw=1.5,
                                label=f"FEM ({ref['solver_law']})")
-                for m, ls in zip(MSS_METHODS, ("--", ":")):
+                for m, ls in zip(mss_methods(results), ("--", ":")):
                     s = results.find(experiment, mesh=mesh, nu=nu, method=m, **load)
                     if s.empty:
                         continue
@@ -210,11 +211,11 @@ def _methods_in(table: pd.DataFrame) -> list[str]:
 NO_RESULT = "no result (failed or missing: see the table)"
 
 
-def _mark_no_result(ax, t: pd.DataFrame, m: str) -> None:
+def _mark_no_result(results: Results, ax, t: pd.DataFrame, m: str) -> None:
     """A method's ν without a value: a cross at the foot of the axis, never a borrowed value."""
     gone = t[t[m].isna()]
-    if "(E-form)" in m:  # at ν = 1/4 the E-form is the G-form: not run, nothing is missing
-        gone = gone[~np.isclose(gone["nu"], 0.25)]
+    # a variant the studies do not compare at a ν (the E-form at ν = 1/4) is not missing there
+    gone = gone[[results.in_design(m.rsplit(" ", 1)[0], nu) for nu in gone["nu"]]] if not m.startswith("fem") else gone
     if len(gone) and t[m].notna().any():
         ax.plot(gone["nu"], [0.03] * len(gone), transform=ax.get_xaxis_transform(), ls="none", marker="x", ms=6,
                 mew=1.4, color=palette.color(m), label=NO_RESULT, clip_on=False)
@@ -228,7 +229,7 @@ def volume_change(results: Results, path: Path) -> Figure | None:
             mesh = results.primary_mesh(exp)
             t = t[t["mesh"] == mesh] if mesh in set(t["mesh"]) else t
             for d in sorted(t["d"].unique()):
-                panels.append((exp, mesh, d, t[np.isclose(t["d"], d)].sort_values("nu")))
+                panels.append((exp, mesh, d, t[t["d"] == d].sort_values("nu")))
     if not panels:
         return None
     with palette.style() as plt:
@@ -242,13 +243,14 @@ def volume_change(results: Results, path: Path) -> Figure | None:
                 if t[m].notna().any():
                     ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
                             lw=1.0, label=m.replace(" static", ""))
-                _mark_no_result(ax, t, m)
-            for m, mk in (("paper hybmss", "o"), ("paper hybmss-fd", "s"), ("paper FEM (LS-Dyna)", "h")):
-                if m in t and t[m].notna().any():
-                    base = m.replace("paper ", "").replace(" (LS-Dyna)", "-linear")
-                    ax.plot(t["nu"], t[m], ls="none", marker=mk, mfc="none", ms=7, mew=1.1,
-                            color=palette.color(base if base != "FEM-linear" else "fem"),
-                            label=m.replace("paper", "[G20]"))
+                _mark_no_result(results, ax, t, m)
+            # the publication's columns ("paper <model>", "paper FEM (LS-Dyna)"), in the model's own style
+            for m in [c for c in t.columns if c.startswith("paper ")]:
+                if t[m].notna().any():
+                    base = m[len("paper "):]
+                    fem = base.startswith("FEM")
+                    ax.plot(t["nu"], t[m], ls="none", marker="h" if fem else palette.marker(base), mfc="none", ms=7,
+                            mew=1.1, color=palette.color("fem" if fem else base), label=m.replace("paper", "[G20]"))
             ax.set_title(f"{exp}, d = {100 * d:g} %\nmesh {mesh}")
             _nu_axis(ax, sorted(t["nu"].unique()))
         for r in range(nrow):
@@ -273,7 +275,7 @@ def reactions(results: Results, path: Path) -> Figure | None:
         mesh = results.primary_mesh(exp)
         t = t[t["mesh"] == mesh] if mesh in set(t["mesh"]) else t
         for v in sorted(t[col].unique()):
-            panels.append((exp, mesh, col, v, unit, q, t[np.isclose(t[col], v)].sort_values("nu")))
+            panels.append((exp, mesh, col, v, unit, q, t[t[col] == v].sort_values("nu")))
     if not panels:
         return None
     with palette.style() as plt:
@@ -290,7 +292,7 @@ def reactions(results: Results, path: Path) -> Figure | None:
                 if t[m].notna().any():
                     ax.plot(t["nu"], t[m], color=palette.color(m), marker=palette.marker(m), ls=palette.linestyle(m),
                             lw=1.0, label=m.replace(" static", ""))
-                _mark_no_result(ax, t, m)
+                _mark_no_result(results, ax, t, m)
             lab = f"θ = {v:g}°" if col == "angle_deg" else f"d = {100 * v:g} %"
             ax.set_title(f"{exp}, {lab}\nmesh {mesh}")
             _nu_axis(ax, sorted(t["nu"].unique()))
@@ -327,7 +329,7 @@ def differences(results: Results, path: Path) -> Figure | None:
             loads = sorted(sub[loadcol].unique())
             for m in sorted(sub["method"].unique()):
                 for v, ls in zip(loads, ("-", "--", ":", "-.")):
-                    s = sub[(sub["method"] == m) & np.isclose(sub[loadcol], v)].sort_values("nu")
+                    s = sub[(sub["method"] == m) & (sub[loadcol] == v)].sort_values("nu")
                     if s.empty:
                         continue
                     lab = f"θ={v:g}°" if loadcol == "angle_deg" else f"d={100 * v:g}%"
@@ -361,7 +363,7 @@ def torsion_sweep(results: Results, path: Path) -> Figure | None:
     sweep = df[df["study"] == "torsion-sweep"]
     mesh = sweep["scene_mesh"].iloc[0]
     nu = float(sweep["scene_nu"].iloc[0])
-    sub = df[(df["scene_experiment"] == "torsion") & (df["scene_mesh"] == mesh) & np.isclose(df["scene_nu"], nu)]
+    sub = df[(df["scene_experiment"] == "torsion") & (df["scene_mesh"] == mesh) & (df["scene_nu"] == nu)]
     with palette.style() as plt:
         fig, ax = plt.subplots(figsize=(4.6, 3.0))
         for m in sorted(sub["method"].unique(), key=lambda m: (m.startswith("fem"), m)):
@@ -636,7 +638,7 @@ def stability_map(results: Results, path: Path) -> Figure | None:
             sub = g[g["variant"] == var]
             for i, (case, solver) in enumerate(loads):
                 for j, nu in enumerate(nus):
-                    m = sub[(sub["case"] == case) & (sub["solver"] == solver) & np.isclose(sub["nu"], nu)]
+                    m = sub[(sub["case"] == case) & (sub["solver"] == solver) & (sub["nu"] == nu)]
                     st = m["outcome"].iloc[0] if len(m) else "missing"
                     ax.add_patch(plt.Rectangle((j, i), 0.95, 0.9, color=STATE_COLORS[st], lw=0))
             ax.set_xlim(0, len(nus))
@@ -673,7 +675,8 @@ def limit_stretch(results: Results, path: Path) -> Figure | None:
         for (var, en), g in t.groupby(["variant", "volume_energy"] if "volume_energy" in t else ["variant", "variant"]):
             g = g.sort_values("nu")
             ls = "-" if en == energies[0] else ":"
-            lab = var + (f", {en} volume energy" if "volume_energy" in t and var != "hybmss-cf" else "")
+            has_volume = bool(g["volume_term"].astype(str).str.lower().eq("true").any()) if "volume_term" in g else True
+            lab = var + (f", {en} volume energy" if "volume_energy" in t and has_volume else "")
             held = g["status"] == "ok"
             ax.plot(g["nu"], g["stretch_lo"], color=palette.color(var), marker=palette.marker(var), ls=ls, label=lab)
             if held.any():

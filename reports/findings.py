@@ -99,18 +99,18 @@ def budget_sentence(ans: pd.DataFrame) -> str:
 
 
 # ------------------------------------------------------------------ performance
-def performance_sentence(summ: pd.DataFrame | None, paper: pd.DataFrame | None) -> str:
-    if summ is None or "hybmss_over_fd" not in summ:
+def performance_sentence(summ: pd.DataFrame | None) -> str:
+    """Per-step time of each model with a published ratio, against [G20]'s baseline model (1 thread)."""
+    if summ is None or not {"ratio_to_baseline", "paper_ratio_to_baseline", "baseline"} <= set(summ.columns):
         return "No performance summary is stored (study performance not run)."
     s = summ[summ["threads"] == summ["threads"].min()] if "threads" in summ else summ
-    p = paper.set_index("quantity")["value"] if paper is not None else pd.Series(dtype=float)
-    rh, rc = s["hybmss_over_fd"].astype(float), s.get("cf_over_fd")
-    txt = (f"Per explicit step on one thread, hybmss costs ×{rh.min():.2g}–×{rh.max():.2g} the time of hybmss-fd "
-           f"([G20]: ×{_num(p.get('ratio_hybmss_over_fd')):g})")
-    if rc is not None:
-        rc = rc.astype(float)
-        txt += (f" and hybmss-cf ×{rc.min():.2g}–×{rc.max():.2g} ([G20]: "
-                f"×{_num(p.get('ratio_hybmss_cf_over_fd')):g})")
+    s = s.dropna(subset=["paper_ratio_to_baseline"])
+    if s.empty:
+        return "The performance summary has no row with a published ratio."
+    base = str(s["baseline"].iloc[0])
+    parts = [f"{v} ×{g['ratio_to_baseline'].min():.2g}–×{g['ratio_to_baseline'].max():.2g} "
+             f"([G20]: ×{_num(g['paper_ratio_to_baseline'].iloc[0]):g})" for v, g in s.groupby("variant", sort=False)]
+    txt = f"Per explicit step on one thread, relative to {base}: " + " and ".join(parts)
     if "volumes" in s:
         txt += f", over meshes of {int(s['volumes'].min())}–{int(s['volumes'].max())} volumes"
     return txt + "."
@@ -141,14 +141,16 @@ def stability_grid(extreme: pd.DataFrame | None) -> pd.DataFrame:
     return df[["variant", "case", "solver", "nu", "outcome"]]
 
 
-def stability_sentence(extreme: pd.DataFrame | None, dt: pd.DataFrame | None) -> str:
+def stability_sentence(extreme: pd.DataFrame | None, dt: pd.DataFrame | None, model: str | None = None) -> str:
+    """The explicit limit of ``model`` (the publication's proposed one) against ν, and the
+    outcomes of the extreme loads."""
     parts = []
-    if dt is not None and {"nu", "variant", "dt_crit"} <= set(dt.columns):
-        h = dt[dt["variant"] == "hybmss"].sort_values("nu")
+    if model is not None and dt is not None and {"nu", "variant", "dt_crit"} <= set(dt.columns):
+        h = dt[dt["variant"] == model].sort_values("nu")
         h = h[h["nu"] > 0]
         if len(h) >= 2:
             a, b = h.iloc[0], h.iloc[-1]
-            parts.append(f"the explicit limit dt_crit of hybmss falls from {a['dt_crit']:.3g} s at ν = {a['nu']:g} to "
+            parts.append(f"the explicit limit dt_crit of {model} falls from {a['dt_crit']:.3g} s at ν = {a['nu']:g} to "
                          f"{b['dt_crit']:.3g} s at ν = {b['nu']:g} (×{a['dt_crit'] / b['dt_crit']:.3g} smaller)")
     g = stability_grid(extreme)
     if len(g):
@@ -252,7 +254,7 @@ def b09_models(df: pd.DataFrame) -> list[str]:
 
 def b09_sentence(df: pd.DataFrame) -> str:
     if df.empty:
-        return "No [B09] table is stored (study baudet2009 not run)."
+        return "No [B09] table is stored (study b09 not run)."
     own = b09_models(df)
     if not own:
         return "No published [B09] values are stored beside these runs."

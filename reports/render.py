@@ -24,7 +24,11 @@ from .data import VTK_HEX_ORDER, Results
 RENDER_VERSION = "4"
 PANEL_SIZE = (400, 350)
 BEAM_PANEL_SIZE = (420, 170)
-ROWS = ("hybmss-fd static", "hybmss static", "FEM")
+def render_rows(results: Results) -> list[str]:
+    """Rows of a grid figure, as in [G20]'s: its model without face diagonals, its proposed model
+    (their static methods) and the FEM."""
+    mss = (results.published_model(r) for r in ("no-face-diagonals", "proposed"))
+    return [f"{m} static" for m in mss if m] + ["FEM"]
 
 FIGURE_NUMBERS = {"compression": 3, "tension": 4, "shear": 7, "torsion": 9}
 
@@ -160,7 +164,7 @@ def render_figures(results: Results, out_dir: Path, cache_dir: Path | None = Non
                 continue
             for load in _loads(results, experiment, mesh):
                 panels = {}
-                for r, row in enumerate(ROWS):
+                for r, row in enumerate(render_rows(results)):
                     for c, nu in enumerate(results.nus(experiment)[:3]):
                         sel = _select(results, experiment, mesh, nu, load, row)
                         if sel is not None and "u" in results.arrays(sel["key"]):
@@ -196,7 +200,7 @@ def render_figures(results: Results, out_dir: Path, cache_dir: Path | None = Non
 
 def _caption(results, experiment, mesh, load, panels, umax) -> str:
     any_row = next(iter(panels.values()))
-    fem = [s for (r, _), s in panels.items() if ROWS[r] == "FEM"]
+    fem = [s for (r, _), s in panels.items() if render_rows(results)[r] == "FEM"]
     law = results.reference_law(experiment, load.get("deformation", 0.0), load.get("angle_deg", 0.0))
     femtxt = f"FEM: {fem[0]['solver']} ({law})" if fem else "FEM: no reference stored"
     missing = 9 - len(panels)
@@ -210,7 +214,7 @@ def _caption(results, experiment, mesh, load, panels, umax) -> str:
 def _failed(results, experiment, mesh, load) -> dict:
     """Status of runs that exist but failed, per panel position."""
     out = {}
-    for r, row in enumerate(ROWS):
+    for r, row in enumerate(render_rows(results)):
         if row == "FEM":
             continue
         for c, nu in enumerate(results.nus(experiment)[:3]):
@@ -258,7 +262,7 @@ def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
                             transform=ax.transAxes, color="#a00", fontsize=8)
                 if r == 0 and c < len(results.nus(experiment)):
                     ax.set_title(f"ν = {results.nus(experiment)[c]:g}")
-            label = ROWS[r].replace(" static", "")
+            label = render_rows(results)[r].replace(" static", "")
             fam = "fem-linear" if label == "FEM" else label
             axes[r, 0].text(-0.04, 0.5, label, rotation=90, ha="right", va="center", transform=axes[r, 0].transAxes,
                             color=palette.color(fam), fontsize=9.5, fontweight="bold")

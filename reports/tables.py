@@ -14,8 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from studies.paper import printed
+
 from . import findings
-from .data import Results, mesh_counts, paper_source, paper_table
+from .data import Results, is_fem, paper_source, paper_table
 
 #: |Δe| thresholds, percentage points (Tables 2, 3 against the publication and FEM)
 E_DIFF_PP = (1.0, 3.0)
@@ -67,11 +69,14 @@ def grade(value, thresholds) -> str:
     return "good" if a <= thresholds[0] else ("warn" if a <= thresholds[1] else "bad")
 
 
-def _method_cols(t: pd.DataFrame, skip=("mesh", "nu", "d", "deformation", "angle_deg", "E")) -> list[str]:
+def _method_cols(results: Results, t: pd.DataFrame, skip=("mesh", "nu", "d", "deformation", "angle_deg", "E")) -> list[str]:
     cols = [c for c in t.columns if c not in skip and not c.startswith("paper") and c != "Euler-Bernoulli"]
-    order = ["hybmss static", "hybmss-fd static", "hybmss-cf static", "hybmss (E-form) static"]
-    mss = [c for c in order if c in cols] + sorted(c for c in cols if c not in order and not c.startswith("fem"))
-    return mss + sorted(c for c in cols if c.startswith("fem"))
+    return results.method_order(cols)
+
+
+def _published_methods(results: Results, methods) -> list[str]:
+    """The static methods of the models [G20] reports, in the registry's order."""
+    return [f"{m} static" for m in results.published("G20")["model"] if f"{m} static" in methods]
 
 
 def _short(m: str) -> str:
@@ -88,11 +93,12 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
     if t is None:
         return None
     t = t.sort_values(["mesh", "d", "nu"])
-    methods = _method_cols(t)
-    paper_cols = [c for c in ("paper hybmss", "paper hybmss-fd", "paper FEM (LS-Dyna)") if c in t]
+    methods = _method_cols(results, t)
+    own = [m for m in results.published("G20")["model"] if f"paper {m}" in t]
+    subject = results.published_model("proposed")
+    paper_cols = [f"paper {m}" for m in own] + [c for c in ("paper FEM (LS-Dyna)",) if c in t]
     cols = ["mesh", "ν", "d (%)"] + [f"{_short(m)}" for m in methods] + [c.replace("paper", "[G20]") for c in paper_cols]
-    cols += ["Δ hybmss − [G20] (pp)", "Δ hybmss-fd − [G20] (pp)", "Δ FEM ref − [G20] FEM (pp)",
-             "Δ hybmss − FEM ref (pp)"]
+    cols += [f"Δ {m} − [G20] (pp)" for m in own] + ["Δ FEM ref − [G20] FEM (pp)", f"Δ {subject} − FEM ref (pp)"]
     rows = []
     for _, r in t.iterrows():
         law = results.reference_law(experiment, r["d"])
@@ -115,10 +121,10 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
             d = round(a - b, 3) if not (pd.isna(a) or pd.isna(b)) else np.nan
             return (fmt(d, 3) if d != 0 else "0", grade(d, E_DIFF_PP))
 
-        row.append(delta(r.get("hybmss static", np.nan), r.get("paper hybmss", np.nan)))
-        row.append(delta(r.get("hybmss-fd static", np.nan), r.get("paper hybmss-fd", np.nan)))
+        for m in own:
+            row.append(delta(r.get(f"{m} static", np.nan), r.get(f"paper {m}", np.nan)))
         row.append(delta(ref, r.get("paper FEM (LS-Dyna)", np.nan)))
-        row.append(delta(r.get("hybmss static", np.nan), ref))
+        row.append(delta(r.get(f"{subject} static", np.nan), ref))
         rows.append(row)
     src = paper_source(f"g20_table{number}_{experiment}")
     body = "10×10×10 cube of 5 m" if experiment == "compression" else "0.4 × 0.4 × 2.4 m beam"
@@ -136,11 +142,12 @@ def reaction_table(results: Results, name: str, experiment: str, number: int, lo
     if t is None:
         return None
     t = t.sort_values(["mesh", load, "nu"])
-    methods = _method_cols(t)
+    methods = _method_cols(results, t)
+    compared = _published_methods(results, methods)
     paper = paper_table(f"g20_table{number}_{experiment}")
     load_head = "θ (°)" if load == "angle_deg" else "d (%)"
     cols = ["mesh", "ν", load_head] + [f"{_short(m)} ({unit})" for m in methods]
-    cols += ["hybmss vs FEM ref (%)", "hybmss-fd vs FEM ref (%)"]
+    cols += [f"{_short(m)} vs FEM ref (%)" for m in compared]
     if paper is not None:
         cols += [f"[G20] {c.replace('fem_lsdyna', 'FEM (LS-Dyna)')} ({unit})" for c in paper.columns
                  if c not in ("nu", "deformation", "angle_deg")]
@@ -161,15 +168,15 @@ def reaction_table(results: Results, name: str, experiment: str, number: int, lo
                 row.append((state or "missing", "fail" if state.startswith("failed") else ""))
             else:
                 row.append((fmt(r[m]), "ref" if m == ref_col else ""))
-        for m in ("hybmss static", "hybmss-fd static"):
+        for m in compared:
             v = r.get(m, np.nan)
             rel = 100 * (v - ref) / abs(ref) if not (pd.isna(v) or pd.isna(ref) or ref == 0) else np.nan
             row.append((fmt(rel, 3), grade(rel, REL_DIFF_PCT)))
         if paper is not None:
             keycol = load if load in paper else None
-            sel = paper[np.isclose(paper["nu"], r["nu"])]
+            sel = paper[printed(paper["nu"], r["nu"])]
             if keycol:
-                sel = sel[np.isclose(sel[keycol], r[load])]
+                sel = sel[printed(sel[keycol], r[load])]
             for c in paper.columns:
                 if c not in ("nu", "deformation", "angle_deg"):
                     row.append((fmt(sel[c].iloc[0]), "paper") if len(sel) else ("not published", ""))
@@ -189,9 +196,11 @@ def bending_table(results: Results) -> Table | None:
     t = results.table("bending")
     if t is None:
         return None
-    methods = _method_cols(t)
+    methods = _method_cols(results, t)
+    subject = results.published_model("proposed")
     cols = ["mesh", "E (MPa)"] + [f"{_short(m)} (m)" for m in methods] + ["Euler–Bernoulli (m)",
-                                                                            "hybmss vs E–B (%)", "hybmss vs FEM NH (%)"]
+                                                                            f"{subject} vs E–B (%)",
+                                                                            f"{subject} vs FEM NH (%)"]
     rows = []
     for _, r in t.sort_values(["mesh", "E"]).iterrows():
         row = [(r["mesh"], ""), (fmt(r["E"] / 1e6, 3), "")]
@@ -199,7 +208,7 @@ def bending_table(results: Results) -> Table | None:
             row.append((fmt(r[m]), "ref" if m.endswith("neo-hookean") else ""))
         eb = r.get("Euler-Bernoulli", np.nan)
         row.append((fmt(eb), "paper"))
-        h = r.get("hybmss static", np.nan)
+        h = r.get(f"{subject} static", np.nan)
         fem = next((r[m] for m in methods if m.startswith("fem") and m.endswith("neo-hookean")), np.nan)
         for refv in (eb, fem):
             rel = 100 * (h - refv) / abs(refv) if not (pd.isna(h) or pd.isna(refv) or refv == 0) else np.nan
@@ -214,17 +223,21 @@ def bending_table(results: Results) -> Table | None:
 
 def meshes_table(results: Results) -> Table | None:
     paper = paper_table("g20_table6_meshes")
-    if paper is None:
+    counts = results.table("lattice_counts")
+    if paper is None or counts is None:
         return None
+    counts = counts.set_index("mesh")
     cols = ["mesh", "[G20] volumes", "[G20] vertices", "[G20] springs (no FD)", "[G20] springs (with FD)",
             "lattice volumes", "lattice vertices", "lattice springs (no FD)", "lattice springs (with FD)"]
     rows = []
     for _, r in paper.iterrows():
-        c = mesh_counts(*[int(v) for v in str(r["mesh"]).split("x")])
+        if r["mesh"] not in counts.index:
+            continue
+        c = counts.loc[r["mesh"]]
         row = [(r["mesh"], "")] + [(fmt(int(r[k])), "paper") for k in
                                     ("volumes", "vertices", "springs_no_fd", "springs_with_fd")]
         for k in ("volumes", "vertices", "springs_no_fd", "springs_with_fd"):
-            row.append((fmt(c[k]), "good" if c[k] == int(r[k]) else "bad"))
+            row.append((fmt(int(c[k])), "good" if int(c[k]) == int(r[k]) else "bad"))
         rows.append(row)
     return Table("table6", "Table 6: meshes of the performance study",
                  "Counts of the lattices of the performance study: [G20] Table 6 next to the counts of this lattice "
@@ -449,15 +462,16 @@ def stored_table(results: Results, name: str) -> Table | None:
 
 def performance_short(results: Results) -> Table | None:
     t = results.table("performance_summary")
-    if t is None or "hybmss_over_fd" not in t:
+    if t is None or "ratio_to_baseline" not in t:
         return None
-    cols = {"scene": "scene", "mesh": "mesh", "threads": "threads", "volumes": "volumes",
-            "fd_per_step_us": "hybmss-fd per step (µs)", "cf_over_fd": "hybmss-cf / fd",
-            "paper_cf_over_fd": "[G20] cf / fd", "hybmss_over_fd": "hybmss / fd", "paper_hybmss_over_fd": "[G20] hybmss / fd"}
-    return frame_table(t, "table_performance_short", "Time per step relative to hybmss-fd",
-                       "Per-step time of the explicit kernel, ratio to hybmss-fd on the same mesh and thread count, "
-                       "beside [G20]'s ratios (single-thread C++). Ratios from one run each; their noise is in "
-                       "tables/performance_summary.csv.", cols,
+    base = str(t["baseline"].iloc[0]) if "baseline" in t and len(t) else "the baseline"
+    cols = {"scene": "scene", "mesh": "mesh", "threads": "threads", "volumes": "volumes", "label": "variant",
+            "per_step_us": "per step (µs)", "ratio_to_baseline": f"/ {base}",
+            "paper_ratio_to_baseline": f"[G20] / {base}", "ratio_to_springs_only": "/ springs only"}
+    return frame_table(t, "table_performance_short", f"Time per step relative to {base}",
+                       f"Per-step time of the explicit kernel, ratio to {base} ([G20]'s baseline) and to the "
+                       "springs-only lattice on the same mesh and thread count, beside [G20]'s ratios (single-thread "
+                       "C++). Ratios from one run each; their noise is in tables/performance_summary.csv.", cols,
                        lambda r, c: "paper" if c.startswith("paper") else "")
 
 
@@ -481,13 +495,13 @@ def explicit_table(results: Results) -> Table | None:
     ex = df[df["solver"] == "mss-explicit"]
     st = df[(df["solver"] == "mss-static") & (df["status"] == "ok")]
     rows = []
-    keys = ["scene_experiment", "scene_mesh", "scene_model", "scene_e_form"]
+    # the static twin: the same stored scene, every parameter exact, but the dynamic solvers' damping
+    keys = [c for c in ex.columns if c.startswith("scene_") and c not in ("scene_damping", "scene_variant")]
     for _, r in ex.sort_values(["study", "label"]).iterrows():
         m = st
         for k in keys:
-            m = m[m[k] == r[k]]
-        for k in ("scene_nu", "scene_E", "scene_deformation", "scene_angle_deg"):
-            m = m[np.isclose(m[k].astype(float), float(r[k]))]
+            if k in m:
+                m = m[(m[k] == r[k]) | (m[k].isna() & pd.isna(r[k]))]
         twin = m.iloc[0] if len(m) else None
         ok = r["status"] == "ok"
         rel = de = np.nan
@@ -525,14 +539,16 @@ def explicit_table(results: Results) -> Table | None:
 
 
 # ------------------------------------------------------------------ the publication's numbers beside ours
-def run_state(results: Results, experiment: str, method: str, **scene) -> str:
+def run_state(results: Results, experiment: str, method: str, printed: bool = False, **scene) -> str:
     """What a reader sees instead of a number: "missing" if no run of ``method`` is stored for the
     scene, "failed (status, exception)" if every stored one failed (the message is in the failures
-    table), "" if one reached a result;
-    an E-form method at ν = 1/4 is the G-form (the same constants, not run) and says so."""
-    sub = results.find(experiment, method=method, ok_only=False, **scene)
-    if sub.empty and "(E-form)" in method and scene.get("nu") is not None and np.isclose(float(scene["nu"]), 0.25):
-        return "= G-form (ν = 1/4)"  # the same constants: not run
+    table), "" if one reached a result (``printed``: the scene's values are a publication's, as
+    for :meth:`Results.find`); a variant the studies do not compare at the scene's ν
+    (``tables/study_variants.csv``, e.g. the E-form at ν = 1/4, the G-form's constants) says so."""
+    sub = results.find(experiment, method=method, ok_only=False, printed=printed, **scene)
+    if sub.empty and scene.get("nu") is not None and not is_fem(method) and \
+            not results.in_design(method.rsplit(" ", 1)[0], scene["nu"]):
+        return "not in the study at this ν"  # e.g. the E-form at ν = 1/4: the G-form's constants
     if sub.empty:
         return "missing"
     if (sub["status"] == "ok").any():
@@ -543,10 +559,10 @@ def run_state(results: Results, experiment: str, method: str, **scene) -> str:
 
 
 def _value_cell(results: Results, experiment: str, method: str, value, digits: int = 4, cls: str = "",
-                **scene) -> tuple[str, str]:
+                printed: bool = False, **scene) -> tuple[str, str]:
     if value is not None and not (isinstance(value, float) and math.isnan(value)) and not pd.isna(value):
         return fmt(value, digits), cls
-    state = run_state(results, experiment, method, **scene)
+    state = run_state(results, experiment, method, printed=printed, **scene)
     return (state or "missing"), "fail" if state.startswith("failed") else ""
 
 
@@ -558,16 +574,18 @@ def _ratio_cell(ours, theirs, thresholds=REL_DIFF_PCT) -> tuple[str, str]:
 
 
 def published_reaction_table(results: Results, number: int) -> Table | None:
-    """[G20] Table 4 (shear force) or 5 (torsion torque): hybmss-fd, hybmss and FEM, ours beside
-    the publication's, at ν = 1/4 and the publication's two loads."""
+    """[G20] Table 4 (shear force) or 5 (torsion torque): each of its models (by the names of its
+    columns) and FEM, ours beside the publication's, at ν = 1/4 and the publication's two loads."""
     experiment, col, unit, quantity = (("shear", "force_x", "N", "reaction force F_x") if number == 4 else
                                        ("torsion", "torque_z", "N·m", "reaction torque T_z"))
     paper = paper_table(f"g20_table{number}_{experiment}")
     mesh = results.primary_mesh(experiment)
     if paper is None or mesh is None:
         return None
+    own = {r.name: r.model for r in results.published("G20").itertuples()}
+    columns = [(f"{own[c]} static", own[c], c) for c in paper.columns if c in own] + [("FEM", "FEM", "fem_lsdyna")]
     cols = ["mesh", "ν", "[G20] load", "load here"]
-    for who in ("hybmss-fd", "hybmss", "FEM"):
+    for _, who, _ in columns:
         cols += [f"{who} ours ({unit})", f"{who} [G20] ({unit})", f"{who} ours vs [G20]"]
     rows = []
     for _, p in paper.iterrows():
@@ -579,15 +597,15 @@ def published_reaction_table(results: Results, number: int) -> Table | None:
             scene["deformation"] = float(p["deformation"])
             load_here = f"d = {100 * p['deformation']:g} %"
         row = [(mesh, ""), (fmt(p["nu"], 3), ""), (f"{100 * p['deformation']:g} %", "paper"), (load_here, "")]
-        for who, pcol in (("hybmss-fd static", "hybmss-fd"), ("hybmss static", "hybmss"), ("FEM", "fem_lsdyna")):
+        for who, _, pcol in columns:
             if who == "FEM":
-                ref = results.reference(experiment, **scene)
+                ref = results.reference(experiment, printed=True, **scene)
                 v = float(ref[col]) if ref is not None else np.nan
                 cell = (fmt(v), "ref") if ref is not None else ("missing", "")
             else:
-                m = results.find(experiment, method=who, **scene)
+                m = results.find(experiment, method=who, printed=True, **scene)
                 v = float(m[col].iloc[0]) if len(m) and col in m else np.nan
-                cell = _value_cell(results, experiment, who, v, **scene)
+                cell = _value_cell(results, experiment, who, v, printed=True, **scene)
             row += [cell, (fmt(float(p[pcol])), "paper"), _ratio_cell(v, float(p[pcol]))]
         rows.append(row)
     conv = ("Torsion load: [G20] labels its rows 5 % and 20 % without defining d for torsion; this table reads them "
@@ -608,9 +626,10 @@ MIDDLE_LAYER_TOL = 2.0
 
 def middle_layer_frame(results: Results) -> pd.DataFrame:
     """[G20]'s mean position differences over the middle layer (shear, torsion at 20 %) beside
-    ours for hybmss against the FEM reference, with the alternative definitions."""
+    ours for [G20]'s proposed model against the FEM reference, with the alternative definitions."""
     paper = paper_table("g20_middle_layer")
     diffs = results.table("differences")
+    method = f"{results.published_model('proposed')} static"
     if paper is None:
         return pd.DataFrame()
     rows = []
@@ -626,9 +645,9 @@ def middle_layer_frame(results: Results) -> pd.DataFrame:
             scene["deformation"] = float(p["deformation"])
         sel = pd.DataFrame()
         if diffs is not None and mesh is not None:
-            m = (diffs["experiment"] == exp) & (diffs["mesh"] == mesh) & np.isclose(diffs["nu"], p["nu"]) \
-                & (diffs["method"] == "hybmss static")
-            m &= np.isclose(diffs["angle_deg"], p["angle_deg"]) if exp == "torsion" else np.isclose(diffs["d"], p["deformation"])
+            m = (diffs["experiment"] == exp) & (diffs["mesh"] == mesh) & printed(diffs["nu"], p["nu"]) \
+                & (diffs["method"] == method)
+            m &= printed(diffs["angle_deg"], p["angle_deg"]) if exp == "torsion" else printed(diffs["d"], p["deformation"])
             sel = diffs[m]
         if len(sel):
             r = sel.iloc[0]
@@ -636,9 +655,9 @@ def middle_layer_frame(results: Results) -> pd.DataFrame:
                        ours_xy_m=r.get("mid_layer_mean_xy_m", np.nan), ours_svk_m=r.get("mid_layer_mean_svk_m", np.nan),
                        n_points=r.get("mid_layer_n", np.nan))
         else:
-            st = run_state(results, exp, "hybmss static", **scene) if mesh else "missing"
+            st = run_state(results, exp, method, printed=True, **scene) if mesh else "missing"
             if not st:
-                st = "missing (no FEM reference)" if results.reference(exp, **scene) is None else "missing"
+                st = "missing (no FEM reference)" if results.reference(exp, printed=True, **scene) is None else "missing"
             rec.update(state=st)
         rows.append(rec)
     return pd.DataFrame(rows)
@@ -664,10 +683,11 @@ def middle_layer_table(results: Results) -> Table | None:
             cls = "fail" if str(r["state"]).startswith("failed") else ""
             row += [(r["state"], cls)] + [("–", "")] * 4
         rows.append(row)
-    return Table("table_middle_layer", "Mean position difference over the middle layer, hybmss vs FEM (Figs 8, 10)",
+    who = results.published_model("proposed")
+    return Table("table_middle_layer", f"Mean position difference over the middle layer, {who} vs FEM (Figs 8, 10)",
                  "Shear and torsion of the 5 m cube at the load [G20] labels 20 % (torsion read as θ = 45°, see Table 5). "
                  "Middle layer: the particles of the lattice plane nearest to mid-height z = H/2 (z = 2.5 m), taken in "
-                 "the rest configuration. Ours 3D: mean over those particles of |x_hybmss − x_FEM| (Euclidean, m) "
+                 f"the rest configuration. Ours 3D: mean over those particles of |x_{who} − x_FEM| (Euclidean, m) "
                  "against the Neo-Hookean reference (the default); [G20] does not say which distance, so two "
                  "alternatives follow: the in-plane (x, y) distance only, as a top view of the layer shows it, and the "
                  "3D mean against the St Venant–Kirchhoff reference. 'ours / [G20]': green within a factor "

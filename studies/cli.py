@@ -22,7 +22,7 @@ import sys
 import traceback
 import warnings
 
-from hybmss.experiments import DEFAULTS, SceneSpec
+from hybmss.experiments import DEFAULTS, SceneSpec, field_default
 from hybmss.scene import parse_mesh
 
 from . import commands
@@ -162,7 +162,7 @@ def _default_text(f: dataclasses.Field) -> str:
     if per and len(set(map(str, per.values()))) > 1:
         show = {ex: ("x".join(map(str, v)) if isinstance(v, tuple) else f"{v:g}") for ex, v in per.items()}
         return "default: " + ", ".join(f"{ex} {v}" for ex, v in show.items())
-    v = next(iter(per.values())) if per else f.default
+    v = next(iter(per.values())) if per else field_default(f)
     if isinstance(v, tuple):
         v = "x".join(map(str, v))
     return "" if v is None or v is False else f"default: {v:g}" if isinstance(v, float) else f"default: {v}"

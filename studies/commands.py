@@ -97,7 +97,7 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = T
         raise InputError(f"{flag(exc.name)} = {show(exc.value)} is not allowed: "
                          f"{str(exc).split(': ', 1)[1]}") from None
     except TypeError as exc:  # a model parameter of the wrong kind
-        raise InputError(f"model {given.get('model', 'hybmss')}: {exc}") from None
+        raise InputError(f"model {given.get('model') or models.default_name()}: {exc}") from None
 
 
 def guard(est: sizing.Estimate, what: str, estimate=None) -> None:
@@ -194,7 +194,7 @@ def bench(args):
 
     one = {k: getattr(args, k, None) for k in ("model", "nu", "mesh", "threads", "precision")}
     if any(v is not None for v in one.values()):  # time one configuration
-        row = time_config(model=one["model"] or "hybmss", nu=NU if one["nu"] is None else one["nu"],
+        row = time_config(model=one["model"], nu=NU if one["nu"] is None else one["nu"],
                           mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
                           precision=one["precision"] or "f64", steps=args.steps, repeats=1 if args.quick else 3)
         d = {"explicit": [row], "static": []}

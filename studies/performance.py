@@ -8,10 +8,13 @@ Wall time of ``steps`` (1,000) semi-implicit Euler steps of
   needs a smaller step than 1 ms: ``dt = ½ dt_crit`` of the finest beam (the cost of a step does
   not depend on dt);
 
-for the variants ``hybmss-fd``, ``hybmss-cf`` and ``hybmss`` at ν = 0.3 (≠ ¼, so hybmss and
-hybmss-fd carry the volume term) and ``hybmss`` at ν = ¼ (κ = 0: :func:`hybmss.system.build`
-drops the volume term, so it should cost what hybmss-cf costs), with the numba stencil kernel on
-1 and 2 threads.
+for the variants :func:`variants`: every model of the ``performance`` role that [G20] reports
+(``published``; hybmss, hybmss-fd and hybmss-cf) at ν = 0.3 (≠ ¼, so the volume term is present)
+and [G20]'s proposed model at ν = ¼ (κ = 0: :func:`hybmss.system.build` drops the volume term,
+so it should cost what the springs-only lattice costs), with the numba stencil kernel on 1 and 2
+threads.  Times are divided by those of [G20]'s model without face diagonals (the ``baseline``
+of its ratios) and of its springs-only lattice on the same mesh and thread count; the
+publication's ratios (``studies/data/g20_performance.csv``) are joined by its names for the models.
 
 **Timing protocol.**  The machine is shared, so every figure is the best of ``repeats`` runs
 (more for runs shorter than :data:`MIN_SPAN`/``repeats``),
@@ -39,19 +42,18 @@ import time
 import numpy as np
 import pandas as pd
 
-from .paper import load as load_paper
+from hybmss import models
+
+from . import paper, publications
 from .scenes import SceneSpec
 from .store import Store
+
+PUBLICATION = "G20"
 
 CUBES = ((10, 10, 10), (15, 15, 15), (20, 20, 20), (30, 30, 30))
 BEAMS = ((4, 4, 24), (8, 8, 48), (10, 10, 60), (16, 16, 96))
 NU_OTHER = 0.3
-VARIANTS = (
-    ("hybmss-fd", NU_OTHER),
-    ("hybmss-cf", NU_OTHER),
-    ("hybmss", NU_OTHER),
-    ("hybmss", 0.25),
-)
+NU_QUARTER = 0.25
 THREADS = (1, 2)
 BEAM_E = 1e7
 CUBE_DT = 1e-3
@@ -90,6 +92,23 @@ def bytes_per_step(n_grid: int, n_off: int, has_volume: bool, has_gravity: bool)
     return int(words * WORD * n_grid)
 
 
+# ------------------------------------------------------------------------------ variants
+def variants() -> tuple[tuple[str, float], ...]:
+    """(model, ν) of every timed variant: the ``performance`` models [G20] reports at
+    :data:`NU_OTHER`, then its proposed model at ν = ¼ (registry order)."""
+    timed = [m for m in models.in_role("performance") if publications.published_name(m, PUBLICATION)]
+    out = [(m, NU_OTHER) for m in timed]
+    proposed = publications.model_in(PUBLICATION, "proposed")
+    if proposed in timed:
+        out.append((proposed, NU_QUARTER))
+    return tuple(out)
+
+
+def baseline() -> str | None:
+    """The model the time ratios divide by: [G20]'s model without face diagonals."""
+    return publications.model_in(PUBLICATION, "no-face-diagonals")
+
+
 # ------------------------------------------------------------------------------ scenes
 def _spec(kind: str, mesh, model: str, nu: float) -> SceneSpec:
     if kind == "compression":
@@ -104,7 +123,7 @@ def beam_dt(meshes) -> float:
 
     coarse = min(meshes, key=lambda m: m[2])
     fine = max(meshes, key=lambda m: m[2])
-    dts = [dt_crit(_spec("beam", coarse, m, nu).build()) for m, nu in VARIANTS]
+    dts = [dt_crit(_spec("beam", coarse, m, nu).build()) for m, nu in variants()]
     return 0.5 * min(dts) * coarse[2] / fine[2]
 
 
@@ -116,16 +135,17 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
     from hybmss.explicit import simulate_explicit, stencil
     from hybmss.system import build
 
+    timed = variants()
     systems = {}
-    for model, nu in VARIANTS:
+    for model, nu in timed:
         spec = _spec(kind, mesh, model, nu)
         scene = spec.build()
         systems[(model, nu)] = (scene, build(scene))
     rows = []
     for th in threads:
-        times = {v: [] for v in VARIANTS}
+        times = {v: [] for v in timed}
         t_est = 0.0
-        for v in VARIANTS:  # warm-up (loads the cached compiled kernels) and a duration estimate
+        for v in timed:  # warm-up (loads the cached compiled kernels) and a duration estimate
             scene, S = systems[v]
             simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S, compute_dt_crit=False)
             t_est = max(t_est, simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
@@ -133,7 +153,7 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
         # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
         n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(min_span / max(t_est, 1e-6)))))
         for _ in range(n_rep):
-            for v in VARIANTS:
+            for v in timed:
                 scene, S = systems[v]
                 r = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
                                       compute_dt_crit=False, check_every=steps)
@@ -168,8 +188,15 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
     return rows
 
 
+def _ratios_to(df: pd.DataFrame, model: str | None, nu: float) -> np.ndarray:
+    """``best_s`` of each row over that of ``model`` at ``nu`` on the same scene, mesh, threads."""
+    key = ["scene", "mesh", "threads"]
+    ref = df[(df["variant"] == model) & (df["nu"] == nu)].set_index(key)["best_s"]
+    return df["best_s"].to_numpy() / ref.reindex(pd.MultiIndex.from_frame(df[key])).to_numpy()
+
+
 def _derive(df: pd.DataFrame, bandwidth: dict) -> pd.DataFrame:
-    paper = load_paper("g20_performance").set_index("quantity")["value"]
+    published = paper.load("g20_performance")
     df = df.copy()
     df["per_step_us"] = 1e6 * df["best_s"] / df["steps"]
     df["per_10k_steps_s"] = 1e4 * df["best_s"] / df["steps"]
@@ -178,39 +205,34 @@ def _derive(df: pd.DataFrame, bandwidth: dict) -> pd.DataFrame:
     df["achieved_GBps"] = df["bytes_per_step"] * df["steps"] / df["best_s"] / 1e9
     df["bandwidth_GBps"] = bandwidth["ceiling"]
     df["fraction_of_bandwidth"] = df["achieved_GBps"] / bandwidth["ceiling"]
-    key = ["scene", "mesh", "threads"]
-    fd = df[df["variant"] == "hybmss-fd"].set_index(key)["best_s"]
-    cf = df[df["variant"] == "hybmss-cf"].set_index(key)["best_s"]
-    idx = pd.MultiIndex.from_frame(df[key])
-    df["ratio_to_fd"] = df["best_s"].to_numpy() / fd.reindex(idx).to_numpy()
-    df["ratio_to_cf"] = df["best_s"].to_numpy() / cf.reindex(idx).to_numpy()
+    base, springs = baseline(), publications.model_in(PUBLICATION, "springs-only")
+    df["baseline"], df["springs_only"] = base or "", springs or ""
+    df["ratio_to_baseline"] = _ratios_to(df, base, NU_OTHER)
+    df["ratio_to_springs_only"] = _ratios_to(df, springs, NU_OTHER)
     # the relative spread of one figure (median vs best) is the noise of the comparison
     df["noise"] = df["median_s"] / df["best_s"] - 1.0
-    df["paper_ratio_to_fd"] = np.nan
-    df.loc[(df["variant"] == "hybmss-cf"), "paper_ratio_to_fd"] = paper["ratio_hybmss_cf_over_fd"]
-    df.loc[(df["variant"] == "hybmss") & (df["nu"] != 0.25), "paper_ratio_to_fd"] = paper["ratio_hybmss_over_fd"]
+    other = df["nu"] != NU_QUARTER
+    df["paper_ratio_to_baseline"] = np.nan
     df["paper_per_10k_steps_s"] = np.nan
-    cube10 = (df["scene"] == "compression") & (df["mesh"] == "10x10x10") & (df["threads"] == 1) & (
-        df["variant"] == "hybmss")
-    df.loc[cube10 & (df["nu"] == 0.25), "paper_per_10k_steps_s"] = paper["time_10k_steps_nu_quarter"]
-    df.loc[cube10 & (df["nu"] != 0.25), "paper_per_10k_steps_s"] = paper["time_10k_steps_nu_other"]
+    cube10 = (df["scene"] == "compression") & (df["mesh"] == "10x10x10") & (df["threads"] == 1)
+    for p in published.itertuples():
+        timed = df["variant"] == publications.model_named(PUBLICATION, p.name)
+        at = other if p.nu == "other" else ~other
+        if p.quantity == "time_ratio_per_step" and publications.model_named(PUBLICATION, p.over) == base:
+            df.loc[timed & at, "paper_ratio_to_baseline"] = p.value
+        elif p.quantity == "time_10k_steps":
+            df.loc[timed & at & cube10, "paper_per_10k_steps_s"] = p.value
     return df
 
 
+SUMMARY_COLUMNS = ["scene", "mesh", "threads", "volumes", "variant", "nu", "label", "per_step_us", "baseline",
+                   "ratio_to_baseline", "paper_ratio_to_baseline", "springs_only", "ratio_to_springs_only", "noise"]
+
+
 def summary(df: pd.DataFrame) -> pd.DataFrame:
-    """Per mesh and thread count: cf/fd and hybmss/fd (ν = 0.3), and hybmss(ν = ¼)/cf."""
-    out = []
-    for (scene, mesh, th), g in df.groupby(["scene", "mesh", "threads"], sort=False):
-        t = {r.label: r.best_s for r in g.itertuples()}
-        fd, cf = t[f"hybmss-fd ν={NU_OTHER:g}"], t[f"hybmss-cf ν={NU_OTHER:g}"]
-        hy, hq = t[f"hybmss ν={NU_OTHER:g}"], t["hybmss ν=0.25"]
-        out.append({"scene": scene, "mesh": mesh, "threads": th, "volumes": int(g["volumes"].iloc[0]),
-                    "fd_per_step_us": 1e6 * fd / g["steps"].iloc[0],
-                    "cf_over_fd": cf / fd, "paper_cf_over_fd": 1.4,
-                    "hybmss_over_fd": hy / fd, "paper_hybmss_over_fd": 2.1,
-                    "hybmss_quarter_over_cf": hq / cf,
-                    "noise": float(g["noise"].max())})
-    return pd.DataFrame(out)
+    """Per mesh, thread count and variant: time per step, its ratio to the baseline (and the
+    publication's) and to the springs-only lattice, and the noise of the figure."""
+    return df[SUMMARY_COLUMNS].reset_index(drop=True)
 
 
 def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
@@ -236,7 +258,7 @@ def run_performance(quick: bool = False, steps: int | None = None, repeats: int 
 
 
 def format_table(df: pd.DataFrame) -> str:
-    cols = ["scene", "mesh", "label", "threads", "per_step_us", "ratio_to_fd", "paper_ratio_to_fd",
+    cols = ["scene", "mesh", "label", "threads", "per_step_us", "ratio_to_baseline", "paper_ratio_to_baseline",
             "per_10k_steps_s", "paper_per_10k_steps_s", "springs_per_s", "cells_per_s",
             "achieved_GBps", "fraction_of_bandwidth"]
     with pd.option_context("display.width", 200, "display.max_columns", 30, "display.float_format",

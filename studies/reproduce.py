@@ -134,7 +134,7 @@ STUDIES = {
 
 
 EXTRA_STUDIES: dict[str, str] = {
-    "baudet2009": "studies.baudet:run",  # [B09]'s cantilever and L-shape (models of the b09 role); moduli
+    "b09": "studies.baudet:run",  # [B09]'s cantilever and L-shape (models of the b09 role); moduli
     "performance": "studies.performance:run",  # [G20] Figs 11-12: explicit kernel time per step
     "pareto": "studies.pareto:run",  # speed against error vs a converged FEM reference; error budgets
     "stability": "studies.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input

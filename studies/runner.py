@@ -28,7 +28,7 @@ import numpy as np
 
 from .scenes import BEAM_LENGTH, SceneSpec
 from .executors import EXECUTORS, SweepError, WorkerDied, make_executor
-from .store import DamagedRun, Store, code_version, environment
+from .store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
 SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
 
@@ -87,7 +87,7 @@ class Task:
 
     def key(self) -> str:
         payload = json.dumps({"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
-                              "code": code_version("fem" if self.solver.kind == "fem" else "mss")},
+                              "code": code_version(code_side(self.solver.kind))},
                              sort_keys=True)
         return hashlib.sha256(payload.encode()).hexdigest()[:24]
 
@@ -173,6 +173,7 @@ def base_row(task: Task, key: str | None = None) -> dict:
         **{f"scene_{k}": v for k, v in task.scene.to_dict().items()},
         **{f"solver_{k}": v for k, v in task.solver.relevant().items()},
         "label": task.scene.label,
+        CODE_FIELD: code_version(code_side(task.solver.kind)),
         **{f"env_{k}": v for k, v in environment().items()},
     }
 

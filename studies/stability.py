@@ -262,7 +262,10 @@ def limit_table(store: Store, tasks, rows) -> pd.DataFrame:
         r = d["limit"]
         p = parse_failure(r.get("message", ""))
         reached = r["status"] == "ok"
+        spec = models.get(model)
         row = {"nu": nu, "variant": model, "volume_energy": ve, "d_max": D_MAX, "status": r["status"],
+               # whether the model has a volume term at this ν (κ ≠ 0), as its calibration says
+               "volume_term": spec.constants(spec.parameters(), Material(1e4, nu), 1.0).kappa != 0.0,
                **p,
                "stretch_lo": 1.0 + D_MAX * (1.0 if reached else p["s_last"]),
                "stretch_hi": float("nan") if reached else 1.0 + D_MAX * p["s_fail"],
@@ -297,12 +300,14 @@ def jittered_system(scene, fraction: float = 0.1, seed: int = 0, keep_axis: int 
     return build(scene, lattice=jittered)
 
 
-def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str = "hybmss") -> dict:
-    """Name → (scene, builder of its system or None, FEM scene)."""
+def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str | None = None) -> dict:
+    """Name → (scene, builder of its system or None, FEM scene); ``model`` None: the registry's
+    default model."""
     from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
 
     mat = Material(1e4, nu, 1000.0)
     mdl = Model(model)
+    model = mdl.name
     n = 3 if quick else 4
     out = {}
     cube = SceneSpec.default("compression", mesh=(n, n, n), nu=nu, model=model).build()

@@ -136,6 +136,23 @@ def code_version(side: str = "all") -> str:
     return h.hexdigest()[:16]
 
 
+def code_side(solver_kind: str) -> str:
+    """The side of the code a solver kind depends on: ``"fem"`` for the FEM, ``"mss"`` for the rest."""
+    return "fem" if solver_kind == "fem" else "mss"
+
+
+CODE_FIELD = "code_version"
+"""Field of a row holding the code version of its side (the one its key was made with)."""
+
+
+def is_current(row: dict) -> bool:
+    """True if a stored row was computed by the code of this checkout: its recorded
+    :data:`CODE_FIELD` is the :func:`code_version` of its solver's side (a row stored by code
+    that did not record it counts as another version)."""
+    side = code_side("fem" if str(row.get("solver", "")).startswith("fem") else "mss")
+    return row.get(CODE_FIELD) == code_version(side)
+
+
 @lru_cache(maxsize=1)
 def environment() -> dict:
     """Versions, git revision and machine, recorded with every run."""
@@ -340,12 +357,15 @@ class Store:
             return []
         return sorted(p.stem for p in self.runs.glob("*.json") if not p.name.startswith("."))
 
-    def scan(self, verify_arrays: bool = True) -> tuple[list[dict], list[DamagedRun]]:
-        """Every stored row and every damaged run."""
+    def scan(self, verify_arrays: bool = True, all_versions: bool = False) -> tuple[list[dict], list[DamagedRun]]:
+        """Every stored row of the current code version (:func:`is_current`; every version with
+        ``all_versions``) and every damaged run."""
         rows, damaged = [], []
         for key in self.keys():
             try:
                 row = self._load_row(key)
+                if not (all_versions or is_current(row)):
+                    continue
                 if verify_arrays:
                     self._load_arrays(key, row)
                 rows.append(row)
@@ -353,9 +373,10 @@ class Store:
                 damaged.append(exc)
         return rows, damaged
 
-    def rows(self) -> list[dict]:
-        """Every intact stored row; a damaged run is left out with a warning naming it."""
-        rows, damaged = self.scan(verify_arrays=False)
+    def rows(self, all_versions: bool = False) -> list[dict]:
+        """Every intact stored row computed by the current code (rows stored by other code
+        versions too with ``all_versions``); a damaged run is left out with a warning naming it."""
+        rows, damaged = self.scan(verify_arrays=False, all_versions=all_versions)
         for d in damaged:
             warnings.warn(f"damaged run left out: {d}", stacklevel=2)
         return rows
@@ -424,8 +445,10 @@ class Store:
         return removed
 
     def write_table(self, name: str, df) -> Path:
-        """Write a pandas table as CSV and Markdown under ``tables/``."""
+        """Write a pandas table as CSV and Markdown under ``tables/``, and the code version that
+        wrote it beside them (``<name>.version``: :func:`table_is_current`)."""
         out = self.root / "tables"
+        atomic_write_text(out / f"{name}.version", code_version() + "\n")
         atomic_write_text(out / f"{name}.csv", df.to_csv(index=False))
         try:
             md = df.to_markdown(index=False)
@@ -436,6 +459,16 @@ class Store:
             md = "\n".join(lines)
         atomic_write_text(out / f"{name}.md", md + "\n")
         return out / f"{name}.csv"
+
+
+def table_is_current(csv_path) -> bool:
+    """True if the table ``csv_path`` was written by the code of this checkout (its
+    ``.version`` file names the current :func:`code_version`); a table without one counts as
+    another version."""
+    try:
+        return Path(csv_path).with_suffix(".version").read_text().strip() == code_version()
+    except OSError:
+        return False
 
 
 def _fmt(v) -> str:

@@ -14,6 +14,16 @@
 - ``reference_laws``: the FEM law each scene load is compared with.
 - ``bending_curves`` / ``euler_bernoulli``: centre-line deflection of every bending run and the
   Euler–Bernoulli curve of each beam ([G20] Fig. 5).
+- ``study_variants``: the variant names each model is compared in at each stored ν
+  (:meth:`hybmss.models.ModelBase.study_variants`): the study's design, which the report shows
+  rather than re-derives.
+- ``lattice_counts``: volumes, vertices and springs of this lattice on [G20] Table 6's meshes, in
+  the publication's convention (:meth:`hybmss.lattice.Lattice.counts`).
+- ``published_models``: the models each publication compares, their part in its claims and the
+  registered model of each (:func:`studies.publications.published_models`).
+
+Runs are matched with each other by their exact stored parameters; the publication's printed
+values are matched with stored ones by :func:`studies.paper.printed` only.
 """
 
 from __future__ import annotations
@@ -23,10 +33,13 @@ import pandas as pd
 
 from hybmss import models
 from hybmss.experiments import SceneSpec
+from hybmss.lattice import Lattice
 from hybmss.moduli import measure_moduli
-from hybmss.scene import Material, Model
+from hybmss.scene import Body, Material, Model
 from hybmss.solvers import StaticSolveError
 
+from . import publications as publication
+from .paper import printed
 from .compare import default_law, diff_metrics
 from .paper import load as load_paper
 from .store import Store
@@ -80,8 +93,9 @@ def volume_table(df: pd.DataFrame, experiment: str, paper_name: str) -> pd.DataF
     sub.loc[sub["status"] != "ok", "e_pct"] = np.nan
     wide = sub.pivot_table(index=["scene_mesh", "scene_nu", "scene_deformation"], columns="method",
                            values="e_pct", aggfunc="first").reset_index()
-    paper = load_paper(paper_name).rename(columns={"hybmss-fd": "paper hybmss-fd", "hybmss": "paper hybmss",
-                                                   "fem_lsdyna": "paper FEM (LS-Dyna)"})
+    own = publication.models_of("G20")  # the publication's names of its models -> "paper <model>"
+    names = {r.name: f"paper {r.model}" for r in own.itertuples() if r.model}
+    paper = load_paper(paper_name).rename(columns={**names, "fem_lsdyna": "paper FEM (LS-Dyna)"})
     wide = wide.merge(paper, left_on=["scene_nu", "scene_deformation"], right_on=["nu", "deformation"], how="left")
     wide = wide.drop(columns=["nu", "deformation"]).rename(
         columns={"scene_mesh": "mesh", "scene_nu": "nu", "scene_deformation": "d"})
@@ -112,12 +126,20 @@ def bending_table(df: pd.DataFrame) -> pd.DataFrame:
     return wide.rename(columns={"scene_mesh": "mesh", "scene_E": "E", "euler_bernoulli_tip": "Euler-Bernoulli"})
 
 
+def same(column: pd.Series, value) -> pd.Series:
+    """Rows whose stored parameter equals ``value`` exactly (a missing value matches a missing one)."""
+    return (column == value) | (column.isna() & pd.isna(value))
+
+
+GEOMETRY_COLS = ["scene_experiment", "scene_mesh", "scene_nu", "scene_E", "scene_deformation", "scene_angle_deg"]
+"""Stored scene parameters that make an MSS run and its FEM reference the same load case."""
+
+
 def _reference_row(fem: pd.DataFrame, row, law: str):
-    m = fem[(fem["scene_experiment"] == row["scene_experiment"]) & (fem["scene_mesh"] == row["scene_mesh"])
-            & np.isclose(fem["scene_nu"], row["scene_nu"]) & np.isclose(fem["scene_E"], row["scene_E"])
-            & np.isclose(fem["scene_deformation"], row["scene_deformation"])
-            & np.isclose(fem["scene_angle_deg"], row["scene_angle_deg"]) & (fem["solver_law"] == law)
-            & (fem["solver_refine"] == 1)]
+    m = (fem["solver_law"] == law) & (fem["solver_refine"] == 1)
+    for c in GEOMETRY_COLS:
+        m &= same(fem[c], row[c])
+    m = fem[m]
     return None if m.empty else m.iloc[0]
 
 
@@ -192,19 +214,23 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
     out = []
     for exp, paper_name in (("compression", "g20_table2_compression"), ("tension", "g20_table3_tension")):
         paper = load_paper(paper_name)
-        for model in [m for m in models.names() if m in paper.columns]:
+        own = publication.models_of("G20")
+        for name, model in [(r.name, r.model) for r in own.itertuples() if r.model and r.name in paper.columns]:
             sub = df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
                      & (df["scene_model"] == model) & (df["study"] == exp)]
+            if "scene_e_form" not in sub:  # a model without the E-form parameter: nothing to check
+                continue
             for _, p in paper.iterrows():
-                sel = sub[np.isclose(sub["scene_nu"], p["nu"]) & np.isclose(sub["scene_deformation"], p["deformation"])]
+                sel = sub[printed(sub["scene_nu"], p["nu"])
+                          & printed(sub["scene_deformation"], p["deformation"])]
                 for mesh, grp in sel.groupby("scene_mesh"):
                     eform = grp["scene_e_form"].fillna(False).astype(bool)
                     gval, gstate = _run_value(grp[~eform])
-                    if np.isclose(p["nu"], 0.25):
+                    if not eform.any() and len(models.get(model).study_variants(float(grp["scene_nu"].iloc[0]))) == 1:
                         eval_, estate = gval, "identical to G-form (ν = 1/4)"
                     else:
                         eval_, estate = _run_value(grp[eform])
-                    ref = float(p[model])
+                    ref = float(p[name])
                     if gstate != "ok" or not (estate == "ok" or estate.startswith("identical")):
                         closer = "undecided (" + ("G-form " + gstate if gstate != "ok" else "E-form " + estate) + ")"
                         decisive = False
@@ -243,7 +269,8 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
             except StaticSolveError as exc:
                 m, status = {"E_eff": np.nan, "nu_eff": np.nan, "G_eff": np.nan}, f"unstable: {exc}"[:160]
             rows.append({"variant": name, "nu": nu, "E_eff_over_E": m["E_eff"] / mat.E, "nu_eff": m["nu_eff"],
-                         "G_eff_over_G": m["G_eff"] / mat.G, "status": status})
+                         "G_eff_over_G": m["G_eff"] / mat.G, "status": status, "model": model.name,
+                         **{k: v for k, v in model.to_dict().items() if k != "name"}})
     return pd.DataFrame(rows)
 
 
@@ -263,7 +290,7 @@ def spec_of(row: dict) -> SceneSpec:
                                              "gravity", "damping", "le") if f"scene_{f}" in row}
     fields = {k: v for k, v in fields.items() if not (isinstance(v, float) and v != v)}
     fields["mesh"] = tuple(int(n) for n in str(fields["mesh"]).split("x"))
-    names = models.get(fields.get("model", "hybmss")).parameter_names()
+    names = models.get(fields["model"]).parameter_names()
     params = {k: row[f"scene_{k}"] for k in names if f"scene_{k}" in row and row[f"scene_{k}"] == row[f"scene_{k}"]}
     return SceneSpec.default(row["scene_experiment"], **fields, **params)
 
@@ -290,6 +317,27 @@ def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.Dat
         theory += [{"mesh": mesh, "E": E, "z": float(z), "u_y": float(y)}
                    for z, y in zip(zz, spec.euler_bernoulli(zz))]
     return pd.DataFrame(curves), pd.DataFrame(theory)
+
+
+def study_variants_table(df: pd.DataFrame) -> pd.DataFrame:
+    """``model, variant, nu``: every parameter set each registered model is compared in at every
+    Poisson ratio of the stored runs."""
+    rows = []
+    for nu in sorted(float(v) for v in df["scene_nu"].dropna().unique()):
+        for m in models.all_models():
+            for v in m.study_variants(nu):
+                rows.append({"model": m.name, "variant": Model(m.name, **v).variant, "nu": nu})
+    return pd.DataFrame(rows).drop_duplicates()
+
+
+def lattice_counts_table() -> pd.DataFrame:
+    """Counts of this lattice on every mesh of [G20] Table 6, in the publication's convention."""
+    rows = []
+    for mesh in load_paper("g20_table6_meshes")["mesh"]:
+        c = Lattice.from_body(Body.box(*(int(v) for v in str(mesh).split("x")), 1.0)).counts()
+        rows.append({"mesh": mesh, "volumes": c["volumes"], "vertices": c["vertices"],
+                     "springs_no_fd": c["paper_springs_no_fd"], "springs_with_fd": c["paper_springs_with_fd"]})
+    return pd.DataFrame(rows)
 
 
 def models_table() -> pd.DataFrame:
@@ -320,8 +368,11 @@ def write_tables(store: Store) -> dict:
         tables["differences"] = differences_table(df, store)
         tables["eform_check"] = eform_check(df)
         tables["reference_laws"] = reference_laws_table(df)
+        tables["study_variants"] = study_variants_table(df)
         tables["bending_curves"], tables["euler_bernoulli"] = bending_curves(df, store)
     tables["moduli"] = moduli_table()
+    tables["published_models"] = publication.published_models()
+    tables["lattice_counts"] = lattice_counts_table()
     for name, t in tables.items():
         if t is not None and not t.empty:
             store.write_table(name, t)

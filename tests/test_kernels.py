@@ -204,7 +204,12 @@ def test_bench_rows_and_table():
     # each model is compared with the fastest float64 one-thread model of the run (timing decides which)
     f64 = [(r["s_per_10k_steps"], r["model"]) for r in rows if (r["kernel"], r["precision"]) == ("numba", "f64")]
     fastest, other = min(f64)[1], max(f64)[1]
-    assert f"/{fastest}(nu=0.499)" in text and f"/{other}(nu=0.499)" not in text
+    line = {m: next(ln for ln in text.splitlines() if f" {m} nu=0.499:" in ln) for m, _ in variants}
+    assert f"/{fastest}(nu=0.499)" in line[other] and f"/{fastest}(nu=0.499)" not in line[fastest]
+    # and every other model over the reference model hybmss at the same nu
+    t = {r["model"]: r["s_per_10k_steps"] for r in rows if (r["kernel"], r["precision"]) == ("numba", "f64")}
+    assert f"/hybmss(nu=0.499) {t['hybmss-fd'] / t['hybmss']:.2f}" in line["hybmss-fd"]
+    assert "/hybmss(nu" not in line["hybmss"]
     assert text.count("f32/f64 (1 thr)") == 2 and text.count("numba/numpy") == 2 and "load average" in text
 
 

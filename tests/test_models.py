@@ -3,6 +3,7 @@ registry, validated on construction, and the only place that knows its own name.
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import re
 from pathlib import Path
@@ -139,30 +140,96 @@ def test_a_model_without_springs_builds_a_system_with_none():
         models.unregister("test-empty")
 
 
-PUBLICATION_NAMED = {"studies/performance.py"}
-"""[G20] Figs 11-12 give time ratios of HybMSS-CF and HybMSS over HybMSS-FD
-(``studies/data/g20_performance.csv``): the study matches those named quantities."""
-CHECKED = ("hybmss", "fem_reference", "studies", "benchmarks", "reports/palette.py", "reports/data.py",
-           "reports/render.py")
-"""Everything that builds, solves, lists or styles models.  The report's findings and claims
-(``reports/summary.py``, ``findings.py``, ``tables.py``, ``figures.py``) are statements about the
-publication's models and name them."""
+CHECKED = ("hybmss", "fem_reference", "studies", "benchmarks", "reports")
+"""Everything that builds, solves, lists, studies, styles or reports models (a model's own module
+in ``hybmss/models/`` excepted)."""
+NOT_A_MODEL = {("studies/cli.py", "hybmss"): "the command's name (prog), which is the project's",
+               ("hybmss/_stencil_gen.py", "hybmss"): "the project's folder of the kernel cache"}
+"""String literals that equal a model's name but do not name the model, with the reason."""
+
+
+def _sources():
+    for part in CHECKED:
+        for path in sorted((ROOT / part).rglob("*.py")):
+            rel = path.relative_to(ROOT).as_posix()
+            if not rel.startswith("hybmss/models/"):
+                yield rel, path
 
 
 def test_no_code_outside_a_model_module_compares_a_model_name():
     """Comparisons (==, !=, in) against a literal registered name, in the packages' code."""
-    names = "|".join(re.escape(n) for n in IN_TREE)
+    names = "|".join(re.escape(n) for n in models.names())
     pattern = re.compile(rf"""(==|!=|\bin)\s*\(?\s*["']({names})["']|["']({names})["']\s*(==|!=)""")
     hits = []
-    for part in CHECKED:
-        for path in ([ROOT / part] if part.endswith(".py") else (ROOT / part).rglob("*.py")):
-            rel = path.relative_to(ROOT).as_posix()
-            if rel.startswith("hybmss/models/") or rel in PUBLICATION_NAMED:
-                continue
-            for i, line in enumerate(path.read_text().splitlines(), 1):
-                if pattern.search(line):
-                    hits.append(f"{path.relative_to(ROOT)}:{i}: {line.strip()}")
+    for rel, path in _sources():
+        for i, line in enumerate(path.read_text().splitlines(), 1):
+            if pattern.search(line):
+                hits.append(f"{rel}:{i}: {line.strip()}")
     assert hits == []
+
+
+def _literals(tree: ast.AST):
+    """(line, text) of every string constant of a module that is not a docstring."""
+    docs = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                docs.add(id(first.value))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            yield node.lineno, node.value
+
+
+def test_no_code_outside_a_model_module_names_a_model():
+    """No string literal outside a model's module is a registered model's name, one of its
+    methods ("<name> static", "<name> (E-form) explicit") or a published column of it
+    ("paper <name>"): studies and reports take models from the registry, by study role or by
+    their part in a publication (``published``, ``studies/data/*_models.csv``)."""
+    names = "|".join(re.escape(n) for n in models.names())
+    named = re.compile(rf"^(paper )?({names})( \([^)]*\))?( (static|explicit|implicit|mss-[a-z]+))?$")
+    hits = []
+    for rel, path in _sources():
+        for line, text in _literals(ast.parse(path.read_text(), rel)):
+            if named.match(text.strip()) and (rel, text) not in NOT_A_MODEL:
+                hits.append(f"{rel}:{line}: {text!r}")
+    assert hits == []
+
+
+def test_the_name_check_finds_a_literal_model_name(tmp_path):
+    """The check above can fail: it finds the names it looks for, and skips docstrings."""
+    src = 'def f(df):\n    """hybmss"""\n    return df[df["method"] == "hybmss-fd static"], "paper hybmss", "hybmss-cf"\n'
+    found = [t for _, t in _literals(ast.parse(src))]
+    names = "|".join(re.escape(n) for n in models.names())
+    named = re.compile(rf"^(paper )?({names})( \([^)]*\))?( (static|explicit|implicit|mss-[a-z]+))?$")
+    assert sorted(t for t in found if named.match(t)) == ["hybmss-cf", "hybmss-fd static", "paper hybmss"]
+
+
+def test_a_publication_names_its_models_through_their_declarations():
+    """[G20]'s and [B09]'s tables name their models; each registered model that a publication
+    reports declares that name (``published``), and the publication's data file of models
+    gives its part in the claims."""
+    from studies import paper, publications
+
+    t = publications.published_models()
+    own = dict(zip(zip(t["publication"], t["role"]), t["model"]))
+    assert own == {("G20", "proposed"): "hybmss", ("G20", "no-face-diagonals"): "hybmss-fd",
+                   ("G20", "springs-only"): "hybmss-cf", ("B09", "proposed"): "baudet2009"}
+    for pub, name in (("G20", "hybmss-fd"), ("B09", "baudet2009")):
+        assert publications.model_named(pub, name) == name and publications.published_name(name, pub) == name
+    # every published column of [G20]'s tables 2-5 is a declared name (or the FEM's)
+    declared = set(t["name"])
+    for table in ("g20_table2_compression", "g20_table3_tension", "g20_table4_shear", "g20_table5_torsion"):
+        cols = set(paper.load(table).columns) - {"nu", "deformation", "angle_deg", "fem_lsdyna"}
+        assert cols <= declared, table
+    assert set(paper.load("b09_errors")["model"]) <= declared
+    # a plug-in model that declares no publication is in none
+    assert publications.model_named("G20", "test-nothing") is None
+
+
+def test_the_default_model_comes_from_the_registry():
+    assert models.default_name() == models.names()[0]
+    assert Model().name == models.default_name() == SceneSpec.default("compression").model
 
 
 def test_a_model_with_its_own_solvers_and_time_step_gets_the_scene():

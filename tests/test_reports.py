@@ -76,6 +76,14 @@ def results(tmp_path_factory):
     store.write_table("performance", pd.DataFrame({
         "variant": ["hybmss-fd", "hybmss", "hybmss-fd", "hybmss"], "volumes": [1000, 1000, 8000, 8000],
         "time_1000_steps_s": [0.1, 0.2, 0.8, 1.7]}))
+    # the performance study's summary as it stores it (ratios to [G20]'s baseline, the publication's beside)
+    store.write_table("performance_summary", pd.DataFrame({
+        "scene": "compression", "mesh": ["10x10x10"] * 3 + ["20x20x20"] * 3, "threads": 1,
+        "volumes": [1000] * 3 + [8000] * 3, "variant": ["hybmss-fd", "hybmss-cf", "hybmss"] * 2, "nu": 0.3,
+        "label": ["hybmss-fd ν=0.3", "hybmss-cf ν=0.3", "hybmss ν=0.3"] * 2,
+        "per_step_us": [100.0, 150.0, 200.0, 800.0, 1150.0, 1700.0], "baseline": "hybmss-fd",
+        "ratio_to_baseline": [1.0, 1.5, 2.0, 1.0, 1.44, 2.12], "paper_ratio_to_baseline": [np.nan, 1.4, 2.1] * 2,
+        "springs_only": "hybmss-cf", "ratio_to_springs_only": [0.67, 1.0, 1.33, 0.7, 1.0, 1.48], "noise": 0.01}))
     return root
 
 
@@ -495,6 +503,26 @@ def test_published_claims_follow_their_criteria(results):
     assert "missing" in t4.evidence  # no 20 % shear run in the fixture
     b09 = next(c for s, c in cl.items() if "[B09]'s (mean error" in s)
     assert b09.evidence.startswith(("0 of 2", "1 of 2", "2 of 2"))
+
+
+def test_performance_claim_and_short_table_come_from_the_stored_summary(results):
+    """The [G20] time-ratio claim reads the ratios the performance study joined with the
+    publication's (cf / fd 1.4 and hybmss / fd 2.1), names the baseline as stored, and judges
+    each ratio within ±50 %."""
+    from reports.data import Results
+    from reports.findings import performance_sentence
+    from reports.summary import REPRODUCED, claims, headline
+    from reports.tables import performance_short
+
+    r = Results(results)
+    perf = [c for c in claims(r, headline(r)) if c.statement.startswith("Per step")]
+    assert len(perf) == 1
+    c = perf[0]
+    assert c.statement == "Per step, hybmss-cf about 1.4× and hybmss about 2.1× the time of hybmss-fd"
+    assert c.verdict == REPRODUCED and "hybmss-cf / hybmss-fd per step: 1.44–1.5 (publication 1.4)" in c.evidence
+    assert "relative to hybmss-fd" in performance_sentence(r.table("performance_summary"))
+    t = performance_short(r)
+    assert t.title == "Time per step relative to hybmss-fd" and t.n_rows == 6
 
 
 def test_budget_answers_pick_the_fastest_method_that_meets_the_budget():

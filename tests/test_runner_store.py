@@ -17,7 +17,7 @@ import pytest
 from reports.data import Results
 from studies.runner import Runner, SolverSpec, Task
 from studies.scenes import SceneSpec
-from studies.store import Store, arrays_digest, dumps, loads
+from studies.store import Store, arrays_digest, code_version, dumps, loads
 from studies.tables import differences_table, runs_frame, volume_table
 
 
@@ -213,3 +213,35 @@ def test_results_of_other_solver_code_are_not_stored(tmp_path, monkeypatch):
     with pytest.raises(SweepError, match="code version"):
         Runner(jobs=1, progress=False).run(tiny_tasks()[:1], store)
     assert store.keys() == [] and not list(store.locks.iterdir())
+
+
+def test_rows_and_tables_of_another_code_version_are_left_out(base, tmp_path):
+    """A row stored under another code hash is not among the store's rows, the tables built from
+    them nor the report's rows (unless asked for every version); a table written by another code
+    version is not read by the report."""
+    root, want = base
+    shutil.copytree(root, tmp_path / "r")
+    store = Store(tmp_path / "r")
+    key = _keys()[0]
+    row = store.row(key)
+    assert row["code_version"] == code_version("mss")
+    stale = {**row, "key": "e" * 24, "code_version": "0" * 16}
+    store.save(stale["key"], stale, store.arrays(key))
+    fem = store.row(_keys()[2])
+    assert fem["code_version"] == code_version("fem")  # a FEM row keeps the FEM side's version
+    keys = {r["key"] for r in store.rows()}
+    assert "e" * 24 not in keys and keys == set(_keys())
+    assert {r["key"] for r in store.rows(all_versions=True)} == keys | {"e" * 24}
+    got = tables(store)
+    pd.testing.assert_frame_equal(got["volume"], want["volume"])
+    res = Results(store.root)
+    assert set(res.rows["key"]) == keys
+    assert set(Results(store.root, all_versions=True).rows["key"]) == keys | {"e" * 24}
+    # tables: the one written by this code is read, one of another version is not
+    store.write_table("mine", pd.DataFrame({"a": [1]}))
+    store.write_table("old", pd.DataFrame({"a": [2]}))
+    (store.root / "tables" / "old.version").write_text("0" * 16 + "\n")
+    res = Results(store.root)
+    assert res.table("mine") is not None and res.table("old") is None
+    assert "old" in res.other_version_tables and "old" not in res.table_names()
+    assert Results(store.root, all_versions=True).table("old") is not None

@@ -102,10 +102,19 @@ def test_performance_quick_table():
     df, bw = performance.run_performance(quick=True, steps=20, repeats=1, threads=(1,), min_span=0.0,
                                          bandwidth_MB=16)
     assert bw["ceiling"] > 0
-    assert len(df) == 4 * len(performance.VARIANTS)
+    timed = performance.variants()
+    assert len(df) == 4 * len(timed)
+    # the [G20] models of the performance role at ν = 0.3, and the proposed one at ν = 1/4
+    assert {m for m, _ in timed} == {"hybmss", "hybmss-fd", "hybmss-cf"} and ("hybmss", 0.25) in timed
     quarter = df[(df["variant"] == "hybmss") & (df["nu"] == 0.25)]
     assert not quarter["volume_term"].any()  # κ = 0: the volume term is not built
     other = df[(df["variant"] == "hybmss") & (df["nu"] != 0.25)]
     assert other["volume_term"].all()
     assert (df["bytes_per_step"] > 0).all() and np.isfinite(df["fraction_of_bandwidth"]).all()
-    assert set(performance.summary(df).columns) >= {"cf_over_fd", "hybmss_over_fd", "hybmss_quarter_over_cf"}
+    s = performance.summary(df)
+    base = s[s["variant"] == "hybmss-fd"]
+    assert (base["ratio_to_baseline"] == 1.0).all() and (s["baseline"] == "hybmss-fd").all()
+    # the publication's ratios ([G20] Sec. 6: cf/fd 1.4, hybmss/fd 2.1) sit beside the ν = 0.3 rows only
+    paper = s.dropna(subset=["paper_ratio_to_baseline"])
+    assert dict(zip(paper["variant"], paper["paper_ratio_to_baseline"])) == {"hybmss": 2.1, "hybmss-cf": 1.4}
+    assert (paper["nu"] == 0.3).all()

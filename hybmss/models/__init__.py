@@ -25,7 +25,7 @@ from .base import (KERNELS, NO_SPRINGS, SOLVER_KINDS, STUDY_ROLES, ModelBase, No
                    check)
 
 __all__ = ["ENTRY_POINT_GROUP", "KERNELS", "NO_SPRINGS", "SOLVER_KINDS", "STUDY_ROLES", "ModelBase",
-           "NoParameters", "REGISTRY", "Registry", "Style", "all_models", "check", "get", "in_role", "names", "parameter_fields", "register", "unregister"]
+           "NoParameters", "REGISTRY", "Registry", "Style", "all_models", "check", "default_name", "get", "in_role", "names", "parameter_fields", "register", "unregister"]
 
 ENTRY_POINT_GROUP = "hybmss.models"
 
@@ -115,6 +115,12 @@ def all_models() -> tuple[ModelBase, ...]:
 def names() -> tuple[str, ...]:
     """Names of :func:`all_models`."""
     return REGISTRY.names()
+
+
+def default_name() -> str:
+    """The model a scene or command takes when none is named: the first of :func:`names` (the
+    lowest declared ``order``)."""
+    return names()[0]
 
 
 def parameter_fields() -> dict[str, dataclasses.Field]:

@@ -5,17 +5,55 @@ voxel grid as the MSS: nodes are the lattice particles, masses the lumped ``ρ V
 corner, the plates and their ramp ``s(t) = ½(1 − cos(π t/T))`` those of
 :mod:`hybmss.explicit`, and a run that leaves the physical range raises the same
 :class:`hybmss.explicit.DivergenceError`.  This module holds what they share beyond the plate arrays of
-:func:`hybmss.explicit.plate_arrays`: the divergence check of the NumPy twins and the
-:class:`~hybmss.result.Result` of a run.
+:func:`hybmss.explicit.plate_arrays`: the kernel state in either precision, the divergence check
+of the NumPy twins and the :class:`~hybmss.result.Result` of a run.
+
+Precision.  ``f64`` stores positions x; ``f32`` stores displacements u = x − X and velocities in
+float32, as the MSS's float32 kernel (:mod:`hybmss._stencil_gen`): a position of a few metres
+keeps only ~1e-7 m in float32, a displacement 1e-7 of itself.  The kernels then evaluate the
+element arithmetic in float64 from ``X + u`` (edges ``ΔX + Δu``), so the float32 state is the
+only rounding: after 10,000 steps the positions differ from the float64 run by ~1e-7 of the
+largest displacement (a test bounds it by 1e-5).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..explicit import BLOWUP_FACTOR, RAMP_LAW, DivergenceError
+from .._kernels import particle_state
+from ..explicit import BLOWUP_FACTOR, PRECISIONS, RAMP_LAW, DivergenceError
 from ..result import Result, reaction_from_nodal
 from ..system import System
+
+
+def kernel_state(x: np.ndarray, v: np.ndarray, X: np.ndarray, precision: str = "f64"):
+    """``(W, xg, vg, posmode)``: the flat state of :func:`hybmss._kernels.particle_state` and its
+    (3, n) views.  ``f64``: positions, float64 (``posmode`` True); ``f32``: displacements
+    ``x − X`` and velocities, float32.  ``x``, ``v``, ``X``: (n, 3)."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+    if precision == "f64":
+        W, xg, vg = particle_state(x, v)
+        return W, xg, vg, True
+    W64, _, _ = particle_state(np.asarray(x) - np.asarray(X), v)
+    W = W64.astype(np.float32)
+    n = len(x)
+    return W, W[:3 * n].reshape(3, n), W[3 * n:].reshape(3, n), False
+
+
+def read_state(xg: np.ndarray, vg: np.ndarray, X: np.ndarray, posmode: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities (n, 3), float64, of the views of :func:`kernel_state`."""
+    x = xg.T.astype(np.float64)
+    if not posmode:
+        x = x + X
+    return np.ascontiguousarray(x), np.ascontiguousarray(vg.T, dtype=np.float64)
+
+
+def one_thread(threads, model: str) -> None:
+    """The competitors' kernels are serial: ``threads`` other than 1 is a :class:`ValueError`
+    (rather than a run on one thread reported as two)."""
+    if int(threads) != 1:
+        raise ValueError(f"threads must be 1 for {model} (its kernel is serial), got {threads}")
 
 
 def blowup_limit2(system: System) -> float:

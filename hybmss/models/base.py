@@ -23,7 +23,12 @@ Class attributes (plain data):
 - ``kernels``: the explicit kernels that support it, a subset of :data:`KERNELS`;
 - ``order``: position in listings (tables, legends); in-tree models use 0–99;
 - ``studies``: the study roles it takes part in, a subset of :data:`STUDY_ROLES` (default: all
-  of them its solvers allow).
+  of them its solvers allow);
+- ``published``: the publications that report the model, each with the name its tables give the
+  model (``{"G20": "hybmss-fd"}``: a column, or a ``model`` value, of that publication's tables
+  in ``studies/data``).  The studies join the published values with its runs by this name, and
+  the publication's data file of models (``studies/data/<key>_models.csv``) says what part the
+  name plays in the publication's claims.  Default: none.
 
 Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
 :class:`hybmss.scene.Material`, ``le`` the cell edge in m):
@@ -45,9 +50,11 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
   harness estimate it from the system's stiffness and masses (the default);
 - ``solve_static``, ``simulate_explicit``: None (the default) to use the harness's Newton and
   explicit integrator, or methods ``solve_static(self, scene, options=None, system=None)`` and
-  ``simulate_explicit(self, scene, **kw)`` (the keywords of :func:`hybmss.explicit.simulate_explicit`)
-  returning a :class:`hybmss.result.Result`, for a model that brings its own (e.g. a
-  position-based integrator whose static answer is the rest state of a damped run).
+  ``simulate_explicit(self, scene, **kw)`` (the keywords of :func:`hybmss.explicit.simulate_explicit`
+  except ``damping``, applied to the scene first, and ``rest_rtol``/``compile_first``; a
+  ``precision`` or ``threads`` it does not have raises :class:`ValueError`) returning a
+  :class:`hybmss.result.Result`, for a model that brings its own (e.g. a position-based integrator
+  whose static answer is the rest state of a damped run).
   :func:`hybmss.solvers.solve_static` and :func:`hybmss.explicit.simulate_explicit` hand the
   scene to them; :func:`hybmss.explicit.dt_crit` returns the model's ``dt_crit`` when it has one.
   ``simulate_explicit`` refuses a kernel that is not in ``kernels``, ``solve_static`` a model
@@ -146,6 +153,7 @@ class ModelBase:
     kernels: ClassVar[tuple[str, ...]] = KERNELS
     order: ClassVar[int] = 100
     studies: ClassVar[tuple[str, ...]] = STUDY_ROLES
+    published: ClassVar[dict[str, str]] = {}
     solve_static: ClassVar[Callable | None] = None
     simulate_explicit: ClassVar[Callable | None] = None
 
@@ -211,6 +219,9 @@ class ModelBase:
             bad = [g for g in got if g not in allowed]
             if bad:
                 raise ValueError(f"model {name}: {what} must be among {', '.join(allowed)}; got {bad[0]!r}")
+        if not isinstance(self.published, dict) or not all(
+                isinstance(k, str) and isinstance(v, str) for k, v in self.published.items()):
+            raise ValueError(f"model {name}: published must map publication keys to names (str -> str)")
         if not self.conservative and "implicit" in self.solvers:
             raise ValueError(f"model {name}: implicit Euler needs a conservative model")
         self.parameters()  # the defaults must be valid

@@ -42,6 +42,7 @@ class HybMSS(ModelBase):
     style = Style("#1f77b4", "o")
     Parameters = HybridParameters
     order = 0
+    published = {"G20": "hybmss"}
     studies = STUDY_ROLES
     E_FORM_STYLE = Style("#9467bd", "D")
 

@@ -27,6 +27,7 @@ class HybMSSFD(HybMSS):
     style = Style("#ff7f0e", "s")
     Parameters = NoFaceDiagonalParameters
     order = 1
+    published = {"G20": "hybmss-fd"}
     studies = tuple(r for r in HybMSS.studies if r != "b09")
 
 
