@@ -21,23 +21,28 @@ import numpy as np
 
 from hybmss.experiments import SceneSpec
 from hybmss.solvers import StaticSolveError, solve_static
+from studies.publications import models_of
 
 CUBE, BEAM = (10, 10, 10), (8, 8, 48)
 CUBE_GOAL, BEAM_GOAL, LOST_GOAL = 0.3, 1.0, 10.0
-LOST_MODELS = ("hybmss", "hybmss-fd")
+_G20 = models_of("G20").set_index("role")["model"]
+HYB, FD, CF = _G20["proposed"], _G20["no-face-diagonals"], _G20["springs-only"]
+"""[G20]'s three mass-spring models, by their part in its claims (studies/data/g20_models.csv)."""
+B09 = models_of("B09").set_index("role")["model"]["proposed"]
+"""[B09]'s model (residual mode: non-conservative corrections)."""
+LOST_MODELS = (HYB, FD)
 """The models whose ν = 0 beam loses its equilibrium in 20 % tension (the report's stability study)."""
-WARM_UP_MODELS = ("hybmss", "hybmss-fd", "baudet2009")
+WARM_UP_MODELS = (HYB, FD, B09)
 
 
 def cases() -> list[tuple[str, SceneSpec, float]]:
     """(name, spec, goal in s) of every measured case."""
     out = []
     for d in (0.05, 0.20):
-        for model, nu in (("hybmss", 0.25), ("hybmss", 0.499), ("hybmss-fd", 0.25), ("hybmss-fd", 0.499),
-                          ("hybmss-cf", 0.25), ("hybmss-cf", 0.499), ("baudet2009", 0.25)):
+        for model, nu in ((HYB, 0.25), (HYB, 0.499), (FD, 0.25), (FD, 0.499), (CF, 0.25), (CF, 0.499), (B09, 0.25)):
             spec = SceneSpec.default("compression", mesh=CUBE, model=model, nu=nu, deformation=d)
             out.append((f"cube10 compression {d:.0%} {model} nu={nu:g}", spec, CUBE_GOAL))
-    for model, nu, d in (("hybmss", 0.499, 0.05), ("hybmss-fd", 0.499, 0.05), ("hybmss-fd", 0.499, 0.20)):
+    for model, nu, d in ((HYB, 0.499, 0.05), (FD, 0.499, 0.05), (FD, 0.499, 0.20)):
         spec = SceneSpec.default("tension", mesh=BEAM, model=model, nu=nu, deformation=d)
         out.append((f"beam8x8x48 tension {d:.0%} {model} nu={nu:g}", spec, BEAM_GOAL))
     for model in LOST_MODELS:
