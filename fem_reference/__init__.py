@@ -7,8 +7,9 @@
   total Lagrangian Newton with load stepping;
 - :mod:`~fem_reference.dirichlet`: plates → prescribed dofs, reactions;
 - :mod:`~fem_reference.loads`: dead surface tractions (``Scene.loads``) as load vectors;
-- :mod:`~fem_reference.linalg`: direct (nested-dissection order) / AMG-preconditioned solves, chosen
-  by size;
+- :mod:`~fem_reference.linalg`: direct (nested-dissection order; CHOLMOD's Cholesky, the mixed
+  element's pressure eliminated on its Schur complement, or SuperLU) / AMG-preconditioned solves,
+  chosen by size and separator;
 - :mod:`~fem_reference.convergence`: refinement studies, observed order, Richardson error;
 - :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``.
 

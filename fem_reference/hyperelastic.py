@@ -47,7 +47,7 @@ from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
 from .laws import LAWS, deviatoric, volumetric
-from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd, unknown_order
+from .linalg import SolveStats, rigid_modes, separator_dofs, solve_saddle, solve_spd, unknown_order
 from .linear import FORMULATIONS, Solution
 from .mesh import FemMesh
 from .space import Space
@@ -148,6 +148,11 @@ class Hyperelasticity:
         if not self.reorder:
             return None
         return unknown_order(self.space, self.fmesh.h, self.pspace if self.mixed else None)
+
+    @cached_property
+    def separator(self) -> int | None:
+        """Dofs on the first separator of :attr:`order` (it picks CHOLMOD or AMG-CG for ``'auto'``)."""
+        return separator_dofs(self.space.points, self.fmesh.h)
 
     # ---------------------------------------------------------------- state
     def _evaluate(self, U, p, s, fext, material, tangent: bool):
@@ -322,10 +327,12 @@ class Hyperelasticity:
                 if self.mixed:
                     du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
                                           self.nullspace, 1.0 / mu + 1.0 / material.lam,
-                                          method=method, stats=stats, cache=lu_cache, order=self.order)
+                                          method=method, stats=stats, cache=lu_cache, order=self.order,
+                                          separator=self.separator)
                 else:
                     du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
-                                   stats=stats, cache=amg_cache, order=self.order)
+                                   stats=stats, cache=amg_cache, order=self.order,
+                                   separator=self.separator)
                     dp = None
             first = np.any(dD != 0.0)
             # Merit of the line search: the residual norm, or (displacement formulation, a

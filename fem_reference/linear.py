@@ -30,7 +30,7 @@ import numpy as np
 from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
-from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd, unknown_order
+from .linalg import SolveStats, rigid_modes, separator_dofs, solve_saddle, solve_spd, unknown_order
 from .mesh import FemMesh
 from .space import Space
 
@@ -103,6 +103,11 @@ class LinearElasticity:
             return None
         return unknown_order(self.space, self.fmesh.h, self.pspace if self.mixed else None)
 
+    @cached_property
+    def separator(self) -> int | None:
+        """Dofs on the first separator of :attr:`order` (it picks CHOLMOD or AMG-CG for ``'auto'``)."""
+        return separator_dofs(self.space.points, self.fmesh.h)
+
     def solve(
         self,
         material: Material,
@@ -123,7 +128,8 @@ class LinearElasticity:
         uD = dirichlet.values(s)
         if not self.mixed:
             K = lam * Klam + mu * Kmu
-            u = solve_spd(K, f, dirichlet.dofs, uD, self.nullspace, method=method, stats=stats, order=self.order)
+            u = solve_spd(K, f, dirichlet.dofs, uD, self.nullspace, method=method, stats=stats, order=self.order,
+                          separator=self.separator)
             r = K @ u - f
             energy = 0.5 * u @ (K @ u)
             return Solution(u.reshape(-1, 3), None, r, float(energy), stats)
@@ -134,7 +140,8 @@ class LinearElasticity:
         C = self.pressure_mass / lam
         g = np.zeros(B.shape[0])
         u, p = solve_saddle(A, B, C, f, g, dirichlet.dofs, uD, self.nullspace,
-                            schur_scale=1.0 / mu + 1.0 / lam, method=method, stats=stats, order=self.order)
+                            schur_scale=1.0 / mu + 1.0 / lam, method=method, stats=stats, order=self.order,
+                            separator=self.separator)
         r = A @ u + B.T @ p - f
         energy = 0.5 * u @ (A @ u) + 0.5 * p @ (C @ p)
         return Solution(u.reshape(-1, 3), p, r, float(energy), stats)

@@ -76,8 +76,9 @@ def solve(
     law : ``'linear'`` (small strain), ``'neo-hookean'`` or ``'svk'`` (finite strain).
     refine : each cell of the body is split into ``refine³`` elements.
     steps : load steps of the finite-strain Newton solver (default 5; halved on failure).
-    method : linear solver, ``'auto'`` (direct for small systems, AMG-preconditioned Krylov
-        above), ``'direct'`` or ``'amg'``.
+    method : linear solver, ``'auto'`` (direct for small systems and, with CHOLMOD, for bodies
+        whose nested-dissection separators are small; AMG-preconditioned Krylov above),
+        ``'direct'`` (a factorization; SuperLU for the mixed element) or ``'amg'``.
     operators : operators from :func:`operators` to reuse (must match body, element, law, refine).
     strict : if Newton fails, raise :class:`~fem_reference.hyperelastic.ConvergenceError`;
         with ``strict=False`` return the last converged state with ``converged=False`` and

@@ -253,7 +253,7 @@ def format_bench(d: dict) -> str:
             if a and fastest and (model, nu) != fastest[1:]:
                 parts.append(f"/{fastest[1]}(nu={fastest[2]:g}) {a['s_per_10k_steps'] / fastest[0]:.2f}")
             ref = _pick(rows, mesh=mesh, model=reference, nu=nu, kernel="numba", precision="f64", threads=1)
-            if a and ref and model != reference:
+            if a and ref and model != reference and (not fastest or fastest[1:] != (reference, nu)):
                 parts.append(f"/{reference}(nu={nu:g}) {a['s_per_10k_steps'] / ref['s_per_10k_steps']:.2f}")
             if a and a.get("substeps", 1) > 1:
                 parts.append(f"{a['substeps']} substeps per step")

@@ -292,7 +292,7 @@ def build_parser() -> tuple[Parser, Options]:
     opts.add(q, "--load-steps", type=positive_int, default=None,
              help="load steps of the finite-strain laws (integer >= 1; default 5)")
     opts.add(q, "--linear-solver", choices=("auto", "direct", "amg"), default="auto",
-             help="linear solver (default auto: direct below a size, AMG-CG above)")
+             help="linear solver (default auto: direct below a size or separator, AMG-CG above)")
     opts.add(q, "--convergence", type=refinements, default=None, metavar="R1,R2[,R3]",
              help="solve on these refinements; report observed order and Richardson errors")
 
