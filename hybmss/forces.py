@@ -1,4 +1,7 @@
-"""Energies, forces and exact Hessians in plain NumPy: the readable reference.
+"""Energies, forces and exact Hessians in plain NumPy: the readable reference, and the totals
+(:func:`energy_forces`, :func:`hessian`, :func:`stiffness`, :func:`cell_volumes`) that run their
+Numba twins of :mod:`hybmss._kernels_static` by default (``kernel="numpy"``: this module's
+functions; tests/test_static_kernels.py holds the two together).
 
 Springs ([G20] eq. 5.1): energy ``½ k (l − l0)²`` with ``l = |x_b − x_a|``; force on a
 ``f_a = k (x_b − x_a)(1 − l0/l)``; Hessian block ``K = k [(1 − l0/l) I + (l0/l) d dᵀ]`` with
@@ -25,8 +28,13 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
+from . import _kernels_static as _nb
 from .lattice import VOLUME_SIGNS
 from .system import System
+
+KERNELS = ("numba", "numpy")
+"""``kernel`` of :func:`energy_forces`, :func:`hessian` and :func:`stiffness`: the Numba twins of
+:mod:`hybmss._kernels_static` (default) or the NumPy functions of this module (the reference)."""
 
 
 # ------------------------------------------------------------------------------------ springs
@@ -61,7 +69,10 @@ def cell_abc(x, cells):
     return np.einsum("cd,mci->mdi", VOLUME_SIGNS, x[cells])
 
 
-def cell_volumes(x, cells):
+def cell_volumes(x, cells, kernel: str = "numba"):
+    """V' = a · (b × c) of every cell (m,)."""
+    if kernel == "numba":
+        return _nb.cell_volumes(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(cells, dtype=np.int64))
     abc = cell_abc(x, cells)
     return np.einsum("mi,mi->m", abc[:, 0], np.cross(abc[:, 1], abc[:, 2]))
 
@@ -134,7 +145,7 @@ _SIGN_PAIRS = np.einsum("pd,qe->pqde", VOLUME_SIGNS, VOLUME_SIGNS).reshape(64, 9
 
 
 # ------------------------------------------------------------------------------------ totals
-def energy_forces(system: System, x: np.ndarray, load: float = 1.0):
+def energy_forces(system: System, x: np.ndarray, load: float = 1.0, kernel: str = "numba"):
     """Total energy and forces at load factor ``load``: springs + volume + ``load`` · gravity +
     every term of ``system.terms`` (a ``scaled`` term times ``load``).
 
@@ -142,12 +153,21 @@ def energy_forces(system: System, x: np.ndarray, load: float = 1.0):
     ``gravity`` and each conservative term under its name) and ``energy`` is their sum; a
     non-conservative term adds forces only, so ``energy`` is then not a potential of them.
     """
-    e_s, f = spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
-    parts = {"springs": e_s}
-    if system.has_volume:
-        e_v, f_v = volume_energy_forces(x, system.vol_cells, system.vol_V0, system.kappa, system.volume_energy)
-        f += f_v
-        parts["volume"] = e_v
+    if kernel == "numba":
+        x = np.ascontiguousarray(x, dtype=float)
+        f = np.zeros_like(x)
+        parts = {"springs": _nb.spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k,
+                                                     system.spring_l0, f)}
+        if system.has_volume:
+            parts["volume"] = _nb.volume_energy_forces(x, system.vol_cells, system.vol_V0, system.kappa,
+                                                       _nb.FORMS.get(system.volume_energy, 0), f)
+    else:
+        e_s, f = spring_energy_forces(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
+        parts = {"springs": e_s}
+        if system.has_volume:
+            e_v, f_v = volume_energy_forces(x, system.vol_cells, system.vol_V0, system.kappa, system.volume_energy)
+            f += f_v
+            parts["volume"] = e_v
     if system.gravity is not None:
         parts["gravity"] = -load * float(np.dot(system.mass, x @ system.gravity))
         f += load * (system.mass[:, None] * system.gravity[None, :])
@@ -167,10 +187,11 @@ def internal_forces(system: System, x: np.ndarray) -> np.ndarray:
     return f
 
 
-def stiffness(system: System, x: np.ndarray, load: float = 1.0) -> sp.csr_matrix:
+def stiffness(system: System, x: np.ndarray, load: float = 1.0, kernel: str = "numba") -> sp.csr_matrix:
     """``∂(−forces)/∂x`` of :func:`energy_forces` at load factor ``load``: the exact Hessian of the
-    springs and volume energy plus each term's stiffness (symmetric iff every term is conservative)."""
-    H = hessian(system, x)
+    springs and volume energy plus each term's stiffness (symmetric iff every term is conservative).
+    Without a term of nonzero stiffness the matrix has the fixed pattern of :func:`hessian`."""
+    H = hessian(system, x, kernel)
     for t in system.terms:
         w = load if t.scaled else 1.0
         if w != 0.0:
@@ -209,18 +230,77 @@ def _pattern(n, a_bytes, b_bytes, cells_bytes):
     indptr = np.empty(3 * n + 1, dtype=np.int64)
     indptr[:-1] = (9 * P[:, None] + 3 * ij[None, :] * deg[:, None]).reshape(-1)
     indptr[-1] = 9 * len(uniq)
-    nb = np.split(c, np.cumsum(deg)[:-1])
-    indices = np.concatenate([np.tile((3 * cc[:, None] + ij[None, :]).reshape(-1), 3) for cc in nb])
-    return indptr, indices.astype(np.int64), inv
+    # entry (i, j) of the block of node pair t (row r_t, column c_t) sits at slot
+    # 9 P_r + 3 i deg(r) + 3 (t − P_r) + j and holds column 3 c_t + j
+    t = np.arange(len(uniq))
+    slot0 = 9 * P[r] + 3 * (t - P[r])
+    slots = slot0[:, None, None] + 3 * ij[None, :, None] * deg[r][:, None, None] + ij[None, None, :]
+    indices = np.empty(9 * len(uniq), dtype=np.int64)
+    indices[slots.reshape(-1)] = np.broadcast_to(3 * c[:, None, None] + ij[None, None, :], slots.shape).reshape(-1)
+    idx = np.int32 if len(indices) < 2**31 - 1 else np.int64  # scipy's own index type: no copy per matrix
+    return indptr.astype(idx), indices.astype(idx), inv
 
 
-def hessian(system: System, x: np.ndarray) -> sp.csr_matrix:
-    """Exact Hessian (3n × 3n, CSR) of the total energy at ``x``."""
-    n = system.n
+def hessian_pattern(system: System):
+    """``(indptr, indices, slots)`` of the Hessian's fixed CSR pattern (:func:`_pattern`), shared by
+    every Hessian of ``system``'s springs and cells."""
+    return _pattern(*_pattern_key(system))
+
+
+def _pattern_key(system: System) -> tuple:
     cells = system.vol_cells if system.has_volume else np.zeros((0, 8), dtype=np.int64)
-    indptr, indices, inv = _pattern(
-        n, system.spring_a.tobytes(), system.spring_b.tobytes(), np.ascontiguousarray(cells).tobytes()
-    )
+    return (system.n, system.spring_a.tobytes(), system.spring_b.tobytes(), np.ascontiguousarray(cells).tobytes())
+
+
+@lru_cache(maxsize=8)
+def _free_pattern(key, free_bytes):
+    indptr, indices, _ = _pattern(*key)
+    return FreePattern(indptr, indices, np.frombuffer(free_bytes, dtype=bool))
+
+
+def free_pattern(system: System, free: np.ndarray) -> "FreePattern":
+    """The :class:`FreePattern` of ``system``'s Hessian pattern and the free dofs ``free`` (3n,)."""
+    return _free_pattern(_pattern_key(system), np.ascontiguousarray(free, dtype=bool).tobytes())
+
+
+class FreePattern:
+    """Where the constrained Hessian ``H_ff`` (rows and columns of the free dofs) lies in the data
+    of the Hessian's fixed CSR pattern: ``full_map`` selects the data of ``H_ff`` in CSR order
+    (which, the pattern being symmetric, is also its CSC: ``full_indptr``, ``full_indices``),
+    ``lower_pos`` the entries of its lower triangle among those, in CSC order (``lower_indptr``,
+    ``lower_rows``, ``lower_cols``); ``full_diag`` the diagonal's positions.  Every dof has its
+    diagonal entry (each particle has a spring), so a shift ``H_ff + σ I`` changes values only."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, free: np.ndarray):
+        N = len(indptr) - 1
+        rows = np.repeat(np.arange(N), np.diff(indptr))
+        rank = np.cumsum(free) - 1
+        self.full_map = np.flatnonzero(free[rows] & free[indices])
+        r, c = rank[rows[self.full_map]], rank[indices[self.full_map]]
+        self.n = n = int(np.count_nonzero(free))
+        self.full_indptr = np.concatenate(([0], np.cumsum(np.bincount(r, minlength=n)))).astype(indices.dtype)
+        self.full_indices = c.astype(indices.dtype)
+        self.full_diag = np.flatnonzero(r == c)
+        low = c >= r
+        self.lower_pos = np.flatnonzero(low)
+        self.lower_indptr = np.concatenate(([0], np.cumsum(np.bincount(r[low], minlength=n))))
+        self.lower_rows, self.lower_cols = c[low].astype(np.int64), r[low].astype(np.int64)
+        if len(self.full_diag) != n:
+            raise ValueError("the Hessian pattern lacks a diagonal entry of a free dof")
+
+
+def hessian(system: System, x: np.ndarray, kernel: str = "numba") -> sp.csr_matrix:
+    """Exact Hessian (3n × 3n, CSR) of the total energy at ``x``, on the pattern of
+    :func:`hessian_pattern` (explicit zeros kept)."""
+    n = system.n
+    indptr, indices, inv = hessian_pattern(system)
+    if kernel == "numba":
+        data = np.empty(len(indices))
+        _nb.hessian_data(np.ascontiguousarray(x, dtype=float), system.spring_a, system.spring_b, system.spring_k,
+                         system.spring_l0, system.vol_cells, system.vol_V0, system.kappa,
+                         _nb.FORMS.get(system.volume_energy, 0), inv, data)
+        return sp.csr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))
+    cells = system.vol_cells if system.has_volume else np.zeros((0, 8), dtype=np.int64)
     K = spring_hessian_blocks(x, system.spring_a, system.spring_b, system.spring_k, system.spring_l0)
     parts = [K.reshape(-1), K.reshape(-1), -K.reshape(-1), -K.reshape(-1)]
     if len(cells):
