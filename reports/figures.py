@@ -584,7 +584,7 @@ STATE_COLORS = {"converged": "#4daf4a", "unstable": "#ff7f00", "diverged": "#e41
 
 def budget_chart(results: Results, path: Path) -> Figure | None:
     """Experiment × error budget -> the fastest method that meets it, its time and its lead."""
-    ans = findings.budget_answers(results.table("pareto"), results.table("budget"))
+    ans = findings.budget_answers(results.table("budget"))
     if ans.empty:
         return None
     configs = list(dict.fromkeys(ans["config"]))

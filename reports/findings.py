@@ -35,50 +35,24 @@ def _num(v) -> float:
 
 
 # ------------------------------------------------------------------ speed against error
-def budget_answers(pareto: pd.DataFrame | None, budget: pd.DataFrame | None = None) -> pd.DataFrame:
-    """For every configuration and error budget: the fastest method whose nodal error (relative
-    L2 against the converged reference) meets the budget, its time, the next fastest *other*
-    method that meets it and the lead ``t_next / t_fastest``.
+def budget_answers(budget: pd.DataFrame | None) -> pd.DataFrame:
+    """The per-configuration rows of the pareto study's stored ``budget`` table
+    (:func:`studies.pareto.budget_table`): for every configuration and error budget, the fastest
+    method whose nodal error meets the budget, its time, the next fastest *other* method that
+    meets it and the lead ``t_next / t_fastest``.
 
     Columns: ``config, experiment, budget, method, mesh, time_s, error_u, next_method,
     next_time_s, lead`` (``method`` = "none" when no candidate meets the budget; ``next_method``
     = "none" and ``lead`` NaN when only one method does)."""
     cols = ["config", "experiment", "budget", "method", "mesh", "time_s", "error_u", "next_method", "next_time_s",
             "lead"]
-    if pareto is None or not {"config", "method", "time_s", "error_u"} <= set(pareto.columns):
+    if budget is None or not {"config", "method", "budget", "lead"} <= set(budget.columns):
         return pd.DataFrame(columns=cols)
-    df = pareto.copy()
-    if "role" in df and (df["role"] == "candidate").any():
-        df = df[df["role"] == "candidate"]
-    if "status" in df:
-        df = df[df["status"].astype(str) == "ok"]
-    df = df[np.isfinite(pd.to_numeric(df["time_s"], errors="coerce"))
-            & np.isfinite(pd.to_numeric(df["error_u"], errors="coerce"))]
-    budgets = BUDGETS
-    if budget is not None and "budget" in budget:
-        budgets = tuple(sorted(float(b) for b in budget["budget"].unique()))
-    rows = []
-    for cfg, g in df.groupby("config", sort=False):
-        exp = str(g["experiment"].iloc[0]) if "experiment" in g else str(cfg).split()[0]
-        for b in budgets:
-            ok = g[g["error_u"] <= b].sort_values("time_s")
-            best = ok.drop_duplicates("method")
-            rec = {"config": cfg, "experiment": exp, "budget": b}
-            if best.empty:
-                rec.update(method="none", mesh="", time_s=math.nan, error_u=math.nan, next_method="none",
-                           next_time_s=math.nan, lead=math.nan)
-            else:
-                r = best.iloc[0]
-                rec.update(method=str(r["method"]), mesh=str(r.get("mesh", "")), time_s=float(r["time_s"]),
-                           error_u=float(r["error_u"]))
-                if len(best) > 1:
-                    n = best.iloc[1]
-                    rec.update(next_method=str(n["method"]), next_time_s=float(n["time_s"]),
-                               lead=float(n["time_s"]) / float(r["time_s"]))
-                else:
-                    rec.update(next_method="none", next_time_s=math.nan, lead=math.nan)
-            rows.append(rec)
-    return pd.DataFrame(rows, columns=cols)
+    df = budget[budget["config"].astype(str) != "all configurations"].copy()
+    df["method"] = df["method"].where(df["method"].astype(str) != "none within budget", "none")
+    df["next_method"] = df["next_method"].fillna("none")
+    df["mesh"] = df["mesh"].fillna("")
+    return df[cols].reset_index(drop=True)
 
 
 def budget_sentence(ans: pd.DataFrame) -> str:

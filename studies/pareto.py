@@ -280,23 +280,32 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
 
 
 def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
-    """For each configuration and error budget: the cheapest run within it; and per experiment,
-    the cheapest method (variant, solver, resolution) within budget in *every* configuration."""
+    """For each configuration and error budget: the cheapest run within it, the next cheapest
+    run of another method within it (``next_method``, ``next_mesh``, ``next_time_s``) and the
+    lead ``next_time_s / time_s``; and per experiment, the cheapest method (variant, solver,
+    resolution) within budget in *every* configuration.  A method is a model with a solver, or
+    a FEM element with its law; its cheapest resolution within the budget represents it."""
     out = []
-    ok = df[np.isfinite(df["error_u"])]
+    ok = df[np.isfinite(df["error_u"]) & np.isfinite(df["time_s"])]
     for cfg, g in ok.groupby("config", sort=False):
         for b in budgets:
-            w = g[g["error_u"] <= b].sort_values("time_s")
+            w = g[g["error_u"] <= b].sort_values("time_s", kind="stable").drop_duplicates("method")
             base = {"experiment": g["experiment"].iloc[0], "config": cfg, "budget": b}
             if w.empty:
                 best = g.sort_values("error_u").iloc[0]
                 out.append({**base, "method": "none within budget", "mesh": "", "time_s": np.nan,
                             "error_u": np.nan, "most_accurate": f"{best['method']} {best['mesh']}",
                             "most_accurate_error": best["error_u"]})
-            else:
-                r = w.iloc[0]
-                out.append({**base, "method": r["method"], "mesh": r["mesh"], "time_s": r["time_s"],
-                            "error_u": r["error_u"], "reference_error_estimate": r["reference_error_estimate"]})
+                continue
+            r = w.iloc[0]
+            rec = {**base, "method": r["method"], "mesh": r["mesh"], "time_s": r["time_s"],
+                   "error_u": r["error_u"], "reference_error_estimate": r["reference_error_estimate"],
+                   "next_method": "none", "next_mesh": "", "next_time_s": np.nan, "lead": np.nan}
+            if len(w) > 1:
+                n = w.iloc[1]
+                rec.update(next_method=n["method"], next_mesh=n["mesh"], next_time_s=n["time_s"],
+                           lead=float(n["time_s"]) / float(r["time_s"]))
+            out.append(rec)
     # across configurations a FEM element counts as one method whatever the reference's law
     ok = ok.assign(method=ok["method"].str.replace(r"^(fem-(?:hex1|hex2|mixed))-.*$", r"\1 (reference law)",
                                                    regex=True))

@@ -527,11 +527,14 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
 
 def test_budget_answers_pick_the_fastest_method_that_meets_the_budget():
     from reports.findings import budget_answers
+    from studies.pareto import budget_table
 
-    pareto = pd.DataFrame({"config": ["c"] * 4, "experiment": ["shear"] * 4, "role": ["candidate"] * 4,
-                           "status": ["ok"] * 4, "method": ["x", "x", "y", "z"], "mesh": ["2", "4", "2", "2"],
-                           "time_s": [1.0, 3.0, 2.0, 0.5], "error_u": [0.008, 0.002, 0.004, 0.2]})
-    ans = budget_answers(pareto, pd.DataFrame({"budget": [0.001, 0.005, 0.01, 0.5]})).set_index("budget")
+    pareto = pd.DataFrame({"config": ["c"] * 5, "experiment": ["shear"] * 5, "role": ["candidate"] * 5,
+                           "status": ["ok"] * 4 + ["diverged"], "method": ["x", "x", "y", "z", "w"],
+                           "mesh": ["2", "4", "2", "2", "2"], "factor": [1, 2, 1, 1, 1],
+                           "time_s": [1.0, 3.0, 2.0, 0.5, 0.1], "error_u": [0.008, 0.002, 0.004, 0.2, np.nan],
+                           "reference_error_estimate": [1e-4] * 5})
+    ans = budget_answers(budget_table(pareto, budgets=(0.001, 0.005, 0.01, 0.5))).set_index("budget")
     assert ans.loc[0.001, "method"] == "none" and np.isnan(ans.loc[0.001, "lead"])
     # at 0.5 %, x only meets it on its finer mesh (3 s): y (2 s) wins, x is next
     assert (ans.loc[0.005, "method"], ans.loc[0.005, "next_method"]) == ("y", "x")
