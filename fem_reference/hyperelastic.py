@@ -39,7 +39,6 @@ The reaction of the plates is ``r = f_int(u) − f_ext`` at the prescribed dofs.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
@@ -47,10 +46,8 @@ from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
 from .laws import LAWS, deviatoric, volumetric
-from .linalg import SolveStats, rigid_modes, separator_dofs, solve_saddle, solve_spd, unknown_order
-from .linear import FORMULATIONS, Solution
-from .mesh import FemMesh
-from .space import Space
+from .linalg import SolveStats, solve_saddle, solve_spd
+from .linear import Discretization, Solution
 
 
 OPTIMISTIC_MAXITER = 6
@@ -105,54 +102,18 @@ def _back2(a: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class Hyperelasticity:
+class Hyperelasticity(Discretization):
     """Newton solver for one mesh, formulation (``hex1``, ``hex2``, ``mixed``) and law."""
 
-    fmesh: FemMesh
-    formulation: str = "hex2"
     law: str = "neo-hookean"
     reorder: bool = True
     """Factorize direct systems in the nested-dissection order of :attr:`order` (``False``: SuperLU's
     minimum degree order)."""
 
     def __post_init__(self):
-        if self.formulation not in FORMULATIONS:
-            raise ValueError(f"element must be one of {', '.join(FORMULATIONS)}; got {self.formulation!r}")
+        super().__post_init__()
         if self.law not in LAWS:
             raise ValueError(f"law must be one of {', '.join(LAWS)}; got {self.law!r}")
-
-    @property
-    def mixed(self) -> bool:
-        return self.formulation == "mixed"
-
-    @cached_property
-    def space(self) -> Space:
-        return Space.create(self.fmesh, "hex1" if self.formulation == "hex1" else "hex2")
-
-    @cached_property
-    def pspace(self) -> Space:
-        return Space.create(self.fmesh, "hex1", intorder=5)
-
-    @cached_property
-    def pressure_mass(self):
-        return self.pspace.mass()
-
-    @cached_property
-    def nullspace(self) -> np.ndarray:
-        return rigid_modes(self.space.points)
-
-    @cached_property
-    def order(self) -> np.ndarray | None:
-        """Fill-reducing order of the unknowns (displacement dofs, then for the mixed element the
-        pressures) for direct factorizations, or ``None`` (:attr:`reorder` off, or no grid)."""
-        if not self.reorder:
-            return None
-        return unknown_order(self.space, self.fmesh.h, self.pspace if self.mixed else None)
-
-    @cached_property
-    def separator(self) -> int | None:
-        """Dofs on the first separator of :attr:`order` (it picks CHOLMOD or AMG-CG for ``'auto'``)."""
-        return separator_dofs(self.space.points, self.fmesh.h)
 
     # ---------------------------------------------------------------- state
     def _evaluate(self, U, p, s, fext, material, tangent: bool):

@@ -49,6 +49,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from hybmss.lattice import box_dissection
+
 try:  # CHOLMOD (SuiteSparse) through cvxopt's wheels: supernodal Cholesky, reusable symbolic analysis
     import cvxopt
     from cvxopt import cholmod
@@ -135,25 +137,7 @@ def nested_dissection(points: np.ndarray, h: float, leaf: int = 16) -> np.ndarra
     g = np.rint(q).astype(np.int64)  # half-element units: vertices even, Hex2 mid-nodes odd
     if len(p) == 0 or np.abs(q - g).max() > 1e-6:
         return None
-    out = []
-    stack = [(np.arange(len(p)), np.zeros(3, np.int64), -(-g.max(axis=0) // 2))]
-    while stack:  # depth first: left box, right box, then the separator
-        item = stack.pop()
-        if isinstance(item, np.ndarray):
-            out.append(item)
-            continue
-        idx, lo, hi = item
-        ext = hi - lo
-        if len(idx) <= leaf or ext.max() < 2:
-            out.append(idx)
-            continue
-        ax = int(np.argmax(ext))
-        m = lo[ax] + ext[ax] // 2
-        c = g[idx, ax]
-        h_left, lo_right = hi.copy(), lo.copy()
-        h_left[ax] = lo_right[ax] = m
-        stack += [idx[c == 2 * m], (idx[c > 2 * m], lo_right, hi), (idx[c < 2 * m], lo, h_left)]
-    return np.concatenate(out)
+    return box_dissection(g, np.zeros(3, np.int64), -(-g.max(axis=0) // 2), step=2, leaf=leaf)
 
 
 def separator_dofs(points: np.ndarray, h: float, components: int = 3) -> int | None:

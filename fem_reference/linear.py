@@ -50,14 +50,13 @@ class Solution:
 
 
 @dataclass(frozen=True, eq=False)
-class LinearElasticity:
-    """Material-independent operators of a mesh and formulation, assembled lazily once."""
+class Discretization:
+    """A mesh and formulation (``hex1``, ``hex2``, ``mixed``): its spaces, rigid modes and the
+    fill-reducing order of its unknowns, built lazily once (shared by the linear and the
+    finite-strain solvers; ``reorder`` is their own field)."""
 
     fmesh: FemMesh
     formulation: str = "hex2"
-    reorder: bool = True
-    """Factorize direct systems in the nested-dissection order of :attr:`order` (``False``: SuperLU's
-    minimum degree order)."""
 
     def __post_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -75,17 +74,6 @@ class LinearElasticity:
     def pspace(self) -> Space:
         """Hex1 pressure space on the displacement space's quadrature points."""
         return Space.create(self.fmesh, "hex1", intorder=5)
-
-    @cached_property
-    def parts(self):
-        """``(K_λ, K_μ)``."""
-        return self.space.elasticity_parts()
-
-    @cached_property
-    def divergence(self):
-        """``B = ∫ q div v`` (pressure rows, displacement columns)."""
-        I = np.broadcast_to(np.eye(3)[:, :, None, None], (3, 3) + self.space.dx.shape)
-        return self.space.coupling(self.pspace, I)
 
     @cached_property
     def pressure_mass(self):
@@ -107,6 +95,26 @@ class LinearElasticity:
     def separator(self) -> int | None:
         """Dofs on the first separator of :attr:`order` (it picks CHOLMOD or AMG-CG for ``'auto'``)."""
         return separator_dofs(self.space.points, self.fmesh.h)
+
+
+@dataclass(frozen=True, eq=False)
+class LinearElasticity(Discretization):
+    """Material-independent operators of a mesh and formulation, assembled lazily once."""
+
+    reorder: bool = True
+    """Factorize direct systems in the nested-dissection order of :attr:`order` (``False``: SuperLU's
+    minimum degree order)."""
+
+    @cached_property
+    def parts(self):
+        """``(K_λ, K_μ)``."""
+        return self.space.elasticity_parts()
+
+    @cached_property
+    def divergence(self):
+        """``B = ∫ q div v`` (pressure rows, displacement columns)."""
+        I = np.broadcast_to(np.eye(3)[:, :, None, None], (3, 3) + self.space.dx.shape)
+        return self.space.coupling(self.pspace, I)
 
     def solve(
         self,

@@ -150,3 +150,32 @@ class Lattice:
         ax = "xyz".index(face[0])
         target = self.body.shape[ax] if face[1] == "+" else 0
         return np.flatnonzero(self.grid[:, ax] == target)
+
+
+def box_dissection(grid: np.ndarray, lo, hi, step: int = 1, leaf: int = 16) -> np.ndarray:
+    """Nested-dissection order of nodes at integer ``grid`` coordinates (n, 3) in the box of cells
+    ``lo``..``hi`` (cell units; a node of cell plane m sits at coordinate ``step``·m): the box is
+    split at the middle cell plane of its longest extent; the nodes strictly on either side come
+    first (recursively, down to ``leaf`` nodes or one cell across), the nodes on the plane (a
+    separator: no cell couples the two sides through it) after them.  ``step`` 1: lattice nodes;
+    2: Hex1/Hex2 nodes on the half-cell grid (mid-nodes at odd coordinates)."""
+    g = np.asarray(grid, dtype=np.int64)
+    out = []
+    stack = [(np.arange(len(g)), np.asarray(lo, np.int64), np.asarray(hi, np.int64))]
+    while stack:  # depth first: left box, right box, then the separator
+        item = stack.pop()
+        if isinstance(item, np.ndarray):
+            out.append(item)
+            continue
+        idx, lo_, hi_ = item
+        ext = hi_ - lo_
+        if len(idx) <= leaf or ext.max() < 2:
+            out.append(idx)
+            continue
+        ax = int(np.argmax(ext))
+        m = lo_[ax] + ext[ax] // 2
+        c = g[idx, ax]
+        hi_left, lo_right = hi_.copy(), lo_.copy()
+        hi_left[ax] = lo_right[ax] = m
+        stack += [idx[c == step * m], (idx[c > step * m], lo_right, hi_), (idx[c < step * m], lo_, hi_left)]
+    return np.concatenate(out)
