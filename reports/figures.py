@@ -617,7 +617,7 @@ def budget_chart(results: Results, path: Path) -> Figure | None:
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("study_budget", "Which method for which error budget", Path(path),
-                  "From tables/pareto.csv: for each configuration (rows) and budget on the relative L2 nodal error "
+                  "From tables/budget.csv (written by the pareto study from tables/pareto.csv): for each configuration (rows) and budget on the relative L2 nodal error "
                   "against the converged reference (columns), the fastest candidate that meets the budget (colour "
                   "= method family), its mesh and wall time, and its lead = time of the next fastest other method "
                   "that meets it / its time.")
