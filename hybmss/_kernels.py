@@ -84,9 +84,22 @@ def particle_state(x: np.ndarray, v: np.ndarray):
 
 
 @njit(**_OPTS)
+def prescribe(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+              pl_angle, step, dt, ramp_time, R, u_old, u_new, qlo, qhi):
+    """The plates' prescribed components for step ``step`` → ``step + 1``, on the nodes
+    ``qlo ≤ q < qhi`` only (a thread's own range)."""
+    if pl_ptr.shape[0] > 1:
+        s_old = ramp(step * dt, ramp_time)
+        s_new = ramp((step + 1) * dt, ramp_time)
+        apply_plates(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                     pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new, qlo, qhi)
+
+
+@njit(**_OPTS)
 def apply_plates(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
-                 pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new):
-    """Prescribed components of every plate at load factor ``s_new`` (velocity from ``s_old``)."""
+                 pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new, qlo, qhi):
+    """Prescribed components of every plate at load factor ``s_new`` (velocity from ``s_old``),
+    on the nodes ``qlo ≤ q < qhi``."""
     for ip in range(pl_ptr.shape[0] - 1):
         nodes = pl_nodes[pl_ptr[ip]:pl_ptr[ip + 1]]
         U1 = pl_U1[:, pl_ptr[ip]:pl_ptr[ip + 1]]
@@ -99,6 +112,8 @@ def apply_plates(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_
             if pl_mask[ip, d]:
                 for i in range(n):
                     q = nodes[i]
+                    if q < qlo or q >= qhi:
+                        continue
                     W[xb + d * L + q] = (X[d, q] + un[d, i]) if posmode else un[d, i]
                     W[vb + d * L + q] = (un[d, i] - uo[d, i]) / dt
 
@@ -152,11 +167,8 @@ def end_of_step(W, xb, vb, L, N, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, p
                 pl_center, pl_angle, step, dt, ramp_time, R, u_old, u_new, n, nsteps, check_every, limit2):
     """Prescribe the plates for step ``step`` → ``step + 1`` (positions at ``xb``) and, every
     ``check_every`` steps and at the last one, return the index of a diverged node (−1: none)."""
-    if pl_ptr.shape[0] > 1:
-        s_old = ramp(step * dt, ramp_time)
-        s_new = ramp((step + 1) * dt, ramp_time)
-        apply_plates(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
-                     pl_center, pl_angle, s_old, s_new, dt, R, u_old, u_new)
+    prescribe(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+              pl_angle, step, dt, ramp_time, R, u_old, u_new, 0, N)
     if (n + 1) % check_every == 0 or n == nsteps - 1:
         return find_bad(W, xb, L, N, posmode, X, limit2)
     return -1

@@ -44,6 +44,7 @@ import numpy as np
 from .forces import energy_forces, hessian, internal_forces
 from .result import Result, reaction_from_nodal
 from .scene import Scene
+from . import _sync
 from .baudet import Corrections, GridCorrections
 from .system import System, build
 from .terms import DeadLoad
@@ -329,10 +330,32 @@ class Stencil:
 
     def advance(self, step0: int, nsteps: int, check_every: int, limit2: float) -> tuple[int, int]:
         """Run ``nsteps`` steps from global step ``step0`` in place.  Returns (steps done, bad grid
-        node or −1)."""
+        node or −1).  Several threads run all the steps in one parallel region (a spinning barrier
+        per step, :mod:`hybmss._sync`); the [B09] corrections, or threads that do not all run at
+        once, take one parallel region per step."""
         import numba
 
         mod = self.module()
+        args = self._args(step0, nsteps, check_every, limit2)
+        T = int(self.threads)
+        if T > 1:
+            old = numba.get_num_threads()
+            numba.set_num_threads(min(T, numba.config.NUMBA_NUM_THREADS))
+            try:
+                done = bad = None
+                if self.corrections is None and T <= numba.config.NUMBA_NUM_THREADS:
+                    done, bad = self._run_threads(mod, args)
+                if done is None:  # one parallel region per step
+                    done, bad = mod.run(*args)
+            finally:
+                numba.set_num_threads(old)
+        else:
+            done, bad = mod.run(*args)
+        self.parity = (self.parity + int(done)) % 2 if self.threads > 1 else 0
+        return int(done), int(bad)
+
+    def _args(self, step0: int, nsteps: int, check_every: int, limit2: float) -> tuple:
+        """Arguments of the generated ``run`` (``run_threads`` takes ``[2:19]`` of them)."""
         dtype = self.dtype
         prm = np.array(list(self.l0) + [self.dt, self.damp, self.V0], dtype=dtype)
         corr = self.corrections
@@ -345,21 +368,27 @@ class Stencil:
             F0 = np.zeros((3, 1))
         P = np.zeros((3, 3, N if corr is not None else 1))
         Fc = np.zeros((3, N if corr is not None else 1))
-        args = (self.W, prm, self.Xg, self.pl_nodes, self.pl_U1, self.pl_ptr, self.pl_mask, self.pl_kind,
+        return (self.W, prm, self.Xg, self.pl_nodes, self.pl_U1, self.pl_ptr, self.pl_mask, self.pl_kind,
                 self.pl_disp, self.pl_axis, self.pl_center, self.pl_angle, np.int64(step0), np.int64(nsteps),
                 np.int64(max(1, check_every)), float(limit2), np.int64(self.parity), float(self.dt),
                 float(self.ramp_time), F0, kc, coff, le, c, P, Fc)
-        if self.threads > 1:
-            old = numba.get_num_threads()
-            numba.set_num_threads(min(int(self.threads), numba.config.NUMBA_NUM_THREADS))
-            try:
-                done, bad = mod.run(*args)
-            finally:
-                numba.set_num_threads(old)
-        else:
-            done, bad = mod.run(*args)
-        self.parity = (self.parity + int(done)) % 2 if self.threads > 1 else 0
-        return int(done), int(bad)
+
+    def _run_threads(self, mod, args) -> tuple[int | None, int | None]:
+        """All steps of :meth:`advance` in one parallel region (``run_threads``: one spinning
+        barrier per step).  (None, None) with the state restored if the threads did not all run
+        at once (a thread waited in vain at a barrier): the caller then runs one region per step."""
+        T = int(self.threads)
+        sync = np.zeros(_sync.SLOTS, dtype=np.int64)
+        out = np.zeros(2 * T, dtype=np.int64)
+        saved = self.W.copy()
+        W, prm = args[0], args[1]
+        mod.run_threads(W, prm, sync, out, *args[2:19])
+        if sync[_sync.ABORT] != 0:
+            self.W[:] = saved
+            return None, None
+        done = int(out[:T].min())
+        bad = int(out[T:].max())
+        return done, bad
 
 
 def _external_forces(system: System):
@@ -656,8 +685,8 @@ def simulate_explicit(
 
     - ``kernel``: ``'numba'`` (stencil kernel) or ``'numpy'`` (readable twin); same trajectory.
     - ``ramp_time``: T (s) of the plate ramp ``s(t) = ½(1 − cos(π t/T))``, then 1 (0: no ramp).
-    - ``threads``: numba threads (one parallel region per step, each thread on its own node
-      range); 1 (the default) runs the serial kernel.  Two threads pay only when the second core
+    - ``threads``: numba threads (each on its own node range, all steps in one parallel region
+      with a spinning barrier per step); 1 (the default) runs the serial kernel.  Two threads pay only when the second core
       is idle: spinning threads on a busy core make every step far slower.
     - ``precision``: ``'f64'`` or ``'f32'`` (numba kernel only: float32 displacements, about
       twice as fast, position error ~1e-6 of the largest displacement after 10,000 steps).

@@ -228,3 +228,28 @@ def test_bench_times_one_configuration_from_the_command_line():
     d = json.loads(out)
     (row,) = d["explicit"]
     assert (row["model"], row["mesh"], row["precision"], row["threads"], row["steps"]) == ("hybmss-cf", "3x3x3", "f32", 1, 10)
+
+
+def test_threads_that_cannot_run_at_once_give_up_and_restore_the_state():
+    """Two ranges on one Numba thread cannot meet at a barrier: the waiting one gives up after
+    its spin limit, the state is restored and the run goes on one parallel region per step."""
+    import numba
+
+    scene = CASES["rotating-plate"]
+    system = build(scene)
+    st = stencil(system, 0.5 * dt_crit(system), 0.01, threads=2)
+    x0, v0 = _initial(system, 1)
+    st.load(x0, v0)
+    before = st.W.copy()
+    old = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        assert st._run_threads(st.module(), st._args(0, 20, 5, 1e30)) == (None, None)
+    finally:
+        numba.set_num_threads(old)
+    assert np.array_equal(st.W, before)
+    assert st.advance(0, 20, 5, 1e30) == (20, -1)
+    one = stencil(system, 0.5 * dt_crit(system), 0.01, threads=1)
+    one.load(x0, v0)
+    one.advance(0, 20, 5, 1e30)
+    assert np.array_equal(st.state()[0], one.state()[0])

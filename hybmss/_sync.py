@@ -1,0 +1,105 @@
+"""Atomic integers and a spinning barrier for threads that share one parallel region.
+
+The threaded explicit kernel (:mod:`hybmss._stencil_gen`) runs all its steps inside one
+parallel region: each thread advances its own node range and waits for the others once per
+step at :func:`barrier`.  Numba has no atomics of its own; the three operations here are
+LLVM's (``atomicrmw add``, ``load atomic acquire``, ``store atomic release``) on one element of
+an int64 array, so the compiler neither caches the shared counters in registers nor moves the
+state's loads and stores across them.
+
+State of a barrier: an int64 array ``S`` of :data:`SLOTS` entries, zero at the start:
+``S[COUNT]`` threads arrived in the current round, ``S[ROUND]`` rounds completed, ``S[ABORT]``
+set when a thread gave up waiting (the others leave at their next barrier), ``S[MESSAGE]`` a
+value one thread publishes to all (the diverged node of a check).
+"""
+
+from __future__ import annotations
+
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+COUNT, ROUND, ABORT, MESSAGE = 0, 1, 2, 3
+SLOTS = 8  # one 64-byte line
+SPIN_LIMIT = 1 << 24
+"""Polls of the round counter before a waiting thread gives up (about a second of spinning:
+the other threads are not running, e.g. a parallel region given fewer threads than ranges)."""
+
+
+def _pointer(context, builder, aryty, ary, idx):
+    arr = context.make_array(aryty)(context, builder, ary)
+    return cgutils.get_item_pointer(context, builder, aryty, arr, [idx])
+
+
+@intrinsic
+def atomic_add(typingctx, arr, idx, val):
+    """``old = arr[idx]; arr[idx] += val; return old`` as one sequentially consistent step."""
+    sig = types.int64(arr, types.intp, types.int64)
+
+    def codegen(context, builder, signature, args):
+        ptr = _pointer(context, builder, signature.args[0], args[0], args[1])
+        return builder.atomic_rmw("add", ptr, args[2], "seq_cst")
+
+    return sig, codegen
+
+
+@intrinsic
+def atomic_load(typingctx, arr, idx):
+    """``arr[idx]``, read with acquire ordering (no later access moves before it)."""
+    sig = types.int64(arr, types.intp)
+
+    def codegen(context, builder, signature, args):
+        ptr = _pointer(context, builder, signature.args[0], args[0], args[1])
+        return builder.load_atomic(ptr, "acquire", 8)
+
+    return sig, codegen
+
+
+@intrinsic
+def atomic_store(typingctx, arr, idx, val):
+    """``arr[idx] = val`` with release ordering (no earlier access moves after it)."""
+    sig = types.void(arr, types.intp, types.int64)
+
+    def codegen(context, builder, signature, args):
+        ptr = _pointer(context, builder, signature.args[0], args[0], args[1])
+        builder.store_atomic(args[2], ptr, "release", 8)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def cpu_relax(typingctx):
+    """The x86 ``pause`` hint of a spin-wait loop."""
+    sig = types.void()
+
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []),
+                                            "llvm.x86.sse2.pause")
+        builder.call(fn, [])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def barrier(S, nthreads):
+    """Wait until ``nthreads`` threads have called this for the current round.  Returns False
+    (and sets ``S[ABORT]``) if the others did not come within :data:`SPIN_LIMIT` polls, or if
+    another thread had given up."""
+    r = atomic_load(S, ROUND)
+    if atomic_add(S, COUNT, 1) == nthreads - 1:
+        atomic_store(S, COUNT, 0)
+        atomic_add(S, ROUND, 1)  # releases the waiting threads
+        return atomic_load(S, ABORT) == 0
+    spins = 0
+    while atomic_load(S, ROUND) == r:
+        if atomic_load(S, ABORT) != 0:
+            return False
+        spins += 1
+        if spins >= SPIN_LIMIT:
+            atomic_store(S, ABORT, 1)
+            return False
+        cpu_relax()
+    return atomic_load(S, ABORT) == 0
