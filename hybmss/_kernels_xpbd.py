@@ -250,7 +250,7 @@ def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity,
         if pl_ptr.shape[0] > 1:
             apply_plates(Wk, 0, 3 * n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                          pl_center, pl_angle, ramp(step * h, ramp_time), ramp((step + 1) * h, ramp_time), h, R,
-                         u_old, u_new)
+                         u_old, u_new, 0, n)
         project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
         for d in range(3):
             for q in range(n):

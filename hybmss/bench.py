@@ -1,12 +1,13 @@
-"""Speed of the explicit kernels on the compression cube of SPEC §6 (issue 2, "Speed").
+"""Speed of the explicit kernels on the compression cube of SPEC §6.
 
 The scene: n×n×n cells of 0.5 m, E = 10⁴ Pa, ρ = 1000 kg/m³, bottom clamped, top plate moved
 down by 5 % (ramp 1 s), dt = 1 ms.  :func:`time_config` times one configuration (model, ν,
 mesh, kernel, threads, precision); :func:`run_bench` a matrix of them: every model of the
 registry (:mod:`hybmss.models`) at ν = 0.499 plus the first ``performance`` model (hybmss) at
 ν = 1/4 (no volume term: it must cost what hybmss-cf costs), float64 and float32, one and two
-threads, on the 10³ and 30³ cubes (scenes built by :mod:`hybmss.experiments`).  The NumPy twin
-runs fewer steps (its row says how many; ``s_per_10k_steps`` scales it).  A configuration a
+threads, on the 10³ and 30³ cubes (scenes built by :mod:`hybmss.experiments`).  Each
+configuration runs as many steps as fit in half a second (at most 10,000; its row says how
+many; ``s_per_10k_steps`` scales it), so the whole matrix takes minutes.  A configuration a
 model does not support (a kernel it does not list; float32 for baudet2009, whose corrections run
 in float64) has no row.
 
@@ -39,8 +40,15 @@ NU = 0.499
 MESHES = ((10, 10, 10), (30, 30, 30))
 QUICK_MESH = (3, 3, 3)
 """The cube of a quick run: every configuration compiles a kernel of its own, in seconds."""
-STEPS = {(10, 10, 10): 10_000, (20, 20, 20): 2_000, (30, 30, 30): 1_000}
-"""Numba steps per timed run by mesh (figures are scaled to 10,000 steps)."""
+MAX_STEPS = 10_000
+"""Most steps of a timed run (figures are per 10,000 steps)."""
+TARGET_S = 0.5
+"""Seconds a timed run aims at: each configuration runs as many steps (at least
+:data:`MIN_STEPS`, at most :data:`MAX_STEPS`) as a short probe says fit in this, so a slow model
+or a large mesh costs the matrix no more than a fast one."""
+QUICK_TARGET_S = 0.02
+MIN_STEPS = 20
+PROBE_STEPS = 10
 
 
 def default_variants() -> list[tuple[str, float]]:
@@ -66,15 +74,20 @@ def load_average() -> float | None:
 class _Config:
     """One timed configuration: its scene, system and a warmed-up kernel."""
 
-    def __init__(self, model, nu, mesh, kernel, threads, precision, steps):
+    def __init__(self, model, nu, mesh, kernel, threads, precision, steps, target_s=TARGET_S):
         self.model, self.nu, self.mesh = model, float(nu), tuple(mesh)
-        self.kernel, self.threads, self.precision, self.steps = kernel, int(threads), precision, int(steps)
+        self.kernel, self.threads, self.precision = kernel, int(threads), precision
         self.scene = compression_scene(model, nu, mesh=self.mesh)
         self.system = build(self.scene)
         self.dc = dt_crit(self.system)
         self.best = (float("inf"), float("inf"), None)
         # warm-up: compiles (or loads from cache) the kernel outside the timings
         self._run(2)
+        if steps is None:  # as many steps as fit in target_s, from a short probe
+            probe = self._run(PROBE_STEPS).wall_time_s / PROBE_STEPS
+            steps = int(min(MAX_STEPS, max(MIN_STEPS, target_s / max(probe, 1e-9))))
+            steps = steps if steps < 100 else steps // 10 * 10
+        self.steps = int(steps)
 
     def _run(self, n):
         return simulate_explicit(self.scene, dt=DT, steps=n, kernel=self.kernel, threads=self.threads,
@@ -114,8 +127,6 @@ def time_config(model: str | None = None, nu: float = NU, mesh=MESH, threads: in
     """Best-of-``repeats`` row of one configuration (see :func:`run_bench` for the fields);
     ``model`` None is the registry's default model."""
     model = models.default_name() if model is None else model
-    if steps is None:
-        steps = STEPS.get(tuple(mesh), 1000) if kernel == "numba" else 200
     cfg = _Config(model, nu, mesh, kernel, threads, precision, steps)
     for _ in range(max(1, int(repeats))):
         cfg.time_once()
@@ -123,18 +134,21 @@ def time_config(model: str | None = None, nu: float = NU, mesh=MESH, threads: in
 
 
 def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool = False,
-              threads=(1, 2), numpy_steps: int = 500, repeats: int | None = None,
-              meshes=None, precisions=("f64", "f32"), variants=None, static: bool = True) -> dict:
-    """Time the explicit kernels; returns ``{"explicit": [row, ...], "static": [...]}``.
+              threads=(1, 2), numpy_steps: int | None = None, repeats: int | None = None,
+              meshes=None, precisions=("f64", "f32"), variants=None, static: bool = True,
+              target_s: float | None = None) -> dict:
+    """Time the explicit kernels; returns ``{"explicit": [row, ...], "static": [...],
+    "not_run": [...]}`` (the configurations a model refused, with its reason).
 
     Each row: ``model, nu, mesh, kernel, precision, threads, steps`` (steps actually run),
     ``wall_time_s`` (best of ``repeats``), ``cpu_time_s`` (process CPU time of the best run, all
     threads), ``s_per_10k_steps``, ``springs``, ``ns_per_spring_step``, ``dt_crit_s`` and
-    ``load_avg`` (the 1-minute load average at the best run).  ``steps`` overrides the Numba
-    steps of every mesh (default :data:`STEPS`); the NumPy twin runs ``numpy_steps`` on the
-    first mesh only, one thread, float64.  The static rows solve the first mesh.  ``quick``: the
-    :data:`QUICK_MESH` cube only, float64, one thread, a tenth of the steps, one repeat (a smoke
-    run, not a measurement).
+    ``load_avg`` (the 1-minute load average at the best run).  Each configuration runs the steps
+    that fit in ``target_s`` (default :data:`TARGET_S`; at most :data:`MAX_STEPS`); ``steps`` fixes the Numba steps of
+    every configuration and ``numpy_steps`` those of the NumPy twin (first mesh only, one
+    thread, float64).  Models whose kernel is serial have no two-thread rows.  The static rows
+    solve the first mesh.  ``quick``: the :data:`QUICK_MESH` cube only, float64, one thread,
+    runs of :data:`QUICK_TARGET_S`, one repeat (a smoke run, not a measurement).
     """
     if quick:  # one small mesh, one thread, float64: each configuration compiles a kernel of its own
         meshes, threads, precisions = meshes or (QUICK_MESH,), (1,), ("f64",)
@@ -144,34 +158,36 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
         repeats = 1 if quick else 3
     configs = []
 
+    target = target_s or (QUICK_TARGET_S if quick else TARGET_S)
+
+    skipped = {}
+
     def add(*cfg):
         if not models.get(cfg[0]).supports("explicit", cfg[3]):
             return
         try:
-            configs.append(_Config(*cfg))
-        except ValueError:  # a precision or kernel the model's forces do not have
-            pass
+            configs.append(_Config(*cfg, target_s=target))
+        except ValueError as exc:  # a precision, kernel or thread count the model does not have
+            skipped.setdefault((cfg[0], str(exc)), []).append(f"{mesh_label(cfg[2])} {cfg[5]} {cfg[4]} thr")
 
     for mesh in meshes:
-        n_nb = steps or STEPS.get(mesh, 1000)
-        if quick:
-            n_nb, numpy_steps = max(10, n_nb // 10), min(numpy_steps, 20)
         for model, nu in variants:
             for kernel in kernels:
                 if kernel == "numpy":
                     if mesh != meshes[0]:
                         continue
-                    add(model, nu, mesh, "numpy", 1, "f64", min(n_nb, numpy_steps))
+                    add(model, nu, mesh, "numpy", 1, "f64", numpy_steps)
                     continue
                 for prec in precisions:
                     for th in threads:
-                        add(model, nu, mesh, kernel, th, prec, n_nb)
+                        add(model, nu, mesh, kernel, th, prec, steps)
     for _ in range(repeats):
         for cfg in configs:
             cfg.time_once()
     rows = [c.row() for c in configs]
     return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats, mesh=meshes[0]) if static else [],
-            "cores": os.cpu_count()}
+            "cores": os.cpu_count(),
+            "not_run": [{"model": m, "reason": why, "configurations": c} for (m, why), c in skipped.items()]}
 
 
 def static_cases() -> list[tuple[str, float, float]]:
@@ -265,6 +281,8 @@ def format_bench(d: dict) -> str:
                 parts.append(f"{a['substeps']} substeps per step")
             if parts:
                 out.append(f"  {mesh} {model} nu={nu:g}: " + ";  ".join(parts))
+    for r in d.get("not_run", []):
+        out.append(f"  not run: {r['model']} {', '.join(r['configurations'])}: {r['reason']}")
     static = d.get("static", [])
     if static:
         out += ["", "static solves"]

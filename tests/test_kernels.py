@@ -217,6 +217,25 @@ def test_bench_rows_and_table():
     assert text.count("f32/f64 (1 thr)") == 2 and text.count("numba/numpy") == 2 and "load average" in text
 
 
+def test_bench_fits_the_steps_to_the_time_and_says_what_a_model_refuses():
+    """Without fixed steps each configuration runs what fits in the target time (the slow NumPy
+    twin fewer steps than the kernel); a serial competitor has no two-thread row, and the table
+    says so with the model's reason."""
+    from hybmss.bench import MAX_STEPS, MIN_STEPS, format_bench, run_bench
+
+    d = run_bench(repeats=1, threads=(1, 2), meshes=((3, 3, 3),), precisions=("f64",), static=False,
+                  variants=(("hybmss-cf", 0.3), ("corot-hex8", 0.3)), target_s=0.02)
+    rows = {(r["model"], r["kernel"], r["threads"]): r for r in d["explicit"]}
+    assert set(rows) == {("hybmss-cf", "numba", 1), ("hybmss-cf", "numba", 2), ("hybmss-cf", "numpy", 1),
+                         ("corot-hex8", "numba", 1), ("corot-hex8", "numpy", 1)}
+    for r in rows.values():
+        assert MIN_STEPS <= r["steps"] <= MAX_STEPS
+    assert rows[("hybmss-cf", "numpy", 1)]["steps"] < rows[("hybmss-cf", "numba", 1)]["steps"]
+    (refused,) = d["not_run"]
+    assert refused["model"] == "corot-hex8" and "serial" in refused["reason"]
+    assert "not run: corot-hex8 3x3x3 f64 2 thr" in format_bench(d)
+
+
 def test_bench_times_one_configuration_from_the_command_line():
     import json
     import subprocess
