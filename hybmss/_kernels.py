@@ -101,8 +101,21 @@ def apply_plates(W, xb, vb, L, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_
     """Prescribed components of every plate at load factor ``s_new`` (velocity from ``s_old``),
     on the nodes ``qlo ≤ q < qhi``."""
     for ip in range(pl_ptr.shape[0] - 1):
-        nodes = pl_nodes[pl_ptr[ip]:pl_ptr[ip + 1]]
-        U1 = pl_U1[:, pl_ptr[ip]:pl_ptr[ip + 1]]
+        a, b = pl_ptr[ip], pl_ptr[ip + 1]
+        if pl_kind[ip] == 0:  # u = s · U1, v = U1 Δs/dt: no work arrays, no division (most plates)
+            rate = (s_new - s_old) / dt
+            for d in range(3):
+                if pl_mask[ip, d]:
+                    for i in range(a, b):
+                        q = pl_nodes[i]
+                        if q < qlo or q >= qhi:
+                            continue
+                        u1 = pl_U1[d, i]
+                        W[xb + d * L + q] = (X[d, q] + s_new * u1) if posmode else s_new * u1
+                        W[vb + d * L + q] = rate * u1
+            continue
+        nodes = pl_nodes[a:b]
+        U1 = pl_U1[:, a:b]
         n = nodes.shape[0]
         uo = u_old[:, :n]
         un = u_new[:, :n]

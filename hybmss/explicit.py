@@ -205,6 +205,30 @@ def plate_arrays(system: System, node: np.ndarray | None = None) -> PlateArrays:
     )
 
 
+def hold_clamped(plates: PlateArrays) -> tuple[PlateArrays, np.ndarray]:
+    """``plates`` without the clamped ones (every component prescribed, no motion) whose nodes
+    no other plate moves, and those nodes.  A node given ``1/m = 0`` and no gravity keeps its
+    position and zero velocity through the kernel's own update, so it needs no plate write."""
+    n_pl = len(plates.kind)
+    own = [plates.nodes[plates.ptr[i]:plates.ptr[i + 1]] for i in range(n_pl)]
+    held = [i for i in range(n_pl) if plates.kind[i] == 0 and plates.mask[i].all()
+            and not plates.U1[:, plates.ptr[i]:plates.ptr[i + 1]].any()]
+    for i in list(held):
+        others = [own[j] for j in range(n_pl) if j != i]
+        if others and np.isin(own[i], np.concatenate(others)).any():
+            held.remove(i)
+    if not held:
+        return plates, np.zeros(0, dtype=np.int64)
+    keep = [i for i in range(n_pl) if i not in held]
+    cols = [np.arange(plates.ptr[i], plates.ptr[i + 1]) for i in keep]
+    cols = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+    ptr = np.concatenate([[0], np.cumsum([len(own[i]) for i in keep])]).astype(np.int64)
+    kept = PlateArrays(nodes=plates.nodes[cols], U1=np.ascontiguousarray(plates.U1[:, cols]), ptr=ptr,
+                       mask=plates.mask[keep].reshape(len(keep), 3), kind=plates.kind[keep],
+                       disp=plates.disp[keep].reshape(len(keep), 3), axis=plates.axis[keep].reshape(len(keep), 3),
+                       center=plates.center[keep].reshape(len(keep), 3), angle=plates.angle[keep])
+    return kept, np.concatenate([own[i] for i in held]).astype(np.int64)
+
 
 @dataclass(eq=False)
 class Stencil:
@@ -473,7 +497,9 @@ def stencil(system: System, dt: float, ramp_time: float, precision: str = "f64",
         F0[:, flat] = np.asarray(dead, dtype=float).T
     gcorr = GridCorrections.from_system(system) if corr is not None else None
 
-    plates = plate_arrays(system, flat)
+    plates, held = hold_clamped(plate_arrays(system, flat))
+    invm[held] = 0.0
+    gacc[:, held] = 0.0
     c = system.scene.damping if damping is None else float(damping)
     return Stencil(
         shape=shape,
