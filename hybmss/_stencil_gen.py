@@ -33,8 +33,8 @@ start-up; ``run`` (the [B09] corrections, or too few Numba threads) opens a regi
 Precision ``f64`` stores positions x and evaluates the formulas of :mod:`hybmss.forces`.
 Precision ``f32`` stores displacements u = x − X (positions of a few metres keep only ~1e-7 m
 in float32, displacements keep 1e-7 of themselves) and avoids the cancellations of small
-strains: a spring of rest vector D (a literal) has ``l² − l0² = 2 D·Δu + |Δu|²`` and
-``k (1 − l0/l) = k (l² − l0²)/(l (l + l0))``; a cell ``det(le I + Δ) − le³ = le² tr Δ +
+strains: a spring of rest vector D (a literal) has ``g = l² − l0² = 2 D·Δu + |Δu|²``, ``l = √(l0² + g)``
+and ``k (1 − l0/l) = k g/(l (l + l0))``; a cell ``det(le I + Δ) − le³ = le² tr Δ +
 le M₂(Δ) + det Δ`` (M₂ the sum of the principal 2×2 minors of the averaged edge increments Δ).
 """
 
@@ -54,7 +54,7 @@ from ._sync import MESSAGE
 BLOCK = 64
 """Nodes per block of the two loops (a multiple of the vector width of either precision)."""
 
-GENERATOR_VERSION = 3
+GENERATOR_VERSION = 4
 """Bumped whenever the generated source changes meaning (it is part of the cache key)."""
 
 # corner c of a cell (grid offset (c & 1, c >> 1 & 1, c >> 2 & 1)) gets sign · G[slot] of the cell
@@ -193,7 +193,7 @@ def _loop1(S: _Src, ind: int, lay: Layout, t: int, xr: str):
             for d in range(3):
                 if D[d] != 0.0:
                     S(ind, f"e{d} = e{d} + {_lit(D[d], True)}")
-            S(ind, "l = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)")
+            S(ind, f"l = np.sqrt(l0s_{j} + g)")  # |D + e|² = l0² + g
             S(ind, f"c = W[{B(f'K{j}')} + a] * g / (l * (l + l0_{j}))")
         else:
             S(ind, "l = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)")
@@ -304,6 +304,8 @@ def source(cfg: Config) -> str:
             S(0, f"def step_{parity}_{t}(W, prm):")
             for j in range(nl):
                 S(1, f"l0_{j} = prm[{j}]")
+                if f32:
+                    S(1, f"l0s_{j} = l0_{j} * l0_{j}")
             S(1, f"dt = prm[{nl}]")
             S(1, f"damp = prm[{nl + 1}]")
             S(1, f"V0 = prm[{nl + 2}]")
