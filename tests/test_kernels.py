@@ -249,6 +249,18 @@ def test_bench_times_one_configuration_from_the_command_line():
     assert (row["model"], row["mesh"], row["precision"], row["threads"], row["steps"]) == ("hybmss-cf", "3x3x3", "f32", 1, 10)
 
 
+def test_two_threads_in_float32_equal_one_thread_bit_for_bit():
+    scene = _scene("hybmss", 0.45, body=Body.box(4, 3, 5, 0.5), plates="rotate", E=1e6, gravity=(0, 0, -10))
+    system = build(scene)
+    dc = dt_crit(system)
+    x0, v0 = _initial(system, 2)
+    kw = dict(dt=0.5 * dc, ramp_time=30 * dc, system=system, x0=x0, v0=v0, dt_crit_value=dc, steps=STEPS,
+              precision="f32", check_every=7)
+    r1 = simulate_explicit(scene, threads=1, **kw)
+    r2 = simulate_explicit(scene, threads=2, **kw)
+    assert np.abs(r1.u).max() > 0 and np.array_equal(r1.u, r2.u)
+
+
 def test_threads_that_cannot_run_at_once_give_up_and_restore_the_state():
     """Two ranges on one Numba thread cannot meet at a barrier: the waiting one gives up after
     its spin limit, the state is restored and the run goes on one parallel region per step."""
