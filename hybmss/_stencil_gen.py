@@ -27,8 +27,9 @@ was done in this block or an earlier one) and integrates ``v ← (v + dt (f/m + 
 (loop 1 only) instead of waiting for the thread below: no barrier inside a step, and the same
 arithmetic per node whatever T (threads agree bit for bit).  ``run_threads`` keeps all the
 steps in one parallel region: thread t sets the plates of its own nodes after its step and
-meets the others at one spinning barrier (:mod:`hybmss._sync`), so a step costs no thread
+meets the others at one spinning barrier (:mod:`hybmss._cpu`), so a step costs no thread
 start-up; ``run`` (the [B09] corrections, or too few Numba threads) opens a region per step.
+Every thread computes with subnormals flushed to zero (:func:`hybmss._cpu.flush_subnormals`).
 
 Precision ``f64`` stores positions x and evaluates the formulas of :mod:`hybmss.forces`.
 Precision ``f32`` stores displacements u = x − X (positions of a few metres keep only ~1e-7 m
@@ -49,12 +50,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._sync import MESSAGE
+from ._cpu import MESSAGE
 
 BLOCK = 64
 """Nodes per block of the two loops (a multiple of the vector width of either precision)."""
 
-GENERATOR_VERSION = 4
+GENERATOR_VERSION = 5
 """Bumped whenever the generated source changes meaning (it is part of the cache key)."""
 
 # corner c of a cell (grid offset (c & 1, c >> 1 & 1, c >> 2 & 1)) gets sign · G[slot] of the cell
@@ -290,7 +291,7 @@ def source(cfg: Config) -> str:
     S(0, "import numpy as np")
     S(0, "from numba import njit, prange")
     S(0, "from hybmss._kernels import end_of_step, external_forces, find_bad, plate_scratch, prescribe")
-    S(0, "from hybmss._sync import atomic_load, atomic_store, barrier")
+    S(0, "from hybmss._cpu import atomic_load, atomic_store, barrier, flush_subnormals, restore_fp_mode")
     S(0, "_OPTS = dict(cache=True, error_model='numpy', fastmath=False, nogil=True, boundscheck=False)")
     nl = len(cfg.offsets)
     bounds = lay.bounds()
@@ -336,12 +337,14 @@ def source(cfg: Config) -> str:
         S(0, "@njit(parallel=True, **_OPTS)")
         S(0, "def step(W, prm, parity):")
         S(1, f"for t in prange({cfg.threads}):")
+        S(2, "fp = flush_subnormals()")
         for parity in (0, 1):
             S(2, f"{'if' if parity == 0 else 'else:'}{f' parity == 0:' if parity == 0 else ''}")
             for t in range(cfg.threads):
                 kw = "if" if t == 0 else "elif"
                 S(3, f"{kw} t == {t}:")
                 S(4, f"step_{parity}_{t}(W, prm)")
+        S(2, "restore_fp_mode(fp)")
     del f32
     S(0, "")
     B = lay.base
@@ -351,6 +354,7 @@ def source(cfg: Config) -> str:
     S(1, '"""Advance ``nsteps`` steps from global step ``step0``, the current positions in buffer')
     S(1, '``parity0`` (0: XA).  Returns (steps done, bad node or -1)."""')
     S(1, "R, u_old, u_new = plate_scratch(pl_ptr)")
+    S(1, "fp = flush_subnormals()")
     S(1, "for n in range(nsteps):")
     S(2, f"par = (parity0 + n) % {len(buffers)}")
     if cfg.baudet:
@@ -363,7 +367,9 @@ def source(cfg: Config) -> str:
          "pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, "
          "u_new, n, nsteps, check_every, limit2)")
     S(2, "if bad >= 0:")
+    S(3, "restore_fp_mode(fp)")
     S(3, "return n + 1, bad")
+    S(1, "restore_fp_mode(fp)")
     S(1, "return nsteps, -1")
     if cfg.threads > 1 and not cfg.baudet:
         _threaded_run(S, lay)
@@ -385,6 +391,7 @@ def _threaded_run(S: _Src, lay: Layout):
         S(0, f"def thread_{t}({args}):")
         S(1, f'"""Thread {t}: blocks [{bounds[t]}, {bounds[t + 1]}) of every step, then the plates of its nodes."""')
         S(1, "R, u_old, u_new = plate_scratch(pl_ptr)")
+        S(1, "fp = flush_subnormals()")
         S(1, "for n in range(nsteps):")
         S(2, "par = (parity0 + n) % 2")
         S(2, "if par == 0:")
@@ -397,17 +404,19 @@ def _threaded_run(S: _Src, lay: Layout):
              f"pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, u_new, "
              f"{bounds[t] * BLOCK}, {bounds[t + 1] * BLOCK})")
         S(2, f"if not barrier(S, {T}):")
-        S(3, "return")
+        S(3, "break")
         S(2, "if (n + 1) % check_every == 0 or n == nsteps - 1:")
         if t == 0:
             S(3, f"atomic_store(S, {MESSAGE}, find_bad(W, xb, {lay.L}, {lay.N}, {posmode}, X, limit2))")
         S(3, f"if not barrier(S, {T}):")
-        S(4, "return")
+        S(4, "break")
         S(3, f"bad = atomic_load(S, {MESSAGE})")
         S(3, "if bad >= 0:")
         S(4, f"out[{t}] = n + 1")
         S(4, f"out[{T + t}] = bad")
+        S(4, "restore_fp_mode(fp)")
         S(4, "return")
+        S(1, "restore_fp_mode(fp)")
         S(1, f"out[{t}] = nsteps")
         S(1, f"out[{T + t}] = -1")
     S(0, "")

@@ -44,7 +44,7 @@ import numpy as np
 from .forces import energy_forces, hessian, internal_forces
 from .result import Result, reaction_from_nodal
 from .scene import Scene
-from . import _sync
+from . import _cpu
 from .baudet import Corrections, GridCorrections
 from .system import System, build
 from .terms import DeadLoad
@@ -355,7 +355,7 @@ class Stencil:
     def advance(self, step0: int, nsteps: int, check_every: int, limit2: float) -> tuple[int, int]:
         """Run ``nsteps`` steps from global step ``step0`` in place.  Returns (steps done, bad grid
         node or −1).  Several threads run all the steps in one parallel region (a spinning barrier
-        per step, :mod:`hybmss._sync`); the [B09] corrections, or threads that do not all run at
+        per step, :mod:`hybmss._cpu`); the [B09] corrections, or threads that do not all run at
         once, take one parallel region per step."""
         import numba
 
@@ -402,12 +402,12 @@ class Stencil:
         barrier per step).  (None, None) with the state restored if the threads did not all run
         at once (a thread waited in vain at a barrier): the caller then runs one region per step."""
         T = int(self.threads)
-        sync = np.zeros(_sync.SLOTS, dtype=np.int64)
+        sync = np.zeros(_cpu.SLOTS, dtype=np.int64)
         out = np.zeros(2 * T, dtype=np.int64)
         saved = self.W.copy()
         W, prm = args[0], args[1]
         mod.run_threads(W, prm, sync, out, *args[2:19])
-        if sync[_sync.ABORT] != 0:
+        if sync[_cpu.ABORT] != 0:
             self.W[:] = saved
             return None, None
         done = int(out[:T].min())

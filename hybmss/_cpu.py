@@ -1,16 +1,24 @@
-"""Atomic integers and a spinning barrier for threads that share one parallel region.
+"""What the kernels need of the CPU that Numba does not give: atomic integers, a spinning
+barrier, and the flush-to-zero mode of the floating-point unit.
 
-The threaded explicit kernel (:mod:`hybmss._stencil_gen`) runs all its steps inside one
-parallel region: each thread advances its own node range and waits for the others once per
-step at :func:`barrier`.  Numba has no atomics of its own; the three operations here are
-LLVM's (``atomicrmw add``, ``load atomic acquire``, ``store atomic release``) on one element of
-an int64 array, so the compiler neither caches the shared counters in registers nor moves the
-state's loads and stores across them.
-
-State of a barrier: an int64 array ``S`` of :data:`SLOTS` entries, zero at the start:
+**Barrier.**  The threaded explicit kernel (:mod:`hybmss._stencil_gen`) runs all its steps inside
+one parallel region: each thread advances its own node range and waits for the others once per
+step at :func:`barrier`.  The three atomic operations are LLVM's (``atomicrmw add``, ``load
+atomic acquire``, ``store atomic release``) on one element of an int64 array, so the compiler
+neither caches the shared counters in registers nor moves the state's loads and stores across
+them.  State of a barrier: an int64 array ``S`` of :data:`SLOTS` entries, zero at the start:
 ``S[COUNT]`` threads arrived in the current round, ``S[ROUND]`` rounds completed, ``S[ABORT]``
 set when a thread gave up waiting (the others leave at their next barrier), ``S[MESSAGE]`` a
 value one thread publishes to all (the diverged node of a check).
+
+**Subnormals.**  The front of a wave leaves, ahead of itself, displacements that decay by orders
+of magnitude per cell; in float32 they reach the subnormal range (below 1.2e-38) within a few
+dozen cells, and arithmetic on subnormals is many times slower on x86 (a 30³ cube in float32
+ran 4× slower than in float64 for that alone).  :func:`flush_subnormals` sets the MXCSR bits
+FTZ and DAZ (results and inputs below the normal range are zero) for the calling thread and
+returns the previous mode for :func:`restore_fp_mode`.  Values that small carry no physics (a
+displacement of 1e-38 m); every thread of a kernel sets the same mode, so threads still agree
+bit for bit.
 """
 
 from __future__ import annotations
@@ -103,3 +111,53 @@ def barrier(S, nthreads):
             return False
         cpu_relax()
     return atomic_load(S, ABORT) == 0
+
+
+FTZ_DAZ = 0x8040
+"""MXCSR bits 15 (flush to zero) and 6 (denormals are zero)."""
+
+
+def _mxcsr_call(builder, name, ptr):
+    i8p = ir.IntType(8).as_pointer()
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p]), name)
+    builder.call(fn, [builder.bitcast(ptr, i8p)])
+
+
+@intrinsic
+def get_fp_mode(typingctx):
+    """The MXCSR register of the calling thread."""
+    sig = types.int64()
+
+    def codegen(context, builder, signature, args):
+        slot = cgutils.alloca_once(builder, ir.IntType(32))
+        _mxcsr_call(builder, "llvm.x86.sse.stmxcsr", slot)
+        return builder.zext(builder.load(slot), ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def set_fp_mode(typingctx, mode):
+    """Load ``mode`` into the MXCSR register of the calling thread."""
+    sig = types.void(types.int64)
+
+    def codegen(context, builder, signature, args):
+        slot = cgutils.alloca_once(builder, ir.IntType(32))
+        builder.store(builder.trunc(args[0], ir.IntType(32)), slot)
+        _mxcsr_call(builder, "llvm.x86.sse.ldmxcsr", slot)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def flush_subnormals():
+    """Set FTZ and DAZ for the calling thread; returns the previous MXCSR."""
+    old = get_fp_mode()
+    set_fp_mode(old | FTZ_DAZ)
+    return old
+
+
+@njit(cache=True, nogil=True)
+def restore_fp_mode(old):
+    set_fp_mode(old)
