@@ -30,9 +30,14 @@ from numba.extending import intrinsic
 
 COUNT, ROUND, ABORT, MESSAGE = 0, 1, 2, 3
 SLOTS = 8  # one 64-byte line
-SPIN_LIMIT = 1 << 24
-"""Polls of the round counter before a waiting thread gives up (about a second of spinning:
-the other threads are not running, e.g. a parallel region given fewer threads than ranges)."""
+SPINS_BEFORE_YIELD = 1 << 10
+"""Polls (``pause``, tens of ns each) before a waiting thread yields its core at every poll: on
+an idle machine the others arrive within that; on a busy one a thread that only spins would
+keep a descheduled partner off its core for a whole time slice (milliseconds) per step."""
+SPIN_LIMIT = 1 << 22
+"""Polls of the round counter before a waiting thread gives up (seconds, most of them spent
+yielding: the other threads are not running, e.g. a parallel region given fewer threads than
+ranges)."""
 
 
 def _pointer(context, builder, aryty, ary, idx):
@@ -91,6 +96,19 @@ def cpu_relax(typingctx):
     return sig, codegen
 
 
+@intrinsic
+def yield_cpu(typingctx):
+    """``sched_yield()``: let another runnable thread have this core."""
+    sig = types.void()
+
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.IntType(32), []), "sched_yield")
+        builder.call(fn, [])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
 @njit(cache=True, nogil=True)
 def barrier(S, nthreads):
     """Wait until ``nthreads`` threads have called this for the current round.  Returns False
@@ -109,7 +127,10 @@ def barrier(S, nthreads):
         if spins >= SPIN_LIMIT:
             atomic_store(S, ABORT, 1)
             return False
-        cpu_relax()
+        if spins < SPINS_BEFORE_YIELD:
+            cpu_relax()
+        else:  # the others are late: they may be waiting for this core
+            yield_cpu()
     return atomic_load(S, ABORT) == 0
 
 

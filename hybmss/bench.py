@@ -83,9 +83,14 @@ class _Config:
         self.best = (float("inf"), float("inf"), None)
         # warm-up: compiles (or loads from cache) the kernel outside the timings
         self._run(2)
-        if steps is None:  # as many steps as fit in target_s, from a short probe
-            probe = self._run(PROBE_STEPS).wall_time_s / PROBE_STEPS
-            steps = int(min(MAX_STEPS, max(MIN_STEPS, target_s / max(probe, 1e-9))))
+        if steps is None:  # as many steps as fit in target_s, from probes of a tenth of it
+            n = PROBE_STEPS
+            while True:
+                probe = self._run(n).wall_time_s
+                if probe >= 0.1 * target_s or n >= MAX_STEPS:
+                    break
+                n *= 4
+            steps = int(min(MAX_STEPS, max(MIN_STEPS, target_s * n / max(probe, 1e-9))))
             steps = steps if steps < 100 else steps // 10 * 10
         self.steps = int(steps)
 
