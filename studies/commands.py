@@ -13,6 +13,7 @@ import dataclasses
 import json
 import math
 import signal
+import threading
 import time
 
 from hybmss import models
@@ -356,11 +357,16 @@ def compare(args):
 
 
 # ------------------------------------------------------------------------------- run
+def _terminate(signum, frame):
+    raise KeyboardInterrupt("SIGTERM")
+
+
 def run(args):
     """The studies into ``--out``: 0 when the sweep finishes (failed runs are stored rows), 2 for
     options not allowed (checked before any work: the folder, the executor and its scheduler),
-    3 when the sweep cannot go on (:class:`studies.executors.SweepError`), 130 on SIGINT (finished
-    runs are kept, running ones abandoned; a second Ctrl-C exits at once)."""
+    3 when the sweep cannot go on (:class:`studies.executors.SweepError`), 130 on SIGINT or SIGTERM
+    (finished runs are kept, running ones abandoned and their workers stopped; a second Ctrl-C
+    exits at once)."""
     from .reproduce import run_studies
 
     if args.all and args.study:
@@ -370,6 +376,10 @@ def run(args):
         raise InputError("--out '' is not allowed: a results folder path is required")
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
+    if threading.current_thread() is threading.main_thread():
+        # SIGTERM (a job scheduler, `timeout`, `kill`) stops the sweep as Ctrl-C does: no worker
+        # is left computing for a process that is gone
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         with runner:
             run_studies(args.out, names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,

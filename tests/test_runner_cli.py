@@ -34,8 +34,10 @@ def _terminal_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-@pytest.mark.parametrize("executor, signals", [("local", 2), ("dask", 1)])
+@pytest.mark.parametrize("executor, signals", [("local", 2), ("dask", 1), ("local", "SIGTERM")])
 def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_path):
+    """Ctrl-C (SIGINT to the process group, once or twice), or SIGTERM to the command alone (as
+    `timeout` or a job scheduler sends it): the workers are stopped, finished runs kept."""
     store = Store(tmp_path)
     p = subprocess.Popen(hybmss("run", "--study", "compression", "--quick", "--jobs", "2", "--executor", executor,
                                 "--out", str(tmp_path), "--no-progress"),
@@ -45,20 +47,24 @@ def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_p
         workers = [c for c in psutil.Process(p.pid).children(recursive=True)
                    if "resource_tracker" not in " ".join(c.cmdline())]
         assert len(workers) >= 2
-        for _ in range(signals):  # Ctrl-C at a terminal: SIGINT to the whole process group
+        if signals == "SIGTERM":
+            os.kill(p.pid, signal.SIGTERM)
+        for _ in range(0 if signals == "SIGTERM" else signals):  # Ctrl-C: SIGINT to the process group
             os.killpg(p.pid, signal.SIGINT)
             time.sleep(0.05)
         rc = p.wait(timeout=60)  # prompt: no run is waited for, nothing hangs
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
+    _, alive = psutil.wait_procs(workers, timeout=10)
+    for w in alive:  # a worker left running would also hold the stderr pipe open
+        w.kill()
+    assert alive == []  # the pool is shut down
     err = p.stderr.read()
     # 130 from the handler; a second SIGINT landing while the interpreter exits ends it by the
     # signal itself (the same status to a shell)
     assert rc in (130, -signal.SIGINT), err
     assert "Traceback" not in err and "interrupted" in err
-    _, alive = psutil.wait_procs(workers, timeout=10)
-    assert alive == []  # the pool is shut down
     rows, damaged = store.scan()
     assert damaged == [] and 2 <= len(rows) < 44  # finished runs kept, the rest abandoned
     assert not list(store.runs.glob(".*.tmp"))
