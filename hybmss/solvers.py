@@ -446,6 +446,49 @@ def _factor_general(A):
     return spla.splu(A)
 
 
+def _cell_zero_energy_modes(S: System) -> bool:
+    """Whether a cell of the lattice, on its own, has a zero-energy mode at rest besides the six
+    rigid motions (the hourglass modes of a cubic lattice without face diagonals, hybmss-fd): the
+    rest Hessian of the springs joining two of its corners, ``Σ k ê êᵀ``, plus the volume term's
+    rank-one ``g gᵀ`` (``g = ∂V/∂x``: any energy of the cell volume has that Hessian at rest),
+    has more than six eigenvalues below 1e-9 of the largest.  Such a lattice has equilibria that
+    depend on the path (buckled, hourglassed), so :func:`_newton` keeps its unshifted steps on it."""
+    cells = S.lattice.cells
+    if len(cells) == 0:
+        return False
+    return _zero_energy_modes_of_cell(S, int(len(cells) // 2))
+
+
+def _zero_energy_modes_of_cell(S: System, c: int) -> bool:
+    nodes = np.asarray(S.lattice.cells[c], dtype=np.int64)
+    local = np.full(S.n, -1, dtype=np.int64)
+    local[nodes] = np.arange(8)
+    la, lb = local[S.spring_a], local[S.spring_b]
+    inside = (la >= 0) & (lb >= 0)
+    K = np.zeros((24, 24))
+    X = S.X
+    for a, b, k in zip(la[inside], lb[inside], S.spring_k[inside]):
+        e = X[nodes[b]] - X[nodes[a]]
+        e = e / np.linalg.norm(e)
+        B = np.zeros(24)
+        B[3 * a:3 * a + 3], B[3 * b:3 * b + 3] = -e, e
+        K += k * np.outer(B, B)
+    if S.has_volume:
+        x0 = X[nodes].reshape(1, 8, 3)
+        h = 1e-6 * S.scene.body.le
+        g = np.empty(24)
+        idx = np.arange(8).reshape(1, 8)
+        for j in range(24):
+            xp, xm = x0.copy(), x0.copy()
+            xp[0, j // 3, j % 3] += h
+            xm[0, j // 3, j % 3] -= h
+            g[j] = (cell_volumes(xp.reshape(8, 3), idx)[0] - cell_volumes(xm.reshape(8, 3), idx)[0]) / (2 * h)
+        scale = np.abs(np.diag(K)).max() if K.any() else 1.0
+        K += scale * np.outer(g, g) / float(g @ g)
+    w = np.linalg.eigvalsh(K)
+    return int(np.count_nonzero(w <= 1e-9 * max(abs(w).max(), 1e-300))) > 6
+
+
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
             inertia: tuple[np.ndarray, np.ndarray] | None, stats: _NewtonStats, line_search=True,
             lu=None, load: float = 1.0, fac: _Factorizer | None = None, definite_after: int | None = None):
@@ -503,6 +546,9 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     # once the unshifted Hessian has proved not positive definite in this call (a failed
     # Cholesky), the next unshifted ones go to SuperLU directly instead of failing again
     indefinite = False
+    # a lattice whose cells have no zero-energy mode steps with the Cholesky of the smallest shift
+    # that is positive definite; one with such modes keeps the unshifted indefinite step
+    definite_steps = not residual and fac is not None and cholmod is not None and not _cell_zero_energy_modes(system)
     if residual:
         lu = None
     for it in range(max_iter + 1):
@@ -551,7 +597,16 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                             lu = _factor_general(A)
                         else:
                             failed = fac.failed if fac is not None else 0
-                            lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
+                            if definite_steps and mu < 1.0:
+                                lu = fac.cholesky(A)
+                                if lu is None:
+                                    if mu == 0.0:
+                                        indefinite = True
+                                        if definite_after is not None and it >= definite_after:
+                                            return False, x, f, rnorm, scale
+                                    continue
+                            else:
+                                lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
                             if mu == 0.0 and fac is not None and fac.failed > failed:
                                 indefinite = True
                                 if definite_after is not None and it >= definite_after:
