@@ -916,11 +916,15 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         return lam_at[s]
 
     s_hi, s_tol = None, 0.0
+    tried = None  # (s_hi, x, guess) of a failed Newton inside a bracket that made limit_iter steps
     while s < 1.0 - 1e-14:
         if s_hi is not None and s_hi - s <= s_tol:
             # the bracket is narrow: the ordinary Newton at its upper end decides.  Failing, the
             # limit point is reported; converging (a bifurcation the path passes, not a fold), the
-            # load stepping goes on without the bracketing
+            # load stepping goes on without the bracketing.  A Newton from this equilibrium to
+            # s_hi that already made limit_iter steps without converging has decided it
+            if tried is not None and tried[0] == s_hi and tried[1] is x:
+                raise StaticSolveError(_failure_message(S, scene, x, tried[2], s, s_hi, lam_at.get(s) or None))
             target = S.prescribed(s_hi)
             guess, lu = _tangent_predictor(S, x, target, free, s_hi, pred_fac, pred_cache)
             if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
@@ -963,6 +967,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
                 lu = F_guess
         # inside a bracket, Newton gives up when its iterates stay out of the stable region
         iters = opts.max_iter if not (failed_before or s_hi is not None) else opts.retry_iter
+        it0 = stats.iterations
         ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, iters, None, stats,
                                              opts.line_search, lu=lu, load=s_new, fac=fac,
                                              definite_after=3 if s_hi is not None else None)
@@ -975,6 +980,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             continue
         if s_hi is not None:
             s_hi = s_new
+            tried = (s_new, x, guess) if stats.iterations - it0 >= opts.limit_iter else None
             continue
         ds *= 0.5
         if ds < opts.min_step:
