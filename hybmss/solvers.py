@@ -696,9 +696,10 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
     return x + delta.reshape(x.shape), (None if residual else lu)
 
 
-def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray]:
+def smallest_eigenpair(system: System, x: np.ndarray, fac: "_Factorizer | None" = None) -> tuple[float, np.ndarray]:
     """Smallest eigenvalue (N/m) of the constrained Hessian at ``x`` and its eigenvector
-    (over the free dofs)."""
+    (over the free dofs).  ``fac``: a factorizer whose symbolic analysis of the pattern is reused
+    (its factor is overwritten)."""
     free = ~system.fixed.ravel()
     T = _tangent(system, x, 1.0, free)
     Hff = T.csc()
@@ -711,7 +712,7 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
         # shift-invert with the factorization of A − σI the Newton solves use (Cholesky, or the
         # minimum-degree symmetric LU when it is indefinite), not splu's default COLAMD ordering
         with np.errstate(all="ignore"):
-            F = _factor(T.shifted(-shift), _Factorizer())
+            F = _factor(T.shifted(-shift), fac if fac is not None else _Factorizer())
         op = spla.LinearOperator(A.shape, matvec=F.solve, dtype=float)
         # a fixed start vector: ARPACK's default is random, and the mode it returns then picks
         # which of two nearly equal soft directions a saddle escape follows (runs would differ)
@@ -725,9 +726,10 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
         return float(w[0]), v[:, 0]
 
 
-def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
-    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m)."""
-    return smallest_eigenpair(system, x)[0]
+def smallest_eigenvalue(system: System, x: np.ndarray, fac: "_Factorizer | None" = None) -> float:
+    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m) (``fac``: as for
+    :func:`smallest_eigenpair`)."""
+    return smallest_eigenpair(system, x, fac)[0]
 
 
 def _stability(S: System, x: np.ndarray, free: np.ndarray, fac: _Factorizer | None = None):
@@ -746,7 +748,7 @@ def _stability(S: System, x: np.ndarray, free: np.ndarray, fac: _Factorizer | No
             return True, float("nan"), None
     except RuntimeError:  # singular: zero-energy modes, decide from the eigenvalue
         pass
-    lam, vec = smallest_eigenpair(S, x)
+    lam, vec = smallest_eigenpair(S, x, fac)
     return lam >= -tol, lam, vec
 
 
@@ -841,13 +843,13 @@ def _fold_suspected(S: System, guess: np.ndarray, free: np.ndarray, fac: _Factor
 
 
 def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: float, s_new: float,
-                     lam: float | None = None) -> str:
+                     lam: float | None = None, fac: "_Factorizer | None" = None) -> str:
     """Why the load could not be increased past ``s``: the smallest eigenvalue of the
     constrained Hessian at the last equilibrium (``lam`` when already known) and at the
     predicted state just beyond it."""
     if lam is None:
-        lam = smallest_eigenvalue(S, x)
-    lam_next = smallest_eigenvalue(S, guess)
+        lam = smallest_eigenvalue(S, x, fac)
+    lam_next = smallest_eigenvalue(S, guess, fac)
     head = (f"static solve of scene {scene.name or '(unnamed)'} failed at load factor s={s_new:.6g} "
             f"(last converged s={s:.6g}); smallest eigenvalue of the constrained Hessian: {lam:.4g} N/m at "
             f"s={s:.6g}, {lam_next:.4g} N/m at the predicted state s={s_new:.6g}")
@@ -913,7 +915,9 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         by Cholesky: shift-invert alone can miss a negative eigenvalue far below the shift), else 0."""
         if s not in lam_at:
             Hx = _tangent(S, x, s, free)
-            lam_at[s] = 0.0 if _not_definite(Hx, 0.0, fold_fac) else smallest_eigenvalue(S, x)
+            # the predictor's Cholesky at x, when it succeeded, already proved it positive definite
+            definite = pred_cache.get("x") is x and isinstance(pred_cache.get("lu"), _CholeskyFactor)
+            lam_at[s] = smallest_eigenvalue(S, x, fold_fac) if definite or not _not_definite(Hx, 0.0, fold_fac) else 0.0
         return lam_at[s]
 
     s_hi, s_tol = None, 0.0
@@ -925,7 +929,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             # load stepping goes on without the bracketing.  A Newton from this equilibrium to
             # s_hi that already made limit_iter steps without converging has decided it
             if tried is not None and tried[0] == s_hi and tried[1] is x:
-                raise StaticSolveError(_failure_message(S, scene, x, tried[2], s, s_hi, lam_at.get(s) or None))
+                raise StaticSolveError(_failure_message(S, scene, x, tried[2], s, s_hi, lam_at.get(s) or None, fold_fac))
             target = S.prescribed(s_hi)
             guess, lu = _tangent_predictor(S, x, target, free, s_hi, pred_fac, pred_cache)
             if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
@@ -934,7 +938,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.limit_iter, None, stats,
                                                  opts.line_search, lu=lu, load=s_hi, fac=fac)
             if not ok:
-                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi, lam_at.get(s) or None))
+                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi, lam_at.get(s) or None, fold_fac))
             load_steps += 1
             x_prev, s_prev, x, s = x, s, x_new, s_hi
             ds, s_hi, fold_check = 2.0 * s_tol, None, False
@@ -986,7 +990,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         ds *= 0.5
         if ds < opts.min_step:
             raise StaticSolveError(_residual_failure_message(S, scene, s, s_new, rnorm) if residual
-                                   else _failure_message(S, scene, x, guess, s, s_new, lam_at.get(s) or None))
+                                   else _failure_message(S, scene, x, guess, s, s_new, lam_at.get(s) or None, fold_fac))
     # Stability of the equilibrium found: Newton converges to any stationary point, so check the
     # smallest eigenvalue of the constrained Hessian and, at a saddle (e.g. the buckled zero-energy
     # modes of hybmss-fd under compression), descend along the unstable mode and solve again.
