@@ -288,6 +288,14 @@ class _Tangent:
             self._csc = sp.csc_matrix((self._data, p.full_indices, p.full_indptr), shape=self.shape)
         return self._csc
 
+    def permuted(self):
+        """``H_ff[order][:, order]`` as a CSC matrix with sorted indices: on the fixed pattern a
+        gather of the data by a map computed once per pattern and order."""
+        if self.pat is None:
+            return self.csc()[self.order][:, self.order].tocsc()
+        indptr, indices, src = _permuted_pattern(self.pat, np.ascontiguousarray(self.order, dtype=np.int64).tobytes())
+        return sp.csc_matrix((self._data[src], indices, indptr), shape=self.shape)
+
     def lower(self):
         """``(key, indptr, rows, cols, data)`` of the lower triangle in CSC order; ``key`` is the
         pattern (None: compare the arrays)."""
@@ -297,6 +305,20 @@ class _Tangent:
         L = sp.tril(self._csc, format="csc")
         L.sort_indices()
         return None, L.indptr, L.indices, None, L.data
+
+
+@lru_cache(maxsize=8)
+def _permuted_pattern(pat, order_bytes: bytes):
+    """``(indptr, indices, src)`` of ``H_ff[order][:, order]`` (CSC, sorted) on the pattern ``pat``
+    of :class:`hybmss.forces.FreePattern`: its data is ``H_ff``'s (CSC order) at ``src``."""
+    order = np.frombuffer(order_bytes, dtype=np.int64)
+    n = len(pat.full_indptr) - 1
+    pos = sp.csc_matrix((np.arange(1, len(pat.full_indices) + 1, dtype=np.float64), pat.full_indices,
+                         pat.full_indptr), shape=(n, n))
+    P = pos[order][:, order].tocsc()
+    P.sort_indices()
+    src = P.data.astype(np.int64) - 1  # positions + 1: no stored entry is an explicit zero
+    return P.indptr.copy(), P.indices.copy(), src
 
 
 def _grid_dissection(grid: np.ndarray, leaf: int = 16) -> np.ndarray:
@@ -367,11 +389,10 @@ def _superlu_symmetric(A):
     the cube and the beam than SuperLU's minimum degree), any other matrix in a minimum-degree
     order of A+Aᵀ."""
     if isinstance(A, _Tangent):
-        order, A = A.order, A.csc()
-        if order is not None:
-            Ap = A[order][:, order].tocsc()
-            return _PermutedLU(spla.splu(Ap, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                                         options={"SymmetricMode": True}), order)
+        if A.order is not None:
+            return _PermutedLU(spla.splu(A.permuted(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                                         options={"SymmetricMode": True}), A.order)
+        A = A.csc()
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
@@ -445,9 +466,9 @@ def _factor_general(A):
     :class:`_Tangent` in its nested-dissection order (4× faster than COLAMD on the 10³ cube of
     baudet2009, half the fill), any other matrix in COLAMD's."""
     if isinstance(A, _Tangent):
-        order, A = A.order, A.csc()
-        if order is not None:
-            return _PermutedLU(spla.splu(A[order][:, order].tocsc(), permc_spec="NATURAL"), order)
+        if A.order is not None:
+            return _PermutedLU(spla.splu(A.permuted(), permc_spec="NATURAL"), A.order)
+        A = A.csc()
     return spla.splu(A)
 
 
