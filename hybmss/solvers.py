@@ -573,7 +573,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
     # 2.5–3× a Cholesky, and Newton's Hessians turn positive definite again within a call).  A
     # lattice whose cells have no zero-energy mode then steps with the Cholesky of the smallest
     # shift that is positive definite; one with such modes keeps the unshifted (LDLᵀ) step
-    definite_steps = not residual and fac is not None and cholmod is not None and not _cell_zero_energy_modes(system)
+    definite_steps = None  # decided (by the cell rank test) when a Cholesky first fails
     if residual:
         lu = None
     for it in range(max_iter + 1):
@@ -621,18 +621,16 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                         if residual:
                             lu = _factor_general(A)
                         else:
-                            failed = fac.failed if fac is not None else 0
-                            if definite_steps and mu < 1.0:
-                                lu = fac.cholesky(A)
-                                if lu is None:
-                                    if mu == 0.0 and definite_after is not None and it >= definite_after:
-                                        return False, x, f, rnorm, scale
-                                    continue
-                            else:
-                                lu = _factor(A, fac)
-                            if mu == 0.0 and fac is not None and fac.failed > failed:
-                                if definite_after is not None and it >= definite_after:
+                            lu = fac.cholesky(A) if fac is not None else None
+                            if lu is None and fac is not None and cholmod is not None:
+                                if mu == 0.0 and definite_after is not None and it >= definite_after:
                                     return False, x, f, rnorm, scale
+                                if definite_steps is None:
+                                    definite_steps = not _cell_zero_energy_modes(system)
+                                if definite_steps and mu < 1.0:
+                                    continue
+                            if lu is None:
+                                lu = _superlu_symmetric(A)
                         dx = lu.solve(r)
                     ok = np.all(np.isfinite(dx)) and (residual or _dot(r, dx) > 0.0)
                 except RuntimeError:  # exactly singular
