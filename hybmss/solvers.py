@@ -23,7 +23,12 @@ factorization fails or the Newton direction is not a descent direction, the solv
 Levenberg–Marquardt shift ``μ·mean(diag H)·I`` (μ from 1e-6, ×100 until it works).  The shift
 only damps the step; convergence is still judged on the unshifted force residual, so the result is
 an exact equilibrium in which the zero-energy modes keep their initial (zero) amplitude.  Each
-result records in ``info['regularized_steps']`` how often this happened.
+result records in ``info['regularized_steps']`` how often this happened.  A lattice whose cells
+have no zero-energy mode (:func:`_cell_zero_energy_modes`: hybmss, hybmss-cf) meets an indefinite
+Hessian (the volume term's ``(J − 1) ∂²J`` far from ``J = 1`` at ν → ½) with the same shifts,
+Cholesky only, instead of the unshifted LDLᵀ step: a descent direction, and 5× fewer iterations on
+the 10³ cube at ν = 0.499 in 20 % compression, to the same equilibrium.  A lattice with such
+modes keeps the unshifted step: its equilibria depend on the path (buckled, hourglassed states).
 
 **Loss of stability.**  For ν < 1/4, κ < 0 and the volume energy is unbounded below under
 dilation; at large tension the equilibrium disappears.  When the load step cannot be reduced
@@ -192,7 +197,15 @@ def _norm(v: np.ndarray) -> float:
     a = float(np.max(np.abs(v), initial=0.0))
     if a == 0.0 or not np.isfinite(a):
         return a
-    return a * float(np.linalg.norm(v / a))
+    w = v / a
+    return a * float(np.sqrt(_dot(w, w)))
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a · b`` by NumPy's pairwise sum, not BLAS: a BLAS ``ddot`` of more than 10⁴ entries wakes
+    its thread pool, which on a busy machine costs milliseconds per call (3 ms against 30 µs on
+    the beam's 11,421 free dofs, while another process keeps the cores busy)."""
+    return float(np.sum(a * b))
 
 
 def _inertia_floor(w: np.ndarray, x: np.ndarray) -> float:
@@ -275,6 +288,14 @@ class _Tangent:
             self._csc = sp.csc_matrix((self._data, p.full_indices, p.full_indptr), shape=self.shape)
         return self._csc
 
+    def permuted(self):
+        """``H_ff[order][:, order]`` as a CSC matrix with sorted indices: on the fixed pattern a
+        gather of the data by a map computed once per pattern and order."""
+        if self.pat is None:
+            return self.csc()[self.order][:, self.order].tocsc()
+        indptr, indices, src = _permuted_pattern(self.pat, np.ascontiguousarray(self.order, dtype=np.int64).tobytes())
+        return sp.csc_matrix((self._data[src], indices, indptr), shape=self.shape)
+
     def lower(self):
         """``(key, indptr, rows, cols, data)`` of the lower triangle in CSC order; ``key`` is the
         pattern (None: compare the arrays)."""
@@ -284,6 +305,20 @@ class _Tangent:
         L = sp.tril(self._csc, format="csc")
         L.sort_indices()
         return None, L.indptr, L.indices, None, L.data
+
+
+@lru_cache(maxsize=8)
+def _permuted_pattern(pat, order_bytes: bytes):
+    """``(indptr, indices, src)`` of ``H_ff[order][:, order]`` (CSC, sorted) on the pattern ``pat``
+    of :class:`hybmss.forces.FreePattern`: its data is ``H_ff``'s (CSC order) at ``src``."""
+    order = np.frombuffer(order_bytes, dtype=np.int64)
+    n = len(pat.full_indptr) - 1
+    pos = sp.csc_matrix((np.arange(1, len(pat.full_indices) + 1, dtype=np.float64), pat.full_indices,
+                         pat.full_indptr), shape=(n, n))
+    P = pos[order][:, order].tocsc()
+    P.sort_indices()
+    src = P.data.astype(np.int64) - 1  # positions + 1: no stored entry is an explicit zero
+    return P.indptr.copy(), P.indices.copy(), src
 
 
 def _grid_dissection(grid: np.ndarray, leaf: int = 16) -> np.ndarray:
@@ -354,11 +389,10 @@ def _superlu_symmetric(A):
     the cube and the beam than SuperLU's minimum degree), any other matrix in a minimum-degree
     order of A+Aᵀ."""
     if isinstance(A, _Tangent):
-        order, A = A.order, A.csc()
-        if order is not None:
-            Ap = A[order][:, order].tocsc()
-            return _PermutedLU(spla.splu(Ap, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                                         options={"SymmetricMode": True}), order)
+        if A.order is not None:
+            return _PermutedLU(spla.splu(A.permuted(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                                         options={"SymmetricMode": True}), A.order)
+        A = A.csc()
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
@@ -432,10 +466,53 @@ def _factor_general(A):
     :class:`_Tangent` in its nested-dissection order (4× faster than COLAMD on the 10³ cube of
     baudet2009, half the fill), any other matrix in COLAMD's."""
     if isinstance(A, _Tangent):
-        order, A = A.order, A.csc()
-        if order is not None:
-            return _PermutedLU(spla.splu(A[order][:, order].tocsc(), permc_spec="NATURAL"), order)
+        if A.order is not None:
+            return _PermutedLU(spla.splu(A.permuted(), permc_spec="NATURAL"), A.order)
+        A = A.csc()
     return spla.splu(A)
+
+
+def _cell_zero_energy_modes(S: System) -> bool:
+    """Whether a cell of the lattice, on its own, has a zero-energy mode at rest besides the six
+    rigid motions (the hourglass modes of a cubic lattice without face diagonals, hybmss-fd): the
+    rest Hessian of the springs joining two of its corners, ``Σ k ê êᵀ``, plus the volume term's
+    rank-one ``g gᵀ`` (``g = ∂V/∂x``: any energy of the cell volume has that Hessian at rest),
+    has more than six eigenvalues below 1e-9 of the largest.  Such a lattice has equilibria that
+    depend on the path (buckled, hourglassed), so :func:`_newton` keeps its unshifted steps on it."""
+    cells = S.lattice.cells
+    if len(cells) == 0:
+        return False
+    return _zero_energy_modes_of_cell(S, int(len(cells) // 2))
+
+
+def _zero_energy_modes_of_cell(S: System, c: int) -> bool:
+    nodes = np.asarray(S.lattice.cells[c], dtype=np.int64)
+    local = np.full(S.n, -1, dtype=np.int64)
+    local[nodes] = np.arange(8)
+    la, lb = local[S.spring_a], local[S.spring_b]
+    inside = (la >= 0) & (lb >= 0)
+    K = np.zeros((24, 24))
+    X = S.X
+    for a, b, k in zip(la[inside], lb[inside], S.spring_k[inside]):
+        e = X[nodes[b]] - X[nodes[a]]
+        e = e / np.linalg.norm(e)
+        B = np.zeros(24)
+        B[3 * a:3 * a + 3], B[3 * b:3 * b + 3] = -e, e
+        K += k * np.outer(B, B)
+    if S.has_volume:
+        x0 = X[nodes].reshape(1, 8, 3)
+        h = 1e-6 * S.scene.body.le
+        g = np.empty(24)
+        idx = np.arange(8).reshape(1, 8)
+        for j in range(24):
+            xp, xm = x0.copy(), x0.copy()
+            xp[0, j // 3, j % 3] += h
+            xm[0, j // 3, j % 3] -= h
+            g[j] = (cell_volumes(xp.reshape(8, 3), idx)[0] - cell_volumes(xm.reshape(8, 3), idx)[0]) / (2 * h)
+        scale = np.abs(np.diag(K)).max() if K.any() else 1.0
+        K += scale * np.outer(g, g) / float(g @ g)
+    w = np.linalg.eigvalsh(K)
+    return int(np.count_nonzero(w <= 1e-9 * max(abs(w).max(), 1e-300))) > 6
 
 
 def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_iter: int,
@@ -492,9 +569,11 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
         return False, x, f, np.inf, _force_scale(system, f)
     best, e_best, stalled = np.inf, np.inf, 0
     mu_last, lu_mu = 0.0, 0.0
-    # once the unshifted Hessian has proved not positive definite in this call (a failed
-    # Cholesky), the next unshifted ones go to SuperLU directly instead of failing again
-    indefinite = False
+    # every unshifted Hessian is tried by Cholesky first (a failure is cheap against SuperLU's LU,
+    # 2.5–3× a Cholesky, and Newton's Hessians turn positive definite again within a call).  A
+    # lattice whose cells have no zero-energy mode then steps with the Cholesky of the smallest
+    # shift that is positive definite; one with such modes keeps the unshifted (LDLᵀ) step
+    definite_steps = None  # decided (by the cell rank test) when a Cholesky first fails
     if residual:
         lu = None
     for it in range(max_iter + 1):
@@ -520,7 +599,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
         if lu is not None:
             with np.errstate(all="ignore"):
                 cand = lu.solve(r)
-            if np.all(np.isfinite(cand)) and float(r @ cand) > 0.0:
+            if np.all(np.isfinite(cand)) and _dot(r, cand) > 0.0:
                 chord = cand
             else:
                 lu = None
@@ -542,14 +621,18 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
                         if residual:
                             lu = _factor_general(A)
                         else:
-                            failed = fac.failed if fac is not None else 0
-                            lu = _factor(A, None if (mu == 0.0 and indefinite) else fac)
-                            if mu == 0.0 and fac is not None and fac.failed > failed:
-                                indefinite = True
-                                if definite_after is not None and it >= definite_after:
+                            lu = fac.cholesky(A) if fac is not None else None
+                            if lu is None and fac is not None and cholmod is not None:
+                                if mu == 0.0 and definite_after is not None and it >= definite_after:
                                     return False, x, f, rnorm, scale
+                                if definite_steps is None:
+                                    definite_steps = not _cell_zero_energy_modes(system)
+                                if definite_steps and mu < 1.0:
+                                    continue
+                            if lu is None:
+                                lu = _superlu_symmetric(A)
                         dx = lu.solve(r)
-                    ok = np.all(np.isfinite(dx)) and (residual or float(r @ dx) > 0.0)
+                    ok = np.all(np.isfinite(dx)) and (residual or _dot(r, dx) > 0.0)
                 except RuntimeError:  # exactly singular
                     ok = False
                 if not ok:
@@ -561,7 +644,7 @@ def _newton(system: System, x: np.ndarray, free: np.ndarray, rtol: float, max_it
             step[free] = dx
             step = step.reshape(n, 3)
             alpha = 1.0
-            slope = float(r @ dx)
+            slope = _dot(r, dx)
             for _ in range((12 if mu == 1.0 else 4) if residual else 12):
                 xt = x + alpha * step
                 if np.all(cell_volumes(xt, cells) > 0.0):
@@ -632,9 +715,10 @@ def _tangent_predictor(system: System, x: np.ndarray, target: np.ndarray, free: 
     return x + delta.reshape(x.shape), (None if residual else lu)
 
 
-def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray]:
+def smallest_eigenpair(system: System, x: np.ndarray, fac: "_Factorizer | None" = None) -> tuple[float, np.ndarray]:
     """Smallest eigenvalue (N/m) of the constrained Hessian at ``x`` and its eigenvector
-    (over the free dofs)."""
+    (over the free dofs).  ``fac``: a factorizer whose symbolic analysis of the pattern is reused
+    (its factor is overwritten)."""
     free = ~system.fixed.ravel()
     T = _tangent(system, x, 1.0, free)
     Hff = T.csc()
@@ -647,7 +731,7 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
         # shift-invert with the factorization of A − σI the Newton solves use (Cholesky, or the
         # minimum-degree symmetric LU when it is indefinite), not splu's default COLAMD ordering
         with np.errstate(all="ignore"):
-            F = _factor(T.shifted(-shift), _Factorizer())
+            F = _factor(T.shifted(-shift), fac if fac is not None else _Factorizer())
         op = spla.LinearOperator(A.shape, matvec=F.solve, dtype=float)
         # a fixed start vector: ARPACK's default is random, and the mode it returns then picks
         # which of two nearly equal soft directions a saddle escape follows (runs would differ)
@@ -661,9 +745,10 @@ def smallest_eigenpair(system: System, x: np.ndarray) -> tuple[float, np.ndarray
         return float(w[0]), v[:, 0]
 
 
-def smallest_eigenvalue(system: System, x: np.ndarray) -> float:
-    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m)."""
-    return smallest_eigenpair(system, x)[0]
+def smallest_eigenvalue(system: System, x: np.ndarray, fac: "_Factorizer | None" = None) -> float:
+    """Smallest eigenvalue of the constrained Hessian at ``x`` (N/m) (``fac``: as for
+    :func:`smallest_eigenpair`)."""
+    return smallest_eigenpair(system, x, fac)[0]
 
 
 def _stability(S: System, x: np.ndarray, free: np.ndarray, fac: _Factorizer | None = None):
@@ -682,7 +767,7 @@ def _stability(S: System, x: np.ndarray, free: np.ndarray, fac: _Factorizer | No
             return True, float("nan"), None
     except RuntimeError:  # singular: zero-energy modes, decide from the eigenvalue
         pass
-    lam, vec = smallest_eigenpair(S, x)
+    lam, vec = smallest_eigenpair(S, x, fac)
     return lam >= -tol, lam, vec
 
 
@@ -753,30 +838,37 @@ def _not_definite(Hff, shift: float, fac: _Factorizer) -> bool:
 
 
 def _fold_suspected(S: System, guess: np.ndarray, free: np.ndarray, fac: _Factorizer, load: float,
-                    lam_x) -> bool:
+                    lam_x) -> tuple[bool, "_CholeskyFactor | None"]:
     """Whether a predicted state ``guess`` of a κ < 0 body lies beyond a limit point: it dilates
     the body and the smallest eigenvalue of its constrained Hessian is below ``−FOLD_MARGIN ·
     lam_x()`` (``lam_x``: the smallest eigenvalue at the equilibrium predicted from, computed only
     when the Hessian at ``guess`` is not positive definite; no fold is suspected unless it is > 0).
-    ``fac`` is a factorizer of its own, so the factor the predictor hands to Newton stays valid."""
+    ``fac`` is a factorizer of its own, so the factor the predictor hands to Newton stays valid.
+    Returns ``(suspected, F)``: ``F`` the Cholesky factor of the Hessian at ``guess`` when it is
+    positive definite (Newton's first step from ``guess`` is then an exact one at no cost; valid
+    until ``fac`` factorizes again), else None."""
     vols = cell_volumes(guess, S.lattice.cells)
     if np.any(vols <= 0.0) or not float(vols.sum()) > float(S.lattice.cell_volumes(S.X).sum()):
-        return False
+        return False, None
     Hff = _tangent(S, guess, load, free)
-    if not _not_definite(Hff, 0.0, fac):
-        return False
+    if cholmod is not None:
+        F = fac.cholesky(Hff)
+        if F is not None:
+            return False, F
+    elif not _not_definite(Hff, 0.0, fac):
+        return False, None
     lam = lam_x()
-    return bool(lam > 0.0 and _not_definite(Hff, FOLD_MARGIN * lam, fac))
+    return bool(lam > 0.0 and _not_definite(Hff, FOLD_MARGIN * lam, fac)), None
 
 
 def _failure_message(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: float, s_new: float,
-                     lam: float | None = None) -> str:
+                     lam: float | None = None, fac: "_Factorizer | None" = None) -> str:
     """Why the load could not be increased past ``s``: the smallest eigenvalue of the
     constrained Hessian at the last equilibrium (``lam`` when already known) and at the
     predicted state just beyond it."""
     if lam is None:
-        lam = smallest_eigenvalue(S, x)
-    lam_next = smallest_eigenvalue(S, guess)
+        lam = smallest_eigenvalue(S, x, fac)
+    lam_next = smallest_eigenvalue(S, guess, fac)
     head = (f"static solve of scene {scene.name or '(unnamed)'} failed at load factor s={s_new:.6g} "
             f"(last converged s={s:.6g}); smallest eigenvalue of the constrained Hessian: {lam:.4g} N/m at "
             f"s={s:.6g}, {lam_next:.4g} N/m at the predicted state s={s_new:.6g}")
@@ -842,15 +934,21 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
         by Cholesky: shift-invert alone can miss a negative eigenvalue far below the shift), else 0."""
         if s not in lam_at:
             Hx = _tangent(S, x, s, free)
-            lam_at[s] = 0.0 if _not_definite(Hx, 0.0, fold_fac) else smallest_eigenvalue(S, x)
+            # the predictor's Cholesky at x, when it succeeded, already proved it positive definite
+            definite = pred_cache.get("x") is x and isinstance(pred_cache.get("lu"), _CholeskyFactor)
+            lam_at[s] = smallest_eigenvalue(S, x, fold_fac) if definite or not _not_definite(Hx, 0.0, fold_fac) else 0.0
         return lam_at[s]
 
     s_hi, s_tol = None, 0.0
+    tried = None  # (s_hi, x, guess) of a failed Newton inside a bracket that made limit_iter steps
     while s < 1.0 - 1e-14:
         if s_hi is not None and s_hi - s <= s_tol:
             # the bracket is narrow: the ordinary Newton at its upper end decides.  Failing, the
             # limit point is reported; converging (a bifurcation the path passes, not a fold), the
-            # load stepping goes on without the bracketing
+            # load stepping goes on without the bracketing.  A Newton from this equilibrium to
+            # s_hi that already made limit_iter steps without converging has decided it
+            if tried is not None and tried[0] == s_hi and tried[1] is x:
+                raise StaticSolveError(_failure_message(S, scene, x, tried[2], s, s_hi, lam_at.get(s) or None, fold_fac))
             target = S.prescribed(s_hi)
             guess, lu = _tangent_predictor(S, x, target, free, s_hi, pred_fac, pred_cache)
             if guess is None or np.any(cell_volumes(guess, S.lattice.cells) <= 0.0):
@@ -859,7 +957,7 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, opts.limit_iter, None, stats,
                                                  opts.line_search, lu=lu, load=s_hi, fac=fac)
             if not ok:
-                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi, lam_at.get(s) or None))
+                raise StaticSolveError(_failure_message(S, scene, x, guess, s, s_hi, lam_at.get(s) or None, fold_fac))
             load_steps += 1
             x_prev, s_prev, x, s = x, s, x_new, s_hi
             ds, s_hi, fold_check = 2.0 * s_tol, None, False
@@ -881,14 +979,19 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             if x_prev is not None:  # linear extrapolation of the free dofs from the last increment
                 guess += (x - x_prev) * ((s_new - s) / (s - s_prev))
         guess[S.fixed] = target[S.fixed]
-        if fold_check and _fold_suspected(S, guess, free, fold_fac, s_new, lam_x):
-            # beyond a limit point as it stands: bracket it (or narrow the bracket) without Newton
-            if s_hi is None:
-                s_tol = opts.limit_resolution * (s_new - s)
-            s_hi = s_new
-            continue
+        if fold_check:
+            suspected, F_guess = _fold_suspected(S, guess, free, fold_fac, s_new, lam_x)
+            if suspected:
+                # beyond a limit point as it stands: bracket it (or narrow the bracket) without Newton
+                if s_hi is None:
+                    s_tol = opts.limit_resolution * (s_new - s)
+                s_hi = s_new
+                continue
+            if F_guess is not None:
+                lu = F_guess
         # inside a bracket, Newton gives up when its iterates stay out of the stable region
         iters = opts.max_iter if not (failed_before or s_hi is not None) else opts.retry_iter
+        it0 = stats.iterations
         ok, x_new, f, rnorm, scale = _newton(S, guess, free, opts.rtol, iters, None, stats,
                                              opts.line_search, lu=lu, load=s_new, fac=fac,
                                              definite_after=3 if s_hi is not None else None)
@@ -901,11 +1004,12 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
             continue
         if s_hi is not None:
             s_hi = s_new
+            tried = (s_new, x, guess) if stats.iterations - it0 >= opts.limit_iter else None
             continue
         ds *= 0.5
         if ds < opts.min_step:
             raise StaticSolveError(_residual_failure_message(S, scene, s, s_new, rnorm) if residual
-                                   else _failure_message(S, scene, x, guess, s, s_new, lam_at.get(s) or None))
+                                   else _failure_message(S, scene, x, guess, s, s_new, lam_at.get(s) or None, fold_fac))
     # Stability of the equilibrium found: Newton converges to any stationary point, so check the
     # smallest eigenvalue of the constrained Hessian and, at a saddle (e.g. the buckled zero-energy
     # modes of hybmss-fd under compression), descend along the unstable mode and solve again.

@@ -150,3 +150,47 @@ def test_a_saddle_escape_is_reproducible():
                                            deformation=0.05).build()) for _ in range(2)]
     assert runs[0].iterations == runs[1].iterations
     assert np.array_equal(runs[0].u, runs[1].u)
+
+
+def _hourglass(S, cell):
+    """The x-hourglass displacement of one cell: ``u_x = s_y s_z`` with ``s = ±1`` the side of the
+    cell centre a corner lies on (no edge, body diagonal or volume changes to first order)."""
+    nodes = S.lattice.cells[cell]
+    s = np.sign(S.X[nodes] - S.X[nodes].mean(axis=0))
+    U = np.zeros_like(S.X)
+    U[nodes, 0] = s[:, 1] * s[:, 2]
+    return U
+
+
+@pytest.mark.parametrize("model, has_mode", [("hybmss-fd", True), ("hybmss", False), ("hybmss-cf", False)])
+def test_cell_zero_energy_modes_are_the_hourglass_modes(model, has_mode):
+    """Without face diagonals a cell has an hourglass mode whose energy is of fourth order in its
+    amplitude; with them it costs as much as a stretch.  The solver's rank test of one cell
+    (which decides how indefinite Hessians are stepped) says the same."""
+    from hybmss.forces import energy_forces
+    from hybmss.solvers import _cell_zero_energy_modes
+
+    S = build(compression(n=1, nu=0.3, model=model))
+    eps = 1e-4 * S.scene.body.le
+    e0 = energy_forces(S, S.X)[0]
+    e_hour = energy_forces(S, S.X + eps * _hourglass(S, 0))[0] - e0
+    stretch = np.zeros_like(S.X)
+    stretch[:, 0] = np.sign(S.X[:, 0] - S.X[:, 0].mean())
+    e_stretch = energy_forces(S, S.X + eps * stretch)[0] - e0
+    assert e_stretch > 0
+    assert (abs(e_hour) <= 1e-6 * e_stretch) == has_mode
+    assert _cell_zero_energy_modes(S) == has_mode
+
+
+def test_nearly_incompressible_large_compression_reaches_the_continuation_equilibrium():
+    """ν = 0.499, 20 % compression in one load step: the Hessians on the way are indefinite (the
+    volume term away from J = 1), stepped with a positive-definite shift; the equilibrium is the
+    one that twenty small load steps follow to, and it is stable."""
+    from hybmss.solvers import StaticOptions
+
+    sc = compression(n=4, nu=0.499)
+    r = solve_static(sc)
+    ref = solve_static(sc, StaticOptions(initial_steps=20, max_step=0.05))
+    assert r.converged and r.info["stable"] and r.info["load_steps"] == 1
+    assert r.info["regularized_steps"] > 0  # the shifted steps ran
+    assert np.abs(r.u - ref.u).max() <= 1e-6 * np.abs(ref.u).max()

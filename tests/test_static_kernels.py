@@ -50,6 +50,9 @@ def test_fixed_pattern_tangent_is_the_sliced_hessian_and_keeps_one_analysis():
             F = fac.cholesky(A)
             if cholmod is not None:
                 assert np.allclose(A.csc() @ F.solve(b), b, rtol=0, atol=1e-9 * np.abs(b).max())
+        for A in (T, T.shifted(-0.5)):  # the permuted matrix SuperLU factorizes is a gather on the pattern
+            Ap, ref_p = A.permuted(), A.csc()[A.order][:, A.order].tocsc()
+            assert Ap.has_sorted_indices and np.array_equal(Ap.toarray(), ref_p.toarray())
         lu = _superlu_symmetric(T)  # in the nested-dissection order: same inertia, same solution
         assert np.allclose(ref @ lu.solve(b), b, rtol=0, atol=1e-9 * np.abs(b).max())
         assert np.count_nonzero(lu.U.diagonal() < 0) == np.count_nonzero(np.linalg.eigvalsh(ref) < 0)
