@@ -725,24 +725,48 @@ def smallest_eigenpair(system: System, x: np.ndarray, fac: "_Factorizer | None" 
     if Hff.shape[0] <= 600:
         w, v = np.linalg.eigh(Hff.toarray())
         return float(w[0]), v[:, 0]
+    fac = fac if fac is not None else _Factorizer()
+    dmax = float(abs(Hff.diagonal()).max())
+    # Gershgorin: no eigenvalue lies below min_i (H_ii − Σ_j≠i |H_ij|)
+    floor = float((Hff.diagonal() - (abs(Hff).sum(axis=1).A1 - abs(Hff.diagonal()))).min())
+    # a fixed start vector: ARPACK's default is random, and the mode it returns then picks which
+    # of two nearly equal soft directions a saddle escape follows (runs would differ)
+    v0 = np.random.default_rng(0).standard_normal(Hff.shape[0])
     try:
-        shift = -1e-3 * abs(Hff.diagonal()).max()
-        A = Hff
-        # shift-invert with the factorization of A − σI the Newton solves use (Cholesky, or the
-        # minimum-degree symmetric LU when it is indefinite), not splu's default COLAMD ordering
-        with np.errstate(all="ignore"):
-            F = _factor(T.shifted(-shift), fac if fac is not None else _Factorizer())
-        op = spla.LinearOperator(A.shape, matvec=F.solve, dtype=float)
-        # a fixed start vector: ARPACK's default is random, and the mode it returns then picks
-        # which of two nearly equal soft directions a saddle escape follows (runs would differ)
-        v0 = np.random.default_rng(0).standard_normal(A.shape[0])
-        vals, vecs = spla.eigsh(A, k=1, sigma=shift, which="LM", OPinv=op, v0=v0)
-        if not np.isfinite(vals[0]):
-            raise ArithmeticError("shift-invert without pivoting broke down")
-        return float(vals[0]), vecs[:, 0]
+        shift = -1e-3 * dmax
+        for _ in range(12):
+            # shift-invert with the factorization of A − σI the Newton solves use (Cholesky, or
+            # the minimum-degree symmetric LU when it is indefinite), not splu's default ordering
+            with np.errstate(all="ignore"):
+                F = _factor(T.shifted(-shift), fac)
+            op = spla.LinearOperator(Hff.shape, matvec=F.solve, dtype=float)
+            vals, vecs = spla.eigsh(Hff, k=1, sigma=shift, which="LM", OPinv=op, v0=v0)
+            lam = float(vals[0])
+            if not np.isfinite(lam):
+                raise ArithmeticError("shift-invert without pivoting broke down")
+            # the eigenvalue nearest the shift is the smallest only if H − (λ − ε) I is positive
+            # definite; a more negative one lies beyond it (a saddle deep in the spectrum)
+            below = lam - 1e-9 * dmax - 1e-6 * abs(lam)
+            if _positive_definite(T.shifted(-below), fac) or shift <= floor:
+                return lam, vecs[:, 0]
+            shift = max(min(lam, shift) - 10.0 * abs(min(lam, shift)), floor - 1e-6 * dmax)
+        raise ArithmeticError("the smallest eigenvalue was not isolated")
     except Exception:  # pragma: no cover - fall back to a dense solve
         w, v = np.linalg.eigh(Hff.toarray())
         return float(w[0]), v[:, 0]
+
+
+def _positive_definite(T: "_Tangent", fac: "_Factorizer") -> bool:
+    """Whether ``T`` is positive definite: its Cholesky factorization succeeds, or (without
+    CHOLMOD) every pivot of its symmetric LU without pivoting is positive (Sylvester's law)."""
+    if cholmod is not None:
+        return fac.cholesky(T) is not None
+    try:
+        with np.errstate(all="ignore"):
+            pivots = _superlu_symmetric(T).U.diagonal()
+    except RuntimeError:
+        return False
+    return bool(np.all(np.isfinite(pivots)) and pivots.min() > 0.0)
 
 
 def smallest_eigenvalue(system: System, x: np.ndarray, fac: "_Factorizer | None" = None) -> float:
