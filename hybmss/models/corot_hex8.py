@@ -237,6 +237,13 @@ def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
     return math.sqrt(max(lmin, 0.0)), math.sqrt(max(lmax, 0.0))
 
 
+def omega_max(system: System, term: CorotHex8) -> float:
+    """``ω_max`` (rad/s) of ``M⁻¹K`` at rest on the free degrees of freedom (as
+    :func:`frequency_range`, without its shift-invert solve for ω_min)."""
+    A = _scaled_free_stiffness(system, term)
+    return math.sqrt(max(_lmax(A), 0.0)) if A.shape[0] else 0.0
+
+
 def dt_crit(system: System, term: CorotHex8) -> float:
     """Explicit stability limit ``2/√λmax(M⁻¹K)`` with K the tangent at rest (the linear Hex8
     stiffness, exact there) on the free degrees of freedom."""

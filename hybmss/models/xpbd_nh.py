@@ -71,7 +71,7 @@ from ..scene import Material
 from ..solvers import StaticSolveError
 from ..system import System, build
 from .base import STUDY_ROLES, ModelBase, Style, check
-from .corot_hex8 import CorotHex8, frequency_range
+from .corot_hex8 import CorotHex8, frequency_range, omega_max
 from ._voxel_explicit import (blowup_limit2, divergence, find_bad, kernel_state, one_thread, read_state,
                               run_result)
 
@@ -240,6 +240,12 @@ def frequencies(system: System, material: Material | None = None) -> tuple[float
     the defaults of :func:`solve_static`."""
     mat = system.scene.material if material is None else material
     return frequency_range(system, CorotHex8(system.lattice, mat))
+
+
+def highest_frequency(system: System) -> float:
+    """``ω_max`` of :func:`frequencies` alone (no eigen solve for ω₁: what the substep rule and
+    ``dt_crit`` need)."""
+    return omega_max(system, CorotHex8(system.lattice, system.scene.material))
 
 
 def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba",
@@ -434,7 +440,7 @@ AUTO_SUBSTEPS_STATIC = 10
 
 def auto_substeps(system: System, dt: float) -> int:
     """Substeps per frame ``dt`` that make ``h ω_max ≤`` :data:`H_OMEGA` (at least 1)."""
-    return max(1, int(math.ceil(dt * frequencies(system)[1] / H_OMEGA - 1e-9)))
+    return max(1, int(math.ceil(dt * highest_frequency(system) / H_OMEGA - 1e-9)))
 
 
 def xpbd_term(system: System) -> XpbdNH:
@@ -501,7 +507,7 @@ class XpbdNHModel(ModelBase):
     def dt_crit(self, system) -> float:
         """The limit ``2/ω_max`` of the explicit scheme on the same grid and material (linear Hex8
         at rest): XPBD itself has no such limit (its constraints are solved implicitly)."""
-        return 2.0 / frequencies(system)[1]
+        return 2.0 / highest_frequency(system)
 
     simulate_explicit = staticmethod(simulate_scene)
     solve_static = staticmethod(solve_scene)
