@@ -91,13 +91,14 @@ class _Config:
         if self.dc is None:
             self.dc = shared[key][2] = dt_crit(self.system)
         if steps is None:  # as many steps as fit in target_s, from probes of a tenth of it
-            n = PROBE_STEPS
+            n = PROBE_STEPS if kernel == "numba" else 1
             while True:
                 probe = self._run(n).wall_time_s
                 if probe >= 0.1 * target_s or n >= MAX_STEPS:
                     break
                 n *= 4
-            steps = int(min(MAX_STEPS, max(MIN_STEPS, target_s * n / max(probe, 1e-9))))
+            least = MIN_STEPS if kernel == "numba" else 2  # the NumPy twin of xpbd-nh takes 2 s a step on 10³
+            steps = int(min(MAX_STEPS, max(least, target_s * n / max(probe, 1e-9))))
             steps = steps if steps < 100 else steps // 10 * 10
         self.steps = int(steps)
 

@@ -229,7 +229,7 @@ def test_bench_fits_the_steps_to_the_time_and_says_what_a_model_refuses():
     assert set(rows) == {("hybmss-cf", "numba", 1), ("hybmss-cf", "numba", 2), ("hybmss-cf", "numpy", 1),
                          ("corot-hex8", "numba", 1), ("corot-hex8", "numpy", 1)}
     for r in rows.values():
-        assert MIN_STEPS <= r["steps"] <= MAX_STEPS
+        assert (MIN_STEPS if r["kernel"] == "numba" else 2) <= r["steps"] <= MAX_STEPS
     assert rows[("hybmss-cf", "numpy", 1)]["steps"] < rows[("hybmss-cf", "numba", 1)]["steps"]
     (refused,) = d["not_run"]
     assert refused["model"] == "corot-hex8" and "serial" in refused["reason"]
