@@ -18,31 +18,32 @@ from .asv_common import MESHES, MODELS, scene
 NU = 0.499
 
 
-def _setup(bench, mesh, model, precision):
-    bench.scene = scene(mesh, model, NU)
-    bench.system = build(bench.scene)
-    bench.dc = dt_crit(bench.system)
-    bench.dt = 0.5 * bench.dc
-    bench.kw = dict(dt=bench.dt, system=bench.system, dt_crit_value=bench.dc, precision=precision,
-                    ramp_time=200 * bench.dt, threads=bench.threads)
-    try:
-        simulate_explicit(bench.scene, steps=2, **bench.kw)
-    except ValueError as exc:  # a kernel, precision or thread count this model does not have
-        raise NotImplementedError(str(exc)) from exc
+class _Steps:
+    """100 explicit steps of one (mesh, model, precision) on ``threads`` threads (a model that does
+    not have the kernel, precision or thread count is skipped)."""
 
-
-class Explicit:
     params = (MESHES, MODELS, ["f64", "f32"])
     param_names = ["mesh", "model", "precision"]
     timeout = 900
     threads = 1
 
     def setup(self, mesh, model, precision):
-        _setup(self, mesh, model, precision)
+        self.scene = scene(mesh, model, NU)
+        self.system = build(self.scene)
+        self.dc = dt_crit(self.system)
+        self.dt = 0.5 * self.dc
+        self.kw = dict(dt=self.dt, system=self.system, dt_crit_value=self.dc, precision=precision,
+                       ramp_time=200 * self.dt, threads=self.threads)
+        try:
+            simulate_explicit(self.scene, steps=2, **self.kw)
+        except ValueError as exc:  # a kernel, precision or thread count this model does not have
+            raise NotImplementedError(str(exc)) from exc
 
     def time_100_steps(self, mesh, model, precision):
         simulate_explicit(self.scene, steps=100, check_every=100, **self.kw)
 
+
+class Explicit(_Steps):
     def track_f32_error(self, mesh, model, precision):
         if precision == "f64":
             raise NotImplementedError("the float64 run is the reference")
@@ -53,16 +54,7 @@ class Explicit:
     track_f32_error.unit = "relative"
 
 
-class ExplicitTwoThreads:
+class ExplicitTwoThreads(_Steps):
     """The same 100 steps on two threads (models with a serial kernel are skipped)."""
 
-    params = Explicit.params
-    param_names = Explicit.param_names
-    timeout = 900
     threads = 2
-
-    def setup(self, mesh, model, precision):
-        _setup(self, mesh, model, precision)
-
-    def time_100_steps(self, mesh, model, precision):
-        simulate_explicit(self.scene, steps=100, check_every=100, **self.kw)

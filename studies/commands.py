@@ -376,10 +376,10 @@ def run(args):
         raise InputError("--out '' is not allowed: a results folder path is required")
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
-    if threading.current_thread() is threading.main_thread():
-        # SIGTERM (a job scheduler, `timeout`, `kill`) stops the sweep as Ctrl-C does: no worker
-        # is left computing for a process that is gone
-        signal.signal(signal.SIGTERM, _terminate)
+    main = threading.current_thread() is threading.main_thread()
+    # SIGTERM (a job scheduler, `timeout`, `kill`) stops the sweep as Ctrl-C does: no worker is
+    # left computing for a process that is gone
+    previous = signal.signal(signal.SIGTERM, _terminate) if main else None
     try:
         with runner:
             run_studies(args.out, names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,
@@ -388,6 +388,9 @@ def run(args):
         signal.signal(signal.SIGINT, exit_now)  # exiting; a second Ctrl-C exits at once
         raise KeyboardInterrupt(f"{runner.summary.computed} runs computed and stored in {args.out}, running "
                                 "ones abandoned; rerun the same command to resume") from None
+    finally:
+        if main:
+            signal.signal(signal.SIGTERM, previous)
     s = runner.summary
     names = list(study_names()) if args.all or not args.study else list(args.study)
     return {"out": str(args.out), "studies": names, **s.as_dict()}, f"{args.out}: {s.line()}"
