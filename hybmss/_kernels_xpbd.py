@@ -282,3 +282,64 @@ def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity,
         for i in range(W.shape[0]):
             W[i] = Wk[i]
     return done, bad, rest
+
+
+@njit(**_OPTS)
+def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, over, beta, H, ramp_time, pl_nodes,
+          pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, k0, nk, iterations, coupled,
+          check_every, limit2, rest_after, rest_disp, xprev, y, lamb):
+    """``nk`` iterations, from iteration ``k0``, of the relaxation to the rest state of the substep
+    ``h`` (:func:`hybmss.models.xpbd_nh.relax_static`), float64 positions ``W[:3n]``::
+
+        y = x + β (x − x_prev);  z = y + gdisp  (gdisp = damp h² g on free components)
+        prescribed components of z at the load s((k + 1) H);  p = project_h(z)
+        x_new = y + over · (p − y)  on free components (p on prescribed ones)
+
+    A fixed point (x = x_prev) has ``project_h(x + gdisp) = x``: the rest state of the XPBD
+    substep, whatever ``over`` and ``β``.  Checks as in :func:`run`, every ``check_every``
+    iterations.  ``W`` (6n,): positions, then a scratch for the plates' velocities.  Returns
+    (iterations done, bad node or −1, 1 if at rest else 0)."""
+    n = X.shape[1]
+    x = W[:3 * n].reshape((3, n))
+    R, u_old, u_new = plate_scratch(pl_ptr)
+    xcheck = x.copy()
+    done = nk
+    bad = -1
+    rest = 0
+    for k in range(nk):
+        it = k0 + k
+        for d in range(3):
+            for q in range(n):
+                yq = x[d, q] + beta * (x[d, q] - xprev[d, q])
+                xprev[d, q] = x[d, q]
+                y[d, q] = yq
+                x[d, q] = yq + gdisp[d, q] if has_gravity else yq
+        if pl_ptr.shape[0] > 1:
+            apply_plates(W, 0, 3 * n, n, True, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                         pl_center, pl_angle, ramp(it * H, ramp_time), ramp((it + 1) * H, ramp_time), H, R,
+                         u_old, u_new, 0, n)
+        project_all(x, True, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
+        for d in range(3):
+            for q in range(n):
+                if winv[d, q] != 0.0:
+                    x[d, q] = y[d, q] + over * (x[d, q] - y[d, q])
+        if (k + 1) % check_every == 0 or k == nk - 1:
+            bad = find_bad(W, 0, n, n, True, X, limit2)
+            if bad >= 0:
+                done = k + 1
+                break
+            if rest_after >= 0 and it + 1 >= rest_after and (k + 1) % check_every == 0:
+                moved = 0.0
+                for d in range(3):
+                    for q in range(n):
+                        moved = max(moved, abs(x[d, q] - xcheck[d, q]))
+                        xcheck[d, q] = x[d, q]
+                if moved <= rest_disp:
+                    done = k + 1
+                    rest = 1
+                    break
+            else:
+                for d in range(3):
+                    for q in range(n):
+                        xcheck[d, q] = x[d, q]
+    return done, bad, rest
