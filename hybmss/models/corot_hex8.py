@@ -24,10 +24,20 @@ Hex1 FEM.
 
 Not conservative.  ``½ uᵀ K_e u`` with u built on the polar R is not a potential of these
 forces (its gradient has terms in ∂R/∂x that ``−R K_e u`` leaves out), so the term declares
-``conservative = False`` and :meth:`CorotHex8.stiffness` returns the usual tangent
-``Σ_e R_e K_e R_eᵀ`` (block-rotated), which leaves out ∂R/∂x: Newton converges linearly under large
-rotation and quadratically at small strain.  :meth:`CorotHex8.energy` reports the corotated
-strain energy ``Σ_e ½ u_eᵀ K_e u_e`` as a measure, not as a potential to minimize.
+``conservative = False`` and :meth:`CorotHex8.energy` reports the corotated strain energy
+``Σ_e ½ u_eᵀ K_e u_e`` as a measure, not as a potential to minimize.
+
+Tangent.  The usual one, ``Σ_e R_e K_e R_eᵀ`` (block-rotated), leaves out ∂R/∂x: Newton then
+converges linearly under large rotation (the 8×8×48 cantilever at E = 2 MPa stalled after 160 s).
+:meth:`CorotHex8.stiffness` adds it.  With ``F = R U``, a variation ``δR = R [ω]×`` has
+``((tr U) I − U) ω = axial(Rᵀ δF − δFᵀ R) = Σ_c ξ_c × Rᵀ δx_c / (4 le)``, so ``ω = Σ_c W_c δx_c``
+with ``W_c = ((tr U) I − U)⁻¹ [ξ_c]× Rᵀ / (4 le)``.  From ``f_a = −R g_a``, ``g = K_e u``,
+``δu_b = [p_b]× ω + Rᵀ δx_b`` (``p_b = Rᵀ (x_b − x̄)``)::
+
+    −∂f_a/∂x_c = R K_ac Rᵀ − R Q_a W_c,     Q_a = [g_a]× − Σ_b K_ab [p_b]×
+
+(nonsymmetric; zero extra term at rest, where ``K_e`` annihilates the rotation field).  It is
+the Jacobian of the forces to central-difference accuracy; Newton converges quadratically.
 """
 
 from __future__ import annotations
@@ -190,21 +200,51 @@ class CorotHex8:
         u = self.local_displacements(x).reshape(len(self.cells), 24)
         return float(0.5 * np.einsum("mi,ij,mj->", u, self.Ke, u))
 
-    def stiffness(self, x: np.ndarray) -> sp.csr_matrix:
-        """Tangent ``Σ_e R_e K_e R_eᵀ`` (each 3×3 block rotated), (3n, 3n): ∂R/∂x left out."""
+    def stiffness(self, x: np.ndarray, rotation_derivative: bool = True) -> sp.csr_matrix:
+        """Tangent ``−∂f/∂x`` (3n, 3n), nonsymmetric: per cell ``R K_ac Rᵀ − R Q_a W_c``, the
+        usual block-rotated ``R K Rᵀ`` plus the derivative of the polar rotation (module
+        docstring, "Tangent"); ``rotation_derivative=False``: ``R K Rᵀ`` alone."""
         R = self.rotations(x)
         m = len(self.cells)
         Ke = self.Ke.reshape(8, 3, 8, 3)
-        blocks = np.einsum("mai,cidj,mbj->mcadb", R, Ke, R).reshape(m, 576)
+        blocks = np.einsum("mai,cidj,mbj->mcadb", R, Ke, R)  # (m, 8, 3, 8, 3): [cell, a, i, c, j]
+        if rotation_derivative:
+            blocks = blocks - self._rotation_part(x, R)
         N = 3 * len(self.X)
-        return sp.csr_matrix((blocks.ravel(), (self._rows, self._cols)), shape=(N, N))
+        return sp.csr_matrix((blocks.reshape(m, 576).ravel(), (self._rows, self._cols)), shape=(N, N))
+
+    def _rotation_part(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """``R Q_a W_c`` (m, 8, 3, 8, 3) of :meth:`stiffness`."""
+        xe = np.asarray(x, dtype=float)[self.cells]
+        p = np.einsum("mai,mca->mci", R, xe - xe.mean(axis=1, keepdims=True))  # Rᵀ (x_c − x̄)
+        Xe = self.X[self.cells]
+        u = p - (Xe - Xe.mean(axis=1, keepdims=True))
+        g = (u.reshape(len(self.cells), 24) @ self.Ke.T).reshape(-1, 8, 3)  # K u, local frame
+        Ke = self.Ke.reshape(8, 3, 8, 3)
+        Q = _cross_matrices(g) - np.einsum("aibk,mbkj->maij", Ke, _cross_matrices(p))
+        F = self.deformation_gradients(x)
+        U = np.einsum("mki,mkj->mij", R, F)
+        U = 0.5 * (U + np.swapaxes(U, 1, 2))
+        M = np.trace(U, axis1=1, axis2=2)[:, None, None] * np.eye(3) - U
+        Minv = np.linalg.inv(M)
+        W = np.einsum("mij,cjk,mlk->mcil", Minv, _cross_matrices(XI), R) / (4.0 * self.le)  # (m, 8, 3, 3)
+        return np.einsum("mik,makl,mcln->maicn", R, Q, W)
+
+
+def _cross_matrices(v: np.ndarray) -> np.ndarray:
+    """``[v]×`` (…, 3, 3) of vectors v (…, 3): ``[v]× w = v × w``."""
+    C = np.zeros(v.shape + (3,))
+    C[..., 0, 1], C[..., 0, 2] = -v[..., 2], v[..., 1]
+    C[..., 1, 0], C[..., 1, 2] = v[..., 2], -v[..., 0]
+    C[..., 2, 0], C[..., 2, 1] = -v[..., 1], v[..., 0]
+    return C
 
 
 # ------------------------------------------------------------------------------ explicit dynamics
 def _scaled_free_stiffness(system: System, term: CorotHex8):
     m3 = np.repeat(system.mass, 3)
     free = (~system.fixed).ravel() & (m3 > 0)
-    K = term.stiffness(system.X)[free][:, free]
+    K = term.stiffness(system.X, rotation_derivative=False)[free][:, free]
     s = sp.diags(1.0 / np.sqrt(m3[free]))
     A = (s @ K @ s).tocsr()
     return 0.5 * (A + A.T)
