@@ -328,6 +328,12 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def tasks(quick: bool = False) -> list[Task]:
+    """The runs of :func:`run` with its defaults (``make reproduce-paper`` computes them in the
+    sweep's one pool, so that :func:`run` finds them stored)."""
+    return [t for _, t in all_tasks(quick)]
+
+
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
         experiments=EXPERIMENTS, nus=None, level: str | None = None, runner=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``pareto``, ``pareto_front``,

@@ -166,10 +166,19 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
     unknown = [n for n in names if n not in STUDIES and n not in EXTRA_STUDIES]
     if unknown:
         raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(list(STUDIES) + list(EXTRA_STUDIES))}")
-    # one pool for every task list, so that no core idles at the end of a study's slowest run
+    # one pool for every task list, the extra studies' pooled runs included (their ``tasks``), so
+    # that no core idles at the end of a study's slowest run; each extra study then finds its
+    # runs stored
     listed = [n for n in names if n in STUDIES]
-    rows = run_tasks(tasks_for(listed, quick), store, jobs=jobs, progress=progress,
-                     desc=", ".join(listed), runner=runner) if listed else []
+    pooled = tasks_for(listed, quick) if listed else []
+    n_listed = len(pooled)
+    extra = [n for n in names if n in EXTRA_STUDIES]
+    for name in extra:
+        module = importlib.import_module(EXTRA_STUDIES[name].split(":")[0])
+        if hasattr(module, "tasks"):
+            pooled += module.tasks(quick)
+    rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
+                     runner=runner)[:n_listed] if pooled else []
     write_tables(store)
     for name in names:
         if name in EXTRA_STUDIES:

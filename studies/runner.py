@@ -304,6 +304,7 @@ class Runner:
                                  "pip install 'hybmss[dask]'") from None
         self.executor, self.jobs, self.scheduler, self.progress = executor, jobs, scheduler, progress
         self.summary = Summary()
+        self._seen: set[str] = set()  # keys of earlier sweeps of this runner: counted once in the summary
         self._dask = None
 
     # -------------------------------------------------------------- dask session
@@ -341,13 +342,14 @@ class Runner:
         unique: dict[str, Task] = {}
         for t, k in zip(tasks, keys):  # two studies may share a run
             unique.setdefault(k, t)
-        s = Summary(runs=len(unique), orphans=len(store.remove_orphans()))
+        s = Summary(runs=len(set(unique) - self._seen), orphans=len(store.remove_orphans()))
         todo = []
         for k, t in unique.items():
             if store.has(k):
-                s.stored += 1
+                s.stored += k not in self._seen
             else:
                 todo.append((k, t))
+        self._seen.update(unique)
         todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)  # longest first: a short tail
         bar = tqdm(total=len(unique), initial=s.stored, desc=desc, disable=not self.progress, unit="run",
                    dynamic_ncols=True, file=sys.stderr)

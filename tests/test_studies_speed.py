@@ -29,6 +29,20 @@ def test_bisected_dt_is_close_to_the_eigenvalue_estimate(dt_rows):
     assert np.all((ratio >= 0.5) & (ratio <= 1.05)), dt_rows[["nu", "dt_crit", "dt_stable", "ratio"]]
 
 
+def test_a_model_without_explicit_limit_runs_once_at_twenty_dt_crit():
+    """xpbd-nh (constraints solved implicitly) is shown stable by one run at 20 dt_crit instead of
+    a bisection towards a limit it does not have; that run does tell the two kinds apart: the
+    mass-spring model diverges there."""
+    from hybmss.explicit import DivergenceError, simulate_explicit
+
+    rows = stability.dt_table(quick=True, nus=(0.45,), variants=("xpbd-nh",), steps=400)
+    (r,) = rows.to_dict("records")
+    assert r["trials"] == 1 and r["ratio"] == stability.UNLIMITED_FACTOR and "no stability limit" in r["note"]
+    sc = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.45, deformation=0.05).build()
+    with pytest.raises(DivergenceError):
+        simulate_explicit(sc, dt=stability.UNLIMITED_FACTOR * r["dt_crit"] * 0.9, steps=20, ramp_time=1.0)
+
+
 def test_divergence_is_a_row_not_an_exception(tmp_path):
     spec = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.499)
     task = Task(spec, SolverSpec("explicit", dt=0.5, steps=200, ramp_time=1.0), "test")

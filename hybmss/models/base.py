@@ -149,6 +149,9 @@ class ModelBase:
     style: ClassVar[Style] = Style("#7f7f7f")
     Parameters: ClassVar[type] = NoParameters
     conservative: ClassVar[bool] = True
+    explicit_limit: ClassVar[bool] = True
+    """Whether its explicit scheme has a stability limit (``dt_crit``); False: stable at any step
+    (constraints solved implicitly: only accuracy bounds the step)."""
     solvers: ClassVar[tuple[str, ...]] = SOLVER_KINDS
     kernels: ClassVar[tuple[str, ...]] = KERNELS
     order: ClassVar[int] = 100

@@ -600,6 +600,7 @@ class XpbdNHModel(ModelBase):
     style = Style("#d62728", "X", ":")
     Parameters = XpbdParameters
     conservative = False  # its static answer is the rest state of the iteration, not an energy minimum
+    explicit_limit = False  # constraints solved implicitly: any frame is stable, substeps keep it accurate
     solvers = ("static", "explicit")
     kernels = ("numba", "numpy")
     order = 22
