@@ -207,7 +207,7 @@ def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
 
 def _expected_cost(task: Task) -> float:
     """A rough relative cost, only to order the runs (longest first): finite-strain FEM on large
-    meshes, then the models' static solves by their own estimate (:meth:`static_cost`)."""
+    meshes, the other runs by their model's own estimate (:meth:`run_cost`)."""
     cells = float(np.prod(task.scene.mesh))
     s = task.solver
     if s.kind == "fem":
@@ -215,15 +215,15 @@ def _expected_cost(task: Task) -> float:
         if task.scene.nu >= 0.45:
             per *= 3.0  # mixed u-p
         return cells * per
-    if s.kind == "explicit":
-        return cells * 0.5
     from hybmss import models
 
     try:
-        per = models.get(task.scene.model).static_cost(task.scene)
+        per = models.get(task.scene.model).run_cost(task.scene, s.kind)
     except (KeyError, ValueError, AttributeError):
         per = 1.0
-    return cells * per  # the same units as the FEM's (8×8×48 beam: about 3,800 per second)
+    if s.kind == "explicit":
+        per *= (getattr(s, "steps", None) or 10_000) / 10_000
+    return cells * per  # the FEM's units (8×8×48 beam: about 3,800 per second)
 
 
 @dataclass
