@@ -235,6 +235,19 @@ def inverse_masses(system: System) -> np.ndarray:
     return w
 
 
+CALL_PROJECTIONS = 20_000_000
+"""Tetrahedron projections per kernel call (about a second): a long run is split into calls of a
+whole number of check intervals (the same arithmetic and checks, bit for bit), so that Ctrl-C,
+which Python handles between calls, stops it promptly."""
+
+
+def calls_of(per_substep: int, align: int) -> int:
+    """Substeps (or iterations) per kernel call: about :data:`CALL_PROJECTIONS` projections, a
+    multiple of ``align`` (the check interval), at least one interval."""
+    align = max(1, int(align))
+    return max(align, (CALL_PROJECTIONS // max(1, int(per_substep))) // align * align)
+
+
 def frequencies(system: System, material: Material | None = None) -> tuple[float, float]:
     """``(ω₁, ω_max)`` (rad/s) of the body at rest, from the linear Hex8 stiffness of the same grid
     and material (the small-strain limit of the constraints' energy on the same cells): they set
@@ -342,7 +355,7 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
 
     if history is not None:
         record(0)
-    chunk = int(record_every) * substeps if record_every > 0 else max(nsub, 1)
+    chunk = int(record_every) * substeps if record_every > 0 else calls_of(len(term.tets) * iterations, check_sub)
     wall, cpu, done, at_rest = 0.0, 0.0, 0, False
     while done < nsub and not at_rest:
         n = min(chunk, nsub - done)
@@ -432,14 +445,19 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
         xg[:] = x.T
         xprev, y = xg.copy(), np.empty((3, n))
         plates = plate_arrays(system)
-        done, bad, rest = _kernels_xpbd.relax(
-            W, np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), term.tets, term.Dminv, term.Vt,
-            term.mu, term.lam, term.gamma, np.ascontiguousarray(gdisp.T), system.gravity is not None, h, over, beta,
-            H, float(ramp_time), *plates.args(), np.int64(0), np.int64(n_max), np.int64(iterations), bool(coupled),
-            np.int64(check), float(limit2), np.int64(rest_after), float(rest_disp), xprev, y,
-            np.empty((len(term.tets), 2)))
+        args = (np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), term.tets, term.Dminv, term.Vt,
+                term.mu, term.lam, term.gamma, np.ascontiguousarray(gdisp.T), system.gravity is not None, h, over,
+                beta, H, float(ramp_time), *plates.args())
+        lamb = np.empty((len(term.tets), 2))
+        per_call = calls_of(len(term.tets) * iterations, check)
+        done, bad, rest = 0, -1, False
+        while done < n_max and bad < 0 and not rest:  # calls of whole check intervals: Ctrl-C between them
+            k, bad, rest = _kernels_xpbd.relax(
+                W, *args, np.int64(done), np.int64(min(per_call, n_max - done)), np.int64(iterations),
+                bool(coupled), np.int64(check), float(limit2), np.int64(rest_after), float(rest_disp), xprev, y,
+                lamb)
+            done, bad, rest = done + int(k), int(bad), bool(rest)
         x, x_prev = np.ascontiguousarray(xg.T), np.ascontiguousarray(xprev.T)
-        done, bad, rest = int(done), int(bad), bool(rest)
     else:
         fixed = system.fixed
         free = winv != 0.0
