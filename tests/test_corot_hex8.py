@@ -221,3 +221,17 @@ def test_serial_kernels_refuse_two_threads_and_the_twin_refuses_float32(model):
         harness_explicit(scene, steps=1, threads=2)
     with pytest.raises(ValueError, match="needs kernel='numba'"):
         harness_explicit(scene, steps=1, kernel="numpy", precision="f32")
+
+
+def test_frequencies_and_dt_crit_are_the_same_in_every_call():
+    """The Lanczos solves start from a fixed vector (ARPACK's default start is random): ω₁, ω_max
+    of the competitors' grid and the mass-spring dt_crit come out bit for bit the same each time
+    (they set dt and the substeps of the runs, so results would differ in their last bits)."""
+    from hybmss.experiments import SceneSpec
+    from hybmss.explicit import dt_crit as mss_dt_crit
+    from hybmss.models.xpbd_nh import frequencies
+
+    S = build(SceneSpec.default("tension", model="xpbd-nh", mesh=(4, 4, 24), nu=0.499).build())
+    assert frequencies(S) == frequencies(S)
+    S2 = build(SceneSpec.default("compression", model="hybmss", mesh=(12, 12, 12), nu=0.499).build())
+    assert mss_dt_crit(S2) == mss_dt_crit(S2)

@@ -259,7 +259,13 @@ machine)."""
 def _lmax(A) -> float:
     if A.shape[0] <= DENSE_EIG_MAX:
         return float(np.linalg.eigvalsh(A.toarray())[-1])
-    return float(spla.eigsh(A, k=1, which="LA", tol=1e-10, return_eigenvectors=False)[0])
+    # a fixed start vector: ARPACK's default is random, and dt (hence every run timed by it)
+    # would differ in its last bits between runs
+    return float(spla.eigsh(A, k=1, which="LA", tol=1e-10, return_eigenvectors=False, v0=_start(A.shape[0]))[0])
+
+
+def _start(n: int) -> np.ndarray:
+    return np.random.default_rng(0).standard_normal(n)
 
 
 def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
@@ -273,7 +279,8 @@ def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
         lmin, lmax = float(w[0]), float(w[-1])
     else:
         lmax = _lmax(A)
-        lmin = float(spla.eigsh(A.tocsc(), k=1, sigma=-1e-6 * lmax, which="LM", return_eigenvectors=False)[0])
+        lmin = float(spla.eigsh(A.tocsc(), k=1, sigma=-1e-6 * lmax, which="LM", return_eigenvectors=False,
+                                v0=_start(A.shape[0]))[0])
     return math.sqrt(max(lmin, 0.0)), math.sqrt(max(lmax, 0.0))
 
 
