@@ -179,7 +179,7 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
             pooled += module.tasks(quick)
     rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
                      runner=runner)[:n_listed] if pooled else []
-    write_tables(store)
+    write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None)
     for name in names:
         if name in EXTRA_STUDIES:
             module, func = EXTRA_STUDIES[name].split(":")

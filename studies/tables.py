@@ -353,9 +353,13 @@ def models_table() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write_tables(store: Store) -> dict:
-    """Build every table from the stored runs (and the cheap moduli tests); returns them."""
+def write_tables(store: Store, keys=None) -> dict:
+    """Build every table from the stored runs (and the cheap moduli tests); returns them.
+    ``keys``: only the runs of these keys (the studies' tasks; None: every stored run), so that
+    the tables do not change with what other studies stored in the same folder."""
     df = runs_frame(store)
+    if keys is not None and not df.empty:
+        df = df[df["key"].isin(set(keys))].reset_index(drop=True)
     tables = {"models": models_table()}
     if not df.empty:
         keep = [c for c in df.columns if not c.startswith("env_")] + ["env_git_revision", "env_code_version"]

@@ -82,6 +82,20 @@ def test_quick_study_writes_tables(tmp_path):
     assert len(tasks_for(["shear"], quick=True)) == len(list((tmp_path / "runs").glob("*.json")))
 
 
+def test_tables_do_not_change_with_other_runs_in_the_folder(tmp_path):
+    """The study tables are built from the studies' own runs: a run of another study stored in
+    the same folder (here a shear scene on another mesh, as the speed-against-error study stores)
+    leaves every table as it was."""
+    run_studies(tmp_path, names=["shear"], quick=True, jobs=1, progress=False)
+    before = {p.name: p.read_text() for p in (tmp_path / "tables").glob("*.csv")}
+    other = SceneSpec.default("shear", mesh=(3, 3, 3), deformation=0.05)
+    run_tasks([Task(other, SolverSpec("static"), "pareto")], Store(tmp_path), jobs=1, progress=False)
+    run_studies(tmp_path, names=["shear"], quick=True, jobs=1, progress=False)
+    after = {p.name: p.read_text() for p in (tmp_path / "tables").glob("*.csv")}
+    assert before.keys() == after.keys()
+    assert [n for n in before if before[n] != after[n]] == []
+
+
 def test_compare_cli_schema():
     p = subprocess.run([sys.executable, "-m", "studies", "compare", "bending", "--mesh", "2x2x12", "--law",
                         "linear", "--json"], capture_output=True, text=True)

@@ -202,3 +202,18 @@ def test_long_runs_split_into_calls_bit_for_bit(monkeypatch):
     assert whole_rest.iterations == split_rest.iterations and whole_rest.iterations > 100
     assert np.array_equal(whole_rest.u, split_rest.u)
     assert np.array_equal(whole_run.u, split_run.u) and np.abs(whole_run.u).max() > 0
+
+
+def test_small_strain_rest_state_is_located_relative_to_its_displacements(monkeypatch):
+    """At 1e-4 strain the rest criterion scales with the plate displacement (rest_scale): the
+    moduli equal those at a 100× tighter criterion to 2e-5 (with a criterion of one cell edge
+    E_eff was 2e-4 off)."""
+    import hybmss.models.xpbd_nh as xp
+
+    mat = Material(E, 0.0, 1000.0)
+    m = measure_moduli(XPBD, mat)
+    monkeypatch.setattr(xp, "REST_TOL", xp.REST_TOL / 100)
+    tight = measure_moduli(XPBD, mat)
+    for k in ("E_eff", "G_eff"):
+        assert abs(m[k] / tight[k] - 1) <= 2e-5
+    assert abs(m["nu_eff"] - tight["nu_eff"]) <= 2e-5
