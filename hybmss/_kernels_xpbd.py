@@ -213,6 +213,17 @@ def project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations
 
 
 @njit(**_OPTS)
+def moved_since(x, xcheck):
+    """Largest component change of ``x`` (3, n) since ``xcheck``, which then takes ``x``'s values."""
+    moved = 0.0
+    for d in range(3):
+        for q in range(x.shape[1]):
+            moved = max(moved, abs(x[d, q] - xcheck[d, q]))
+            xcheck[d, q] = x[d, q]
+    return moved
+
+
+@njit(**_OPTS)
 def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
         pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, sub0, nsub, iterations,
         coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb):
@@ -265,19 +276,12 @@ def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity,
                 done = k + 1
                 break
             if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0:
-                moved = 0.0
-                for d in range(3):
-                    for q in range(n):
-                        moved = max(moved, abs(x[d, q] - xcheck[d, q]))
-                        xcheck[d, q] = x[d, q]
-                if moved <= rest_disp:
+                if moved_since(x, xcheck) <= rest_disp:
                     done = k + 1
                     rest = 1
                     break
             else:
-                for d in range(3):
-                    for q in range(n):
-                        xcheck[d, q] = x[d, q]
+                xcheck[:, :] = x
     if posmode:
         for i in range(W.shape[0]):
             W[i] = Wk[i]
@@ -329,17 +333,10 @@ def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, ov
                 done = k + 1
                 break
             if rest_after >= 0 and it + 1 >= rest_after and (k + 1) % check_every == 0:
-                moved = 0.0
-                for d in range(3):
-                    for q in range(n):
-                        moved = max(moved, abs(x[d, q] - xcheck[d, q]))
-                        xcheck[d, q] = x[d, q]
-                if moved <= rest_disp:
+                if moved_since(x, xcheck) <= rest_disp:
                     done = k + 1
                     rest = 1
                     break
             else:
-                for d in range(3):
-                    for q in range(n):
-                        xcheck[d, q] = x[d, q]
+                xcheck[:, :] = x
     return done, bad, rest

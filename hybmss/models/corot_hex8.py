@@ -50,7 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .. import _kernels_corot
-from ..explicit import initial_state, plate_arrays, ramp
+from ..explicit import initial_state, lanczos_start, plate_arrays, ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
@@ -204,25 +204,25 @@ class CorotHex8:
         """Tangent ``−∂f/∂x`` (3n, 3n), nonsymmetric: per cell ``R K_ac Rᵀ − R Q_a W_c``, the
         usual block-rotated ``R K Rᵀ`` plus the derivative of the polar rotation (module
         docstring, "Tangent"); ``rotation_derivative=False``: ``R K Rᵀ`` alone."""
-        R = self.rotations(x)
+        F = self.deformation_gradients(x)
+        R = polar_rotations(F)
         m = len(self.cells)
         Ke = self.Ke.reshape(8, 3, 8, 3)
         blocks = np.einsum("mai,cidj,mbj->mcadb", R, Ke, R)  # (m, 8, 3, 8, 3): [cell, a, i, c, j]
         if rotation_derivative:
-            blocks = blocks - self._rotation_part(x, R)
+            blocks = blocks - self._rotation_part(x, F, R)
         N = 3 * len(self.X)
         return sp.csr_matrix((blocks.reshape(m, 576).ravel(), (self._rows, self._cols)), shape=(N, N))
 
-    def _rotation_part(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
-        """``R Q_a W_c`` (m, 8, 3, 8, 3) of :meth:`stiffness`."""
-        xe = np.asarray(x, dtype=float)[self.cells]
-        p = np.einsum("mai,mca->mci", R, xe - xe.mean(axis=1, keepdims=True))  # Rᵀ (x_c − x̄)
+    def _rotation_part(self, x: np.ndarray, F: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """``R Q_a W_c`` (m, 8, 3, 8, 3) of :meth:`stiffness` (``F``, ``R``: the cells' deformation
+        gradients and rotations at ``x``)."""
+        u = self.local_displacements(x, R)
         Xe = self.X[self.cells]
-        u = p - (Xe - Xe.mean(axis=1, keepdims=True))
+        p = u + (Xe - Xe.mean(axis=1, keepdims=True))  # Rᵀ (x_c − x̄)
         g = (u.reshape(len(self.cells), 24) @ self.Ke.T).reshape(-1, 8, 3)  # K u, local frame
         Ke = self.Ke.reshape(8, 3, 8, 3)
         Q = _cross_matrices(g) - np.einsum("aibk,mbkj->maij", Ke, _cross_matrices(p))
-        F = self.deformation_gradients(x)
         U = np.einsum("mki,mkj->mij", R, F)
         U = 0.5 * (U + np.swapaxes(U, 1, 2))
         M = np.trace(U, axis1=1, axis2=2)[:, None, None] * np.eye(3) - U
@@ -259,13 +259,7 @@ machine)."""
 def _lmax(A) -> float:
     if A.shape[0] <= DENSE_EIG_MAX:
         return float(np.linalg.eigvalsh(A.toarray())[-1])
-    # a fixed start vector: ARPACK's default is random, and dt (hence every run timed by it)
-    # would differ in its last bits between runs
-    return float(spla.eigsh(A, k=1, which="LA", tol=1e-10, return_eigenvectors=False, v0=_start(A.shape[0]))[0])
-
-
-def _start(n: int) -> np.ndarray:
-    return np.random.default_rng(0).standard_normal(n)
+    return float(spla.eigsh(A, k=1, which="LA", tol=1e-10, return_eigenvectors=False, v0=lanczos_start(A.shape[0]))[0])
 
 
 def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
@@ -280,7 +274,7 @@ def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
     else:
         lmax = _lmax(A)
         lmin = float(spla.eigsh(A.tocsc(), k=1, sigma=-1e-6 * lmax, which="LM", return_eigenvectors=False,
-                                v0=_start(A.shape[0]))[0])
+                                v0=lanczos_start(A.shape[0]))[0])
     return math.sqrt(max(lmin, 0.0)), math.sqrt(max(lmax, 0.0))
 
 
