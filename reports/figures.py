@@ -556,6 +556,15 @@ def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
                   "line: the non-dominated candidates.")
 
 
+def stable_label(g: pd.DataFrame) -> str:
+    """What a variant's dt_stable bars are: the bisected limit, or (notes "no stability limit") the
+    step of one stable run, a lower bound."""
+    notes = g["note"].fillna("").astype(str) if "note" in g else pd.Series([], dtype=str)
+    if len(notes) and notes.str.startswith("no stability limit").all():
+        return "stable at 20 dt_crit (no limit)"
+    return "largest stable dt"
+
+
 def dt_stability(df: pd.DataFrame, path: Path) -> Figure | None:
     if not {"nu", "variant", "dt_crit"} <= set(df.columns):
         return generic("dt_stability", df, path)
@@ -566,7 +575,7 @@ def dt_stability(df: pd.DataFrame, path: Path) -> Figure | None:
             ax.plot(g["nu"], g["dt_crit"], color=palette.color(var), marker=palette.marker(var), label=f"{var}: dt_crit")
             if "dt_stable" in g:
                 ax.plot(g["nu"], g["dt_stable"], color=palette.color(var), ls="none", marker="_", ms=12, mew=2,
-                        label=f"{var}: largest stable dt")
+                        label=f"{var}: {stable_label(g)}")
         ax.set_yscale("log")
         ax.set_xlabel("ν")
         ax.set_ylabel("time step (s)")
