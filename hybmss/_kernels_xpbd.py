@@ -17,6 +17,14 @@ One substep of size h (see :mod:`hybmss.models.xpbd_nh` for the method):
 Precision: the state ``W`` holds float64 positions or float32 displacements (``posmode`` False,
 :mod:`hybmss.models._voxel_explicit`); the constraint arithmetic is float64 in both.
 
+Speed.  A tetrahedron's projection is about 130 scalar operations with a square root and two
+divisions; one at a time (:func:`project_all`) they run at the scalar peak, ~55 ns each.  The
+default sweep (one coupled iteration, a lattice body) is :func:`project_cells`: the cells of a
+batch share no node and take one SIMD lane each, so LLVM vectorizes the arithmetic (4 doubles per
+instruction on AVX2/AVX-512), and the batches follow a level order in which every pair of cells
+sharing a node keeps its order (:func:`cell_levels`).  The sweep is then the tetrahedron-by-
+tetrahedron one to the last bit (a test), 3.4–3.9× faster (10³ cube, 8×8×48 beam).
+
 The readable twin is :func:`hybmss.models.xpbd_nh.numpy_substep` (same order, plain Python).
 """
 
@@ -212,6 +220,265 @@ def project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations
                 lamb[t, 1] += d2
 
 
+# ------------------------------------------------------------------------------ cells in SIMD lanes
+LANES = 8
+"""Cells projected side by side (one SIMD lane each) by :func:`project_cells`."""
+
+SLOTS = 48
+"""Rows of the lane buffer: the 8 corners' positions (3 each), then their inverse masses."""
+
+SWEEP_TETS = ((0, 3, 6, 5), (1, 0, 5, 3), (2, 3, 6, 0), (4, 5, 0, 6), (7, 6, 3, 5),
+             (1, 2, 4, 7), (0, 1, 2, 4), (3, 2, 1, 7), (5, 4, 7, 1), (6, 7, 4, 2))
+"""Local corners of a cell's ten tetrahedra in sweep order, positively oriented: the literal
+twin of :func:`hybmss.models.xpbd_nh.cell_tetrahedra` (a test keeps them equal)."""
+
+
+@njit(inline="always")
+def _tet_lanes(B, c0, c1, c2, c3, Dm, t, aD, aH, gamma, one):
+    """Coupled projection of tetrahedron ``t`` (local corners c0..c3) of every lane's cell, on the
+    lane buffer ``B`` (:data:`SLOTS` rows of :data:`LANES`): exactly the arithmetic of the
+    coupled branch of :func:`project_all`, operation by operation, for one iteration.  ``one``: 1
+    on displacements (``F = I + D_u D_m⁻¹``), 0 on positions (adding 0 to F's diagonal, ≈ 1,
+    leaves it unchanged: one loop serves both states)."""
+    L = LANES
+    d00 = Dm[t, 0, 0]
+    d01 = Dm[t, 0, 1]
+    d02 = Dm[t, 0, 2]
+    d10 = Dm[t, 1, 0]
+    d11 = Dm[t, 1, 1]
+    d12 = Dm[t, 1, 2]
+    d20 = Dm[t, 2, 0]
+    d21 = Dm[t, 2, 1]
+    d22 = Dm[t, 2, 2]
+    p0 = 3 * c0 * L
+    p1 = 3 * c1 * L
+    p2 = 3 * c2 * L
+    p3 = 3 * c3 * L
+    q0 = p0 + 24 * L
+    q1 = p1 + 24 * L
+    q2 = p2 + 24 * L
+    q3 = p3 + 24 * L
+    for l in range(L):
+        # F = D_s D_m⁻¹, row a from the edges of component a
+        x0 = B[p0 + l]
+        e1 = B[p1 + l] - x0
+        e2 = B[p2 + l] - x0
+        e3 = B[p3 + l] - x0
+        F00 = e1 * d00 + e2 * d10 + e3 * d20
+        F01 = e1 * d01 + e2 * d11 + e3 * d21
+        F02 = e1 * d02 + e2 * d12 + e3 * d22
+        x0 = B[p0 + L + l]
+        e1 = B[p1 + L + l] - x0
+        e2 = B[p2 + L + l] - x0
+        e3 = B[p3 + L + l] - x0
+        F10 = e1 * d00 + e2 * d10 + e3 * d20
+        F11 = e1 * d01 + e2 * d11 + e3 * d21
+        F12 = e1 * d02 + e2 * d12 + e3 * d22
+        x0 = B[p0 + 2 * L + l]
+        e1 = B[p1 + 2 * L + l] - x0
+        e2 = B[p2 + 2 * L + l] - x0
+        e3 = B[p3 + 2 * L + l] - x0
+        F20 = e1 * d00 + e2 * d10 + e3 * d20
+        F21 = e1 * d01 + e2 * d11 + e3 * d21
+        F22 = e1 * d02 + e2 * d12 + e3 * d22
+        F00 += one
+        F11 += one
+        F22 += one
+        s2 = 0.0
+        s2 += F00 * F00
+        s2 += F01 * F01
+        s2 += F02 * F02
+        s2 += F10 * F10
+        s2 += F11 * F11
+        s2 += F12 * F12
+        s2 += F20 * F20
+        s2 += F21 * F21
+        s2 += F22 * F22
+        CD = math.sqrt(s2)
+        ic = 1.0 / CD
+        P00 = F11 * F22 - F12 * F21
+        P01 = F12 * F20 - F10 * F22
+        P02 = F10 * F21 - F11 * F20
+        P10 = F21 * F02 - F22 * F01
+        P11 = F22 * F00 - F20 * F02
+        P12 = F20 * F01 - F21 * F00
+        P20 = F01 * F12 - F02 * F11
+        P21 = F02 * F10 - F00 * F12
+        P22 = F00 * F11 - F01 * F10
+        CH = F00 * P00 + F01 * P01 + F02 * P02 - gamma
+        a11 = aD
+        a12 = 0.0
+        a22 = aH
+        # component 0: gradients of C_D (g*) and C_H (h*) at corners 1..3, corner 0 minus their sum
+        g1x = (F00 * d00 + F01 * d01 + F02 * d02) * ic
+        h1x = P00 * d00 + P01 * d01 + P02 * d02
+        g2x = (F00 * d10 + F01 * d11 + F02 * d12) * ic
+        h2x = P00 * d10 + P01 * d11 + P02 * d12
+        g3x = (F00 * d20 + F01 * d21 + F02 * d22) * ic
+        h3x = P00 * d20 + P01 * d21 + P02 * d22
+        g0x = -(((0.0 + g1x) + g2x) + g3x)
+        h0x = -(((0.0 + h1x) + h2x) + h3x)
+        w0x = B[q0 + l]
+        w1x = B[q1 + l]
+        w2x = B[q2 + l]
+        w3x = B[q3 + l]
+        a11 += w0x * g0x * g0x
+        a12 += w0x * g0x * h0x
+        a22 += w0x * h0x * h0x
+        a11 += w1x * g1x * g1x
+        a12 += w1x * g1x * h1x
+        a22 += w1x * h1x * h1x
+        a11 += w2x * g2x * g2x
+        a12 += w2x * g2x * h2x
+        a22 += w2x * h2x * h2x
+        a11 += w3x * g3x * g3x
+        a12 += w3x * g3x * h3x
+        a22 += w3x * h3x * h3x
+        # component 1
+        g1y = (F10 * d00 + F11 * d01 + F12 * d02) * ic
+        h1y = P10 * d00 + P11 * d01 + P12 * d02
+        g2y = (F10 * d10 + F11 * d11 + F12 * d12) * ic
+        h2y = P10 * d10 + P11 * d11 + P12 * d12
+        g3y = (F10 * d20 + F11 * d21 + F12 * d22) * ic
+        h3y = P10 * d20 + P11 * d21 + P12 * d22
+        g0y = -(((0.0 + g1y) + g2y) + g3y)
+        h0y = -(((0.0 + h1y) + h2y) + h3y)
+        w0y = B[q0 + L + l]
+        w1y = B[q1 + L + l]
+        w2y = B[q2 + L + l]
+        w3y = B[q3 + L + l]
+        a11 += w0y * g0y * g0y
+        a12 += w0y * g0y * h0y
+        a22 += w0y * h0y * h0y
+        a11 += w1y * g1y * g1y
+        a12 += w1y * g1y * h1y
+        a22 += w1y * h1y * h1y
+        a11 += w2y * g2y * g2y
+        a12 += w2y * g2y * h2y
+        a22 += w2y * h2y * h2y
+        a11 += w3y * g3y * g3y
+        a12 += w3y * g3y * h3y
+        a22 += w3y * h3y * h3y
+        # component 2
+        g1z = (F20 * d00 + F21 * d01 + F22 * d02) * ic
+        h1z = P20 * d00 + P21 * d01 + P22 * d02
+        g2z = (F20 * d10 + F21 * d11 + F22 * d12) * ic
+        h2z = P20 * d10 + P21 * d11 + P22 * d12
+        g3z = (F20 * d20 + F21 * d21 + F22 * d22) * ic
+        h3z = P20 * d20 + P21 * d21 + P22 * d22
+        g0z = -(((0.0 + g1z) + g2z) + g3z)
+        h0z = -(((0.0 + h1z) + h2z) + h3z)
+        w0z = B[q0 + 2 * L + l]
+        w1z = B[q1 + 2 * L + l]
+        w2z = B[q2 + 2 * L + l]
+        w3z = B[q3 + 2 * L + l]
+        a11 += w0z * g0z * g0z
+        a12 += w0z * g0z * h0z
+        a22 += w0z * h0z * h0z
+        a11 += w1z * g1z * g1z
+        a12 += w1z * g1z * h1z
+        a22 += w1z * h1z * h1z
+        a11 += w2z * g2z * g2z
+        a12 += w2z * g2z * h2z
+        a22 += w2z * h2z * h2z
+        a11 += w3z * g3z * g3z
+        a12 += w3z * g3z * h3z
+        a22 += w3z * h3z * h3z
+        # multipliers start the substep at 0: b = −C − α̃ · 0
+        b1 = -CD - aD * 0.0
+        b2 = -CH - aH * 0.0
+        idet = 1.0 / (a11 * a22 - a12 * a12)
+        d1 = (a22 * b1 - a12 * b2) * idet
+        d2 = (a11 * b2 - a12 * b1) * idet
+        B[p0 + l] += w0x * (g0x * d1 + h0x * d2)
+        B[p0 + L + l] += w0y * (g0y * d1 + h0y * d2)
+        B[p0 + 2 * L + l] += w0z * (g0z * d1 + h0z * d2)
+        B[p1 + l] += w1x * (g1x * d1 + h1x * d2)
+        B[p1 + L + l] += w1y * (g1y * d1 + h1y * d2)
+        B[p1 + 2 * L + l] += w1z * (g1z * d1 + h1z * d2)
+        B[p2 + l] += w2x * (g2x * d1 + h2x * d2)
+        B[p2 + L + l] += w2y * (g2y * d1 + h2y * d2)
+        B[p2 + 2 * L + l] += w2z * (g2z * d1 + h2z * d2)
+        B[p3 + l] += w3x * (g3x * d1 + h3x * d2)
+        B[p3 + L + l] += w3y * (g3y * d1 + h3y * d2)
+        B[p3 + 2 * L + l] += w3z * (g3z * d1 + h3z * d2)
+
+
+@njit(inline="always")
+def _cell_lanes(B, Dm, aD, aH, gamma, one):
+    """The ten tetrahedra of every lane's cell in sweep order (:data:`SWEEP_TETS`, literal)."""
+    _tet_lanes(B, 0, 3, 6, 5, Dm, 0, aD[0], aH[0], gamma, one)
+    _tet_lanes(B, 1, 0, 5, 3, Dm, 1, aD[1], aH[1], gamma, one)
+    _tet_lanes(B, 2, 3, 6, 0, Dm, 2, aD[2], aH[2], gamma, one)
+    _tet_lanes(B, 4, 5, 0, 6, Dm, 3, aD[3], aH[3], gamma, one)
+    _tet_lanes(B, 7, 6, 3, 5, Dm, 4, aD[4], aH[4], gamma, one)
+    _tet_lanes(B, 1, 2, 4, 7, Dm, 5, aD[5], aH[5], gamma, one)
+    _tet_lanes(B, 0, 1, 2, 4, Dm, 6, aD[6], aH[6], gamma, one)
+    _tet_lanes(B, 3, 2, 1, 7, Dm, 7, aD[7], aH[7], gamma, one)
+    _tet_lanes(B, 5, 4, 7, 1, Dm, 8, aD[8], aH[8], gamma, one)
+    _tet_lanes(B, 6, 7, 4, 2, Dm, 9, aD[9], aH[9], gamma, one)
+
+
+@njit(**_OPTS)
+def project_cells(x, posmode, winv, bnodes, bcount, Dm, Vt, mu, lam, gamma, h, B):
+    """One coupled Gauss–Seidel sweep (:func:`project_all`, ``iterations = 1``), bit for bit, with
+    the cells of a batch in SIMD lanes.  ``bnodes`` (nb, 8, LANES): the corner nodes of the cells
+    of each batch (lanes past ``bcount[b]`` repeat a cell of it and are not written back); the
+    cells of a batch share no node and the batches follow :func:`cell_batches`, so every pair of
+    tetrahedra that share a node is projected in the order of :func:`project_all`.  ``Dm``
+    (10, 3, 3), ``Vt`` (10,): one cell's tetrahedra (the same in every cell); ``B`` a scratch of
+    ``SLOTS · LANES``."""
+    ih2 = 1.0 / (h * h)
+    imu = 1.0 / mu
+    ilam = 1.0 / lam
+    aD = np.empty(10)
+    aH = np.empty(10)
+    for t in range(10):
+        iv = ih2 / Vt[t]
+        aD[t] = imu * iv
+        aH[t] = ilam * iv
+    one = 0.0 if posmode else 1.0
+    L = LANES
+    for b in range(bnodes.shape[0]):
+        for c in range(8):
+            for l in range(L):
+                q = bnodes[b, c, l]
+                B[3 * c * L + l] = x[0, q]
+                B[(3 * c + 1) * L + l] = x[1, q]
+                B[(3 * c + 2) * L + l] = x[2, q]
+                B[(24 + 3 * c) * L + l] = winv[0, q]
+                B[(25 + 3 * c) * L + l] = winv[1, q]
+                B[(26 + 3 * c) * L + l] = winv[2, q]
+        _cell_lanes(B, Dm, aD, aH, gamma, one)
+        for c in range(8):
+            for l in range(bcount[b]):
+                q = bnodes[b, c, l]
+                x[0, q] = B[3 * c * L + l]
+                x[1, q] = B[(3 * c + 1) * L + l]
+                x[2, q] = B[(3 * c + 2) * L + l]
+
+
+@njit(**_OPTS)
+def cell_levels(cells):
+    """Sweep level of each cell (rows of ``cells`` (m, 8): corner nodes, in sweep order): one more
+    than the highest level of an earlier cell it shares a node with.  Cells of one level share
+    no node, and every pair that does is ordered as in the sweep."""
+    n = 0
+    for i in range(cells.shape[0]):
+        for c in range(8):
+            n = max(n, cells[i, c] + 1)
+    node_level = np.zeros(n, dtype=np.int64)
+    out = np.empty(cells.shape[0], dtype=np.int64)
+    for i in range(cells.shape[0]):
+        lv = 0
+        for c in range(8):
+            lv = max(lv, node_level[cells[i, c]])
+        out[i] = lv
+        for c in range(8):
+            node_level[cells[i, c]] = lv + 1
+    return out
+
+
 @njit(**_OPTS)
 def moved_since(x, xcheck):
     """Largest component change of ``x`` (3, n) since ``xcheck``, which then takes ``x``'s values."""
@@ -226,7 +493,7 @@ def moved_since(x, xcheck):
 @njit(**_OPTS)
 def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
         pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, sub0, nsub, iterations,
-        coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb):
+        coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb, bnodes, bcount, B):
     """Advance ``nsub`` substeps from global substep ``sub0``.  Every ``check_every`` substeps: a
     diverged node stops the run; after substep ``rest_after`` (the end of the ramp; −1: never) the
     run also stops once no node moved more than ``rest_disp`` over the last ``check_every``
@@ -262,7 +529,10 @@ def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity,
             apply_plates(Wk, 0, 3 * n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                          pl_center, pl_angle, ramp(step * h, ramp_time), ramp((step + 1) * h, ramp_time), h, R,
                          u_old, u_new, 0, n)
-        project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
+        if bnodes.shape[0] > 0 and iterations == 1 and coupled:
+            project_cells(x, posmode, winv, bnodes, bcount, Dminv, Vt, mu, lam, gamma, h, B)
+        else:
+            project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
         for d in range(3):
             for q in range(n):
                 v[d, q] = (x[d, q] - xprev[d, q]) / h
@@ -291,7 +561,7 @@ def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity,
 @njit(**_OPTS)
 def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, over, beta, H, ramp_time, pl_nodes,
           pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, k0, nk, iterations, coupled,
-          check_every, limit2, rest_after, rest_disp, xprev, y, lamb):
+          check_every, limit2, rest_after, rest_disp, xprev, y, lamb, bnodes, bcount, B):
     """``nk`` iterations, from iteration ``k0``, of the relaxation to the rest state of the substep
     ``h`` (:func:`hybmss.models.xpbd_nh.relax_static`), float64 positions ``W[:3n]``::
 
@@ -322,7 +592,10 @@ def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, ov
             apply_plates(W, 0, 3 * n, n, True, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
                          pl_center, pl_angle, ramp(it * H, ramp_time), ramp((it + 1) * H, ramp_time), H, R,
                          u_old, u_new, 0, n)
-        project_all(x, True, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
+        if bnodes.shape[0] > 0 and iterations == 1 and coupled:
+            project_cells(x, True, winv, bnodes, bcount, Dminv, Vt, mu, lam, gamma, h, B)
+        else:
+            project_all(x, True, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
         for d in range(3):
             for q in range(n):
                 if winv[d, q] != 0.0:

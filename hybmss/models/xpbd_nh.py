@@ -112,6 +112,29 @@ def cell_tetrahedra(le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return tets, np.array(Dinv), np.array(V)
 
 
+def cell_batches(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cells of a body in batches of :data:`hybmss._kernels_xpbd.LANES` that share no node,
+    ordered so that any two cells sharing a node keep their order in ``cells`` (``bnodes``
+    (nb, 8, LANES) corner nodes, pad lanes repeating the batch's first cell; ``bcount`` (nb,)
+    cells per batch): the sweep of :func:`hybmss._kernels_xpbd.project_cells` is then the
+    cell-by-cell sweep, bit for bit."""
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    lanes = _kernels_xpbd.LANES
+    levels = _kernels_xpbd.cell_levels(cells)
+    order = np.argsort(levels, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(levels[order]) != 0, True])
+    groups = []
+    for a, b in zip(starts[:-1], starts[1:]):
+        groups += [order[i:min(i + lanes, b)] for i in range(a, b, lanes)]
+    bnodes = np.empty((len(groups), 8, lanes), dtype=np.int64)
+    bcount = np.empty(len(groups), dtype=np.int64)
+    for k, g in enumerate(groups):
+        idx = np.r_[g, np.full(lanes - len(g), g[0])]
+        bnodes[k] = cells[idx].T
+        bcount[k] = len(g)
+    return bnodes, bcount
+
+
 def xpbd_lame(material: Material) -> tuple[float, float, float]:
     """``(μ, λ, γ)`` of the constraints for a material of Lamé (λ₀, μ₀): μ = μ₀, λ = λ₀ + μ₀,
     γ = 1 + μ/λ (module docstring, "Lamé trap")."""
@@ -140,6 +163,14 @@ class XpbdNH:
         self.Dminv = np.ascontiguousarray(np.tile(Dinv, (m, 1, 1)))
         self.Vt = np.ascontiguousarray(np.tile(V, m))
         self.mu, self.lam, self.gamma = xpbd_lame(material)
+        self.cells = cells
+        self._batches = None
+
+    def batches(self) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`cell_batches` of the body's cells (computed once)."""
+        if self._batches is None:
+            self._batches = cell_batches(self.cells)
+        return self._batches
 
     def deformation_gradients(self, x: np.ndarray) -> np.ndarray:
         xt = np.asarray(x)[self.tets]
@@ -308,13 +339,15 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
             gacc[:] = system.gravity[:, None]
         Xg, wg, plates = np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), plate_arrays(system)
         xprev, lamb = np.empty((3, system.n)), np.empty((len(term.tets), 2))
+        bnodes, bcount = term.batches()
+        B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
 
         def advance(sub0, n):
             done, bad, rest = _kernels_xpbd.run(
                 W, posmode, Xg, wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam, term.gamma, gacc,
                 system.gravity is not None, h, damp, float(ramp_time), *plates.args(), np.int64(sub0), np.int64(n),
                 np.int64(iterations), bool(coupled), np.int64(check_sub), float(limit2), np.int64(rest_after),
-                float(rest_disp), xprev, lamb)
+                float(rest_disp), xprev, lamb, bnodes, bcount, B)
             return int(done), int(bad), bool(rest)
 
         def state():
@@ -468,13 +501,15 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
                 term.mu, term.lam, term.gamma, np.ascontiguousarray(gdisp.T), system.gravity is not None, h, over,
                 beta, H, float(ramp_time), *plates.args())
         lamb = np.empty((len(term.tets), 2))
+        bnodes, bcount = term.batches()
+        B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
         per_call = calls_of(len(term.tets) * iterations, check)
         done, bad, rest = 0, -1, False
         while done < n_max and bad < 0 and not rest:  # calls of whole check intervals: Ctrl-C between them
             k, bad, rest = _kernels_xpbd.relax(
                 W, *args, np.int64(done), np.int64(min(per_call, n_max - done)), np.int64(iterations),
                 bool(coupled), np.int64(check), float(limit2), np.int64(rest_after), float(rest_disp), xprev, y,
-                lamb)
+                lamb, bnodes, bcount, B)
             done, bad, rest = done + int(k), int(bad), bool(rest)
         x, x_prev = np.ascontiguousarray(xg.T), np.ascontiguousarray(xprev.T)
     else:
