@@ -127,6 +127,51 @@ def beam_dt(meshes) -> float:
     return 0.5 * min(dts) * coarse[2] / fine[2]
 
 
+# ------------------------------------------------------------------------------ compiling
+def _compile_one(job: tuple) -> tuple:
+    """Compile (into the on-disk kernel cache) the kernel of one configuration: two steps of it."""
+    from hybmss.explicit import simulate_explicit
+
+    kind, mesh, model, nu, threads, dt = job
+    simulate_explicit(_spec(kind, mesh, model, nu).build(), dt=dt, steps=2, threads=threads,
+                      compute_dt_crit=False)
+    return job
+
+
+def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = None, progress: bool = False) -> int:
+    """Compile the generated kernel of every configuration the timings will run, ``workers``
+    processes at a time, before any is timed: each (mesh, offsets, terms, threads) has its own
+    kernel (:mod:`hybmss._stencil_gen`), 2–4 s of compilation on one thread and 9–17 s on two, and
+    compiled one after the other they took 365 of the 462 s of the full study.  The timings
+    then load them from the cache.  ``jobs``: (kind, mesh, dt); returns the kernels compiled."""
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    from hybmss.explicit import stencil
+    from hybmss.system import build
+
+    from .executors import ignore_interrupt, worker_context
+
+    todo = {}
+    for kind, mesh, dt in jobs:
+        for model, nu in variants():
+            S = build(_spec(kind, mesh, model, nu).build())
+            for th in threads:
+                todo.setdefault(stencil(S, dt, 1.0, threads=th).config.key(), (kind, mesh, model, nu, th, dt))
+    n = min(workers or os.cpu_count() or 1, len(todo))
+    if n <= 1:
+        for job in todo.values():
+            _compile_one(job)
+        return len(todo)
+    # the longest (two-thread, large mesh) first, so that no worker is left with one at the end
+    order = sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1]))))
+    with ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt) as pool:
+        for i, job in enumerate(pool.map(_compile_one, order), 1):
+            if progress and (i % 8 == 0 or i == len(order)):
+                print(f"performance: {i}/{len(order)} kernels compiled", flush=True)
+    return len(todo)
+
+
 # ------------------------------------------------------------------------------ timing
 def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS,
               min_span: float = MIN_SPAN) -> list[dict]:
@@ -237,8 +282,10 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 
 def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
                     threads=THREADS, progress: bool = False, min_span: float = MIN_SPAN,
-                    bandwidth_MB: int | None = None, cubes=None, beams=None) -> tuple[pd.DataFrame, dict]:
-    """Time every mesh (``cubes``/``beams`` replace the default lists); returns (table, bandwidth)."""
+                    bandwidth_MB: int | None = None, cubes=None, beams=None,
+                    workers: int | None = None) -> tuple[pd.DataFrame, dict]:
+    """Time every mesh (``cubes``/``beams`` replace the default lists; the kernels compiled first
+    on ``workers`` processes, :func:`compile_kernels`); returns (table, bandwidth)."""
     cubes = tuple(cubes) if cubes is not None else (((4, 4, 4), (6, 6, 6)) if quick else CUBES)
     beams = tuple(beams) if beams is not None else (((2, 2, 12), (3, 3, 18)) if quick else BEAMS)
     steps = steps or (200 if quick else 1000)
@@ -248,6 +295,7 @@ def run_performance(quick: bool = False, steps: int | None = None, repeats: int 
     dt_b = beam_dt(beams) if beams else CUBE_DT
     rows = []
     jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
+    compile_kernels(jobs, threads, workers, progress)
     for kind, mesh, dt in jobs:
         if progress:
             print(f"performance: {kind} {'x'.join(map(str, mesh))}", flush=True)
@@ -269,7 +317,7 @@ def format_table(df: pd.DataFrame) -> str:
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True,
         runner=None) -> pd.DataFrame:
     """Study driver (``EXTRA_STUDIES``): always serial in this process (timings), whatever ``runner``."""
-    df, bw = run_performance(quick=quick, progress=progress)
+    df, bw = run_performance(quick=quick, progress=progress, workers=jobs)
     store.write_table("performance", df)
     store.write_table("performance_summary", summary(df))
     store.write_table("bandwidth", pd.DataFrame([bw]))
