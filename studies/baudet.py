@@ -234,10 +234,19 @@ def volume_table(quick: bool = False, progress: bool = False):
     return pd.DataFrame(rows)
 
 
+TABLES = {"baudet_moduli": moduli_table, "baudet_cantilever": cantilever_table, "baudet_lshape": lshape_table,
+          "baudet_volume": volume_table}
+
+
+def _table(job: tuple):
+    name, quick, progress = job
+    return TABLES[name](quick, progress)
+
+
 def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, runner=None) -> None:
     """Write ``baudet_moduli``, ``baudet_cantilever``, ``baudet_lshape`` and ``baudet_volume``
-    into ``store``."""
-    store.write_table("baudet_moduli", moduli_table(quick, progress))
-    store.write_table("baudet_cantilever", cantilever_table(quick, progress))
-    store.write_table("baudet_lshape", lshape_table(quick, progress))
-    store.write_table("baudet_volume", volume_table(quick, progress))
+    into ``store``, the four computed ``jobs`` processes at a time."""
+    from .executors import map_local
+
+    for name, df in zip(TABLES, map_local(_table, [(n, quick, progress) for n in TABLES], jobs)):
+        store.write_table(name, df)

@@ -143,6 +143,18 @@ class LocalPool:
         self.pool.shutdown(wait=True)
 
 
+def map_local(fn: Callable, items: list, workers: int | None = None) -> list:
+    """``[fn(i) for i in items]`` on up to ``workers`` processes of this machine (all cores by
+    default; :func:`worker_context`), in order: for the work of a study that is not a stored run
+    (a bisection, compiling kernels).  ``fn`` must be importable (a module-level function)."""
+    items = list(items)
+    n = min(workers or os.cpu_count() or 1, len(items))
+    if n <= 1:
+        return [fn(i) for i in items]
+    with ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt) as pool:
+        return list(pool.map(fn, items))
+
+
 def local_executor(fn: Callable, jobs: int | None, todo: int):
     """The executor of a sweep of ``todo`` runs on this machine: in this process for one job,
     else a pool of ``jobs`` workers (all cores by default)."""

@@ -144,13 +144,10 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
     kernel (:mod:`hybmss._stencil_gen`), 2–4 s of compilation on one thread and 9–17 s on two, and
     compiled one after the other they took 365 of the 462 s of the full study.  The timings
     then load them from the cache.  ``jobs``: (kind, mesh, dt); returns the kernels compiled."""
-    import os
-    from concurrent.futures import ProcessPoolExecutor
-
     from hybmss.explicit import stencil
     from hybmss.system import build
 
-    from .executors import ignore_interrupt, worker_context
+    from .executors import map_local
 
     todo = {}
     for kind, mesh, dt in jobs:
@@ -158,17 +155,10 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
             S = build(_spec(kind, mesh, model, nu).build())
             for th in threads:
                 todo.setdefault(stencil(S, dt, 1.0, threads=th).config.key(), (kind, mesh, model, nu, th, dt))
-    n = min(workers or os.cpu_count() or 1, len(todo))
-    if n <= 1:
-        for job in todo.values():
-            _compile_one(job)
-        return len(todo)
-    # the longest (two-thread, large mesh) first, so that no worker is left with one at the end
-    order = sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1]))))
-    with ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt) as pool:
-        for i, job in enumerate(pool.map(_compile_one, order), 1):
-            if progress and (i % 8 == 0 or i == len(order)):
-                print(f"performance: {i}/{len(order)} kernels compiled", flush=True)
+    if progress:
+        print(f"performance: compiling {len(todo)} kernels", flush=True)
+    # the longest (two threads, large meshes) first, so that no worker is left with one at the end
+    map_local(_compile_one, sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1])))), workers)
     return len(todo)
 
 

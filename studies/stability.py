@@ -159,18 +159,26 @@ def bisect_dt(scene, steps: int = 10_000, rel_tol: float = 0.01, lo_factor: floa
     return out
 
 
-def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = None) -> pd.DataFrame:
+def _dt_row(job: tuple) -> dict:
+    nu, model, mesh, steps = job
+    spec = SceneSpec.default("compression", mesh=mesh, nu=nu, model=model, deformation=0.05)
+    t0 = time.perf_counter()
+    r = bisect_dt(spec.build(), steps=steps)
+    return {"nu": nu, "variant": model, "mesh": "x".join(map(str, mesh)), "steps": steps, **r,
+            "elapsed_s": time.perf_counter() - t0}
+
+
+def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = None,
+             workers: int | None = None) -> pd.DataFrame:
+    """Part (a): one bisection per ν and variant, ``workers`` processes at a time (each is
+    deterministic: the table does not depend on how they are spread)."""
+    from .executors import map_local
+
     mesh = (2, 2, 2) if quick else (4, 4, 4)
     steps = steps or (2000 if quick else 10_000)
-    rows = []
-    for nu in nus:
-        for model in (variants if variants is not None else stability_models()):
-            spec = SceneSpec.default("compression", mesh=mesh, nu=nu, model=model, deformation=0.05)
-            t0 = time.perf_counter()
-            r = bisect_dt(spec.build(), steps=steps)
-            rows.append({"nu": nu, "variant": model, "mesh": "x".join(map(str, mesh)), "steps": steps,
-                         **r, "elapsed_s": time.perf_counter() - t0})
-    return pd.DataFrame(rows)
+    jobs = [(nu, model, mesh, steps) for nu in nus
+            for model in (variants if variants is not None else stability_models())]
+    return pd.DataFrame(map_local(_dt_row, jobs, workers))
 
 
 # ------------------------------------------------------------------------------ (b, c) extreme
@@ -354,57 +362,66 @@ def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str | None = 
     return out
 
 
-def irregular_table(quick: bool = False) -> pd.DataFrame:
+def irregular_table(quick: bool = False, workers: int | None = None) -> pd.DataFrame:
+    """Part (e): the rows of each ν computed ``workers`` processes at a time."""
+    from .executors import map_local
+
+    nus = (0.0, 0.499) if quick else NU_EXTREME
+    return pd.DataFrame([r for rows in map_local(_irregular_rows, [(quick, nu) for nu in nus], workers)
+                         for r in rows])
+
+
+def _irregular_rows(job: tuple) -> list[dict]:
+    """The rows of part (e) at one ν (``job``: (quick, ν))."""
     from fem_reference.solve import solve as fem_solve
     from hybmss.explicit import simulate_explicit
     from hybmss.solvers import solve_static
 
+    quick, nu = job
     rows = []
-    nus = (0.0, 0.499) if quick else NU_EXTREME
     steps = 2000 if quick else PROTOCOL.steps
-    for nu in nus:
-        fem_cache = {}
-        for model in stability_models():
-            for name, (scene, builder, fem_scene) in irregular_scenes(quick, nu, model).items():
-                if name not in fem_cache:
-                    try:
-                        fem_cache[name] = (fem_solve(fem_scene, element="auto",
-                                                     law="linear"), "ok", "")
-                    except Exception as exc:  # noqa: BLE001 - reported as a row
-                        fem_cache[name] = (None, "error", f"{type(exc).__name__}: {exc}")
-                fem, fem_status, _ = fem_cache[name]
-                S = builder(scene) if builder is not None else None
-                for solver in ("mss-static", "mss-explicit"):
-                    if solver == "mss-explicit" and builder is not None and model != stability_models()[0]:
-                        continue  # the jittered lattice runs on the (slow) NumPy twin: reference model only
-                    t0 = time.perf_counter()
-                    row = {"part": "e", "case": name, "mesh": "x".join(map(str, scene.body.shape)), "nu": nu,
-                           "variant": model, "solver": solver, "fem": fem.solver if fem else "",
-                           "fem_status": fem_status}
-                    try:
-                        if solver == "mss-static":
-                            res = solve_static(scene, system=S)
-                        else:
-                            sc = dataclasses.replace(scene, damping=DAMPING)
-                            Sx = builder(sc) if builder is not None else None
-                            res = simulate_explicit(sc, dt=PROTOCOL.dt, steps=steps, ramp_time=1.0, system=Sx,
-                                                    kernel="numpy" if builder is not None else "numba")
-                        inv = int(np.count_nonzero(res.cell_volumes <= 0.0))
-                        row.update(status="inverted" if inv else "converged", inverted_cells=inv,
-                                   volume_change=res.volume_change, iterations=res.iterations,
-                                   wall_time_s=res.wall_time_s, message="",
-                                   rel_l2_vs_fem=diff_metrics(res.X, res.u, fem.u)["rel_l2"] if fem else np.nan)
-                        if "load_steps" in res.info:
-                            row["load_steps"] = res.info["load_steps"]
-                    except Exception as exc:  # noqa: BLE001 - reported as a row
-                        nm = type(exc).__name__
-                        row.update(status="diverged" if "Divergence" in nm else (
-                            "unstable" if nm == "StaticSolveError" else "error"),
-                            inverted_cells=0, message=f"{nm}: {' '.join(str(exc).split())}",
-                            rel_l2_vs_fem=np.nan)
-                    row["elapsed_s"] = time.perf_counter() - t0
-                    rows.append(row)
-    return pd.DataFrame(rows)
+    fem_cache = {}
+    for model in stability_models():
+        for name, (scene, builder, fem_scene) in irregular_scenes(quick, nu, model).items():
+            if name not in fem_cache:
+                try:
+                    fem_cache[name] = (fem_solve(fem_scene, element="auto",
+                                                 law="linear"), "ok", "")
+                except Exception as exc:  # noqa: BLE001 - reported as a row
+                    fem_cache[name] = (None, "error", f"{type(exc).__name__}: {exc}")
+            fem, fem_status, _ = fem_cache[name]
+            S = builder(scene) if builder is not None else None
+            for solver in ("mss-static", "mss-explicit"):
+                if solver == "mss-explicit" and builder is not None and model != stability_models()[0]:
+                    continue  # the jittered lattice runs on the (slow) NumPy twin: reference model only
+                t0 = time.perf_counter()
+                row = {"part": "e", "case": name, "mesh": "x".join(map(str, scene.body.shape)), "nu": nu,
+                       "variant": model, "solver": solver, "fem": fem.solver if fem else "",
+                       "fem_status": fem_status}
+                try:
+                    if solver == "mss-static":
+                        res = solve_static(scene, system=S)
+                    else:
+                        sc = dataclasses.replace(scene, damping=DAMPING)
+                        Sx = builder(sc) if builder is not None else None
+                        res = simulate_explicit(sc, dt=PROTOCOL.dt, steps=steps, ramp_time=1.0, system=Sx,
+                                                kernel="numpy" if builder is not None else "numba")
+                    inv = int(np.count_nonzero(res.cell_volumes <= 0.0))
+                    row.update(status="inverted" if inv else "converged", inverted_cells=inv,
+                               volume_change=res.volume_change, iterations=res.iterations,
+                               wall_time_s=res.wall_time_s, message="",
+                               rel_l2_vs_fem=diff_metrics(res.X, res.u, fem.u)["rel_l2"] if fem else np.nan)
+                    if "load_steps" in res.info:
+                        row["load_steps"] = res.info["load_steps"]
+                except Exception as exc:  # noqa: BLE001 - reported as a row
+                    nm = type(exc).__name__
+                    row.update(status="diverged" if "Divergence" in nm else (
+                        "unstable" if nm == "StaticSolveError" else "error"),
+                        inverted_cells=0, message=f"{nm}: {' '.join(str(exc).split())}",
+                        rel_l2_vs_fem=np.nan)
+                row["elapsed_s"] = time.perf_counter() - t0
+                rows.append(row)
+    return rows
 
 
 # ------------------------------------------------------------------------------ (f) damping
@@ -481,7 +498,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     tables = {}
     for part in parts:
         if part == "a":
-            tables["dt_stability"] = dt_table(quick)
+            tables["dt_stability"] = dt_table(quick, workers=jobs)
             store.write_table("dt_stability", tables["dt_stability"])
         elif part == "d":
             lim = limit_tasks(quick)
@@ -503,7 +520,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
             store.write_table("stability_extreme", tables["stability_extreme"])
             tables["stability"] = _combined(store)
         elif part == "e":
-            tables["stability_irregular"] = irregular_table(quick)
+            tables["stability_irregular"] = irregular_table(quick, workers=jobs)
             store.write_table("stability_irregular", tables["stability_irregular"])
             tables["stability"] = _combined(store)
     return tables
