@@ -179,15 +179,17 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
     rows = []
     for th in threads:
         times = {v: [] for v in timed}
-        t_est = 0.0
-        for v in timed:  # warm-up (loads the cached compiled kernels) and a duration estimate
+        for v in timed:  # warm-up (loads the cached compiled kernels)
             scene, S = systems[v]
             simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S, compute_dt_crit=False)
-            t_est = max(t_est, simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
-                                                 compute_dt_crit=False, check_every=steps).wall_time_s)
+        for v in timed:  # the first round, whose longest run sets the number of rounds
+            scene, S = systems[v]
+            times[v].append(simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
+                                              compute_dt_crit=False, check_every=steps).wall_time_s)
+        t_est = max(ts[0] for ts in times.values())
         # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
         n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(min_span / max(t_est, 1e-6)))))
-        for _ in range(n_rep):
+        for _ in range(n_rep - 1):
             for v in timed:
                 scene, S = systems[v]
                 r = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
