@@ -234,6 +234,36 @@ twin of :func:`hybmss.models.xpbd_nh.cell_tetrahedra` (a test keeps them equal).
 
 
 @njit(inline="always")
+def _component_lanes(f0, f1, f2, p0, p1, p2, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
+                     w0, w1, w2, w3, a11, a12, a22):
+    """One component a of a tetrahedron's constraint gradients, as in :func:`project_all`: C_D's
+    (``g``) and C_H's (``h``) at corners 1..3 from row a of F (``f*``) and of cof F (``p*``),
+    corner 0 minus their sum; and the Gram sums ``a11, a12, a22`` advanced by the corners'
+    ``w g g``, ``w g h``, ``w h h`` (``w*`` their inverse masses), corner after corner."""
+    g1 = (f0 * d00 + f1 * d01 + f2 * d02) * ic
+    h1 = p0 * d00 + p1 * d01 + p2 * d02
+    g2 = (f0 * d10 + f1 * d11 + f2 * d12) * ic
+    h2 = p0 * d10 + p1 * d11 + p2 * d12
+    g3 = (f0 * d20 + f1 * d21 + f2 * d22) * ic
+    h3 = p0 * d20 + p1 * d21 + p2 * d22
+    g0 = -(((0.0 + g1) + g2) + g3)
+    h0 = -(((0.0 + h1) + h2) + h3)
+    a11 = a11 + w0 * g0 * g0
+    a12 = a12 + w0 * g0 * h0
+    a22 = a22 + w0 * h0 * h0
+    a11 = a11 + w1 * g1 * g1
+    a12 = a12 + w1 * g1 * h1
+    a22 = a22 + w1 * h1 * h1
+    a11 = a11 + w2 * g2 * g2
+    a12 = a12 + w2 * g2 * h2
+    a22 = a22 + w2 * h2 * h2
+    a11 = a11 + w3 * g3 * g3
+    a12 = a12 + w3 * g3 * h3
+    a22 = a22 + w3 * h3 * h3
+    return g0, g1, g2, g3, h0, h1, h2, h3, a11, a12, a22
+
+
+@njit(inline="always")
 def _tet_lanes(B, c0, c1, c2, c3, Dm, t, aD, aH, gamma, one):
     """Coupled projection of tetrahedron ``t`` (local corners c0..c3) of every lane's cell, on the
     lane buffer ``B`` (:data:`SLOTS` rows of :data:`LANES`): exactly the arithmetic of the
@@ -309,81 +339,19 @@ def _tet_lanes(B, c0, c1, c2, c3, Dm, t, aD, aH, gamma, one):
         a11 = aD
         a12 = 0.0
         a22 = aH
-        # component 0: gradients of C_D (g*) and C_H (h*) at corners 1..3, corner 0 minus their sum
-        g1x = (F00 * d00 + F01 * d01 + F02 * d02) * ic
-        h1x = P00 * d00 + P01 * d01 + P02 * d02
-        g2x = (F00 * d10 + F01 * d11 + F02 * d12) * ic
-        h2x = P00 * d10 + P01 * d11 + P02 * d12
-        g3x = (F00 * d20 + F01 * d21 + F02 * d22) * ic
-        h3x = P00 * d20 + P01 * d21 + P02 * d22
-        g0x = -(((0.0 + g1x) + g2x) + g3x)
-        h0x = -(((0.0 + h1x) + h2x) + h3x)
-        w0x = B[q0 + l]
-        w1x = B[q1 + l]
-        w2x = B[q2 + l]
-        w3x = B[q3 + l]
-        a11 += w0x * g0x * g0x
-        a12 += w0x * g0x * h0x
-        a22 += w0x * h0x * h0x
-        a11 += w1x * g1x * g1x
-        a12 += w1x * g1x * h1x
-        a22 += w1x * h1x * h1x
-        a11 += w2x * g2x * g2x
-        a12 += w2x * g2x * h2x
-        a22 += w2x * h2x * h2x
-        a11 += w3x * g3x * g3x
-        a12 += w3x * g3x * h3x
-        a22 += w3x * h3x * h3x
-        # component 1
-        g1y = (F10 * d00 + F11 * d01 + F12 * d02) * ic
-        h1y = P10 * d00 + P11 * d01 + P12 * d02
-        g2y = (F10 * d10 + F11 * d11 + F12 * d12) * ic
-        h2y = P10 * d10 + P11 * d11 + P12 * d12
-        g3y = (F10 * d20 + F11 * d21 + F12 * d22) * ic
-        h3y = P10 * d20 + P11 * d21 + P12 * d22
-        g0y = -(((0.0 + g1y) + g2y) + g3y)
-        h0y = -(((0.0 + h1y) + h2y) + h3y)
-        w0y = B[q0 + L + l]
-        w1y = B[q1 + L + l]
-        w2y = B[q2 + L + l]
-        w3y = B[q3 + L + l]
-        a11 += w0y * g0y * g0y
-        a12 += w0y * g0y * h0y
-        a22 += w0y * h0y * h0y
-        a11 += w1y * g1y * g1y
-        a12 += w1y * g1y * h1y
-        a22 += w1y * h1y * h1y
-        a11 += w2y * g2y * g2y
-        a12 += w2y * g2y * h2y
-        a22 += w2y * h2y * h2y
-        a11 += w3y * g3y * g3y
-        a12 += w3y * g3y * h3y
-        a22 += w3y * h3y * h3y
-        # component 2
-        g1z = (F20 * d00 + F21 * d01 + F22 * d02) * ic
-        h1z = P20 * d00 + P21 * d01 + P22 * d02
-        g2z = (F20 * d10 + F21 * d11 + F22 * d12) * ic
-        h2z = P20 * d10 + P21 * d11 + P22 * d12
-        g3z = (F20 * d20 + F21 * d21 + F22 * d22) * ic
-        h3z = P20 * d20 + P21 * d21 + P22 * d22
-        g0z = -(((0.0 + g1z) + g2z) + g3z)
-        h0z = -(((0.0 + h1z) + h2z) + h3z)
-        w0z = B[q0 + 2 * L + l]
-        w1z = B[q1 + 2 * L + l]
-        w2z = B[q2 + 2 * L + l]
-        w3z = B[q3 + 2 * L + l]
-        a11 += w0z * g0z * g0z
-        a12 += w0z * g0z * h0z
-        a22 += w0z * h0z * h0z
-        a11 += w1z * g1z * g1z
-        a12 += w1z * g1z * h1z
-        a22 += w1z * h1z * h1z
-        a11 += w2z * g2z * g2z
-        a12 += w2z * g2z * h2z
-        a22 += w2z * h2z * h2z
-        a11 += w3z * g3z * g3z
-        a12 += w3z * g3z * h3z
-        a22 += w3z * h3z * h3z
+        # per component: gradients of C_D (g*) and C_H (h*) at the corners, their Gram sums
+        w0x, w1x, w2x, w3x = B[q0 + l], B[q1 + l], B[q2 + l], B[q3 + l]
+        w0y, w1y, w2y, w3y = B[q0 + L + l], B[q1 + L + l], B[q2 + L + l], B[q3 + L + l]
+        w0z, w1z, w2z, w3z = B[q0 + 2 * L + l], B[q1 + 2 * L + l], B[q2 + 2 * L + l], B[q3 + 2 * L + l]
+        g0x, g1x, g2x, g3x, h0x, h1x, h2x, h3x, a11, a12, a22 = _component_lanes(
+            F00, F01, F02, P00, P01, P02, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
+            w0x, w1x, w2x, w3x, a11, a12, a22)
+        g0y, g1y, g2y, g3y, h0y, h1y, h2y, h3y, a11, a12, a22 = _component_lanes(
+            F10, F11, F12, P10, P11, P12, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
+            w0y, w1y, w2y, w3y, a11, a12, a22)
+        g0z, g1z, g2z, g3z, h0z, h1z, h2z, h3z, a11, a12, a22 = _component_lanes(
+            F20, F21, F22, P20, P21, P22, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
+            w0z, w1z, w2z, w3z, a11, a12, a22)
         # multipliers start the substep at 0: b = −C − α̃ · 0
         b1 = -CD - aD * 0.0
         b2 = -CH - aH * 0.0
