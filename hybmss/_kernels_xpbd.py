@@ -234,6 +234,12 @@ twin of :func:`hybmss.models.xpbd_nh.cell_tetrahedra` (a test keeps them equal).
 
 
 @njit(inline="always")
+def _gram_add(a11, a12, a22, w, g, h):
+    """The Gram sums ``a11, a12, a22`` advanced by one corner's ``w g g``, ``w g h``, ``w h h``."""
+    return a11 + w * g * g, a12 + w * g * h, a22 + w * h * h
+
+
+@njit(inline="always")
 def _component_lanes(f0, f1, f2, p0, p1, p2, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
                      w0, w1, w2, w3, a11, a12, a22):
     """One component a of a tetrahedron's constraint gradients, as in :func:`project_all`: C_D's
@@ -248,18 +254,10 @@ def _component_lanes(f0, f1, f2, p0, p1, p2, d00, d01, d02, d10, d11, d12, d20, 
     h3 = p0 * d20 + p1 * d21 + p2 * d22
     g0 = -(((0.0 + g1) + g2) + g3)
     h0 = -(((0.0 + h1) + h2) + h3)
-    a11 = a11 + w0 * g0 * g0
-    a12 = a12 + w0 * g0 * h0
-    a22 = a22 + w0 * h0 * h0
-    a11 = a11 + w1 * g1 * g1
-    a12 = a12 + w1 * g1 * h1
-    a22 = a22 + w1 * h1 * h1
-    a11 = a11 + w2 * g2 * g2
-    a12 = a12 + w2 * g2 * h2
-    a22 = a22 + w2 * h2 * h2
-    a11 = a11 + w3 * g3 * g3
-    a12 = a12 + w3 * g3 * h3
-    a22 = a22 + w3 * h3 * h3
+    a11, a12, a22 = _gram_add(a11, a12, a22, w0, g0, h0)
+    a11, a12, a22 = _gram_add(a11, a12, a22, w1, g1, h1)
+    a11, a12, a22 = _gram_add(a11, a12, a22, w2, g2, h2)
+    a11, a12, a22 = _gram_add(a11, a12, a22, w3, g3, h3)
     return g0, g1, g2, g3, h0, h1, h2, h3, a11, a12, a22
 
 
