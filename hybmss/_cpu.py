@@ -1,8 +1,8 @@
 """What the kernels need of the CPU that Numba does not give: atomic integers, a spinning
 barrier, and the flush-to-zero mode of the floating-point unit.
 
-**Barrier.**  The threaded explicit kernel (:mod:`hybmss._stencil_gen`) runs all its steps inside
-one parallel region: each thread advances its own node range and waits for the others once per
+**Barrier.**  The threaded explicit kernel (:mod:`hybmss._stencil_gen`) runs all its steps on
+its threads at once: each thread advances its own node range and waits for the others once per
 step at :func:`barrier`.  The three atomic operations are LLVM's (``atomicrmw add``, ``load
 atomic acquire``, ``store atomic release``) on one element of an int64 array, so the compiler
 neither caches the shared counters in registers nor moves the state's loads and stores across
@@ -36,8 +36,7 @@ an idle machine the others arrive within that; on a busy one a thread that only 
 keep a descheduled partner off its core for a whole time slice (milliseconds) per step."""
 SPIN_LIMIT = 1 << 22
 """Polls of the round counter before a waiting thread gives up (seconds, most of them spent
-yielding: the other threads are not running, e.g. a parallel region given fewer threads than
-ranges)."""
+yielding: the other threads are not running, e.g. one that was never started)."""
 
 
 def _pointer(context, builder, aryty, ary, idx):

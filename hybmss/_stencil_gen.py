@@ -13,8 +13,8 @@ region r is ``W[r L + F + q]``.  Regions, in order: two position buffers (``XA``
 rows each; steps alternate between them, so a thread never reads a position another thread is
 writing), velocities ``V`` (3), one spring-constant row per active offset ``K_j``, κ per cell
 ``KAP`` (volume term only), ``1/m`` ``IM``, gravity ``GA`` (3, only with gravity), external
-forces ``FE`` (3, only when the system has forces the kernel does not generate), and per thread
-the partial sums ``R``: three rows for each offset o of ``roff`` (o = 0 first).
+forces ``FE`` (3, only when the system has forces the kernel does not generate), and the partial
+sums ``R``: three rows for each offset o of ``roff`` (o = 0 first), shared by the threads.
 
 One step is one pass over blocks of 64 nodes.  Loop 1 over the cell bases p of a block computes
 what base p gives to node p + o: ``R_0[p] = Σ_j t_j[p] + G_0[p]`` and, for o > 0,
@@ -23,12 +23,15 @@ and the volume gradient of the corner c at offset o of the cell whose lowest cor
 Loop 2 over the nodes q of the block gathers ``f[q] = Σ_o R_o[q − o]`` (every base q − o ≤ q
 was done in this block or an earlier one) and integrates ``v ← (v + dt (f/m + g)) damp``,
 ``x ← x + dt v`` into the other position buffer.  With T threads, thread t owns the blocks
-``[b_t, b_{t+1})`` and first recomputes, in its own R rows, the halo bases ``[b_t − H, b_t)``
-(loop 1 only) instead of waiting for the thread below: no barrier inside a step, and the same
-arithmetic per node whatever T (threads agree bit for bit).  ``run_threads`` keeps all the
-steps in one parallel region: thread t sets the plates of its own nodes after its step and
-meets the others at one spinning barrier (:mod:`hybmss._cpu`), so a step costs no thread
-start-up; ``run`` (the [B09] corrections, or too few Numba threads) opens a region per step.
+``[b_t, b_{t+1})`` and first recomputes the halo bases ``[b_t − H, b_t)`` (loop 1 only) instead
+of waiting for the thread below: no barrier inside a step, and the same arithmetic per node
+whatever T (threads agree bit for bit).  The thread below writes the same values to the same
+halo entries of R (same code, same inputs, no position written within a step), so one set of R
+rows serves all threads and one function ``thread``, its blocks given as arguments, serves every
+thread.  :func:`run_threads` runs all the steps at once on T operating-system threads: thread
+t sets the plates of its own nodes after its step and meets the others at one spinning barrier
+(:mod:`hybmss._cpu`), so a step costs no thread start-up; ``run`` (the [B09] corrections, or
+threads that did not all run at once) opens a Numba parallel region per step.
 Every thread computes with subnormals flushed to zero (:func:`hybmss._cpu.flush_subnormals`).
 
 Precision ``f64`` stores positions x and evaluates the formulas of :mod:`hybmss.forces`.
@@ -55,7 +58,7 @@ from ._cpu import MESSAGE
 BLOCK = 64
 """Nodes per block of the two loops (a multiple of the vector width of either precision)."""
 
-GENERATOR_VERSION = 5
+GENERATOR_VERSION = 6
 """Bumped whenever the generated source changes meaning (it is part of the cache key)."""
 
 # corner c of a cell (grid offset (c & 1, c >> 1 & 1, c >> 2 & 1)) gets sign · G[slot] of the cell
@@ -148,9 +151,8 @@ def layout(cfg: Config) -> Layout:
         names += ["GA0", "GA1", "GA2"]
     if cfg.has_external:
         names += ["FE0", "FE1", "FE2"]
-    for t in range(cfg.threads):
-        for o in roff:
-            names += [f"R{t}_{o}_{d}" for d in range(3)]
+    for o in roff:
+        names += [f"R_{o}_{d}" for d in range(3)]
     return Layout(cfg, N, s0, s1, H, F, L, nblocks, tuple(roff), {n: i for i, n in enumerate(names)})
 
 
@@ -167,7 +169,7 @@ def _lit(v: float, f32: bool) -> str:
     return f"np.float32({float(v)!r})" if f32 else repr(float(v))
 
 
-def _loop1(S: _Src, ind: int, lay: Layout, t: int, xr: str):
+def _loop1(S: _Src, ind: int, lay: Layout, xr: str):
     """Partial sums of the bases ``a`` (one block), from the position rows ``xr`` (XA or XB)."""
     cfg = lay.cfg
     f32 = cfg.precision == "f32"
@@ -195,12 +197,12 @@ def _loop1(S: _Src, ind: int, lay: Layout, t: int, xr: str):
                 if D[d] != 0.0:
                     S(ind, f"e{d} = e{d} + {_lit(D[d], True)}")
             S(ind, f"l = np.sqrt(l0s_{j} + g)")  # |D + e|² = l0² + g
-            S(ind, f"c = W[{B(f'K{j}')} + a] * g / (l * (l + l0_{j}))")
+            S(ind, f"ck = W[{B(f'K{j}')} + a] * g / (l * (l + l0_{j}))")
         else:
             S(ind, "l = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)")
-            S(ind, f"c = W[{B(f'K{j}')} + a] * (1.0 - l0_{j} / l)")
+            S(ind, f"ck = W[{B(f'K{j}')} + a] * (1.0 - l0_{j} / l)")
         for d in range(3):
-            S(ind, f"t{j}_{d} = c * e{d}")
+            S(ind, f"t{j}_{d} = ck * e{d}")
             contrib[0][d].append(f"t{j}_{d}")
             contrib[o][d].append(f"-t{j}_{d}")
     if cfg.has_volume:
@@ -254,7 +256,7 @@ def _loop1(S: _Src, ind: int, lay: Layout, t: int, xr: str):
         for d in range(3):
             terms = contrib[o][d]
             expr = _tree(terms) if terms else _lit(0.0, f32)
-            S(ind, f"W[{B(f'R{t}_{o}_{d}')} + a] = {expr}")
+            S(ind, f"W[{B(f'R_{o}_{d}')} + a] = {expr}")
 
 
 def _tree(terms: list[str]) -> str:
@@ -265,87 +267,112 @@ def _tree(terms: list[str]) -> str:
     return f"({_tree(terms[:h])} + {_tree(terms[h:])})"
 
 
-def _loop2(S: _Src, ind: int, lay: Layout, t: int, xr: str, xw: str):
+def _loop2(S: _Src, ind: int, lay: Layout, xr: str, xw: str):
     cfg = lay.cfg
     B = lay.base
     for d in range(3):
-        terms = [f"W[{B(f'R{t}_{o}_{d}') - o} + q]" for o in lay.roff]
+        terms = [f"W[{B(f'R_{o}_{d}') - o} + q]" for o in lay.roff]
         if cfg.has_external:
             terms.append(f"W[{B(f'FE{d}')} + q]")
         S(ind, f"f{d} = {_tree(terms)}")
     S(ind, f"im = W[{B('IM')} + q]")
     for d in range(3):
         acc = f"f{d} * im" + (f" + W[{B(f'GA{d}')} + q]" if cfg.has_gravity else "")
-        S(ind, f"v{d} = (W[{B(f'V{d}')} + q] + dt * ({acc})) * damp")
+        S(ind, f"v{d} = (W[{B(f'V{d}')} + q] + dtk * ({acc})) * damp")
         S(ind, f"W[{B(f'V{d}')} + q] = v{d}")
-        S(ind, f"W[{B(f'{xw}{d}')} + q] = W[{B(f'{xr}{d}')} + q] + dt * v{d}")
+        S(ind, f"W[{B(f'{xw}{d}')} + q] = W[{B(f'{xr}{d}')} + q] + dtk * v{d}")
+
+
+def _constants(S: _Src, ind: int, cfg: Config):
+    """The step's scalars from ``prm``: rest lengths, time step, damping factor, rest volume."""
+    nl = len(cfg.offsets)
+    for j in range(nl):
+        S(ind, f"l0_{j} = prm[{j}]")
+        if cfg.precision == "f32":
+            S(ind, f"l0s_{j} = l0_{j} * l0_{j}")
+    S(ind, f"dtk = prm[{nl}]")
+    S(ind, f"damp = prm[{nl + 1}]")
+    S(ind, f"V0 = prm[{nl + 2}]")
+
+
+def _step(S: _Src, ind: int, lay: Layout, xr: str, xw: str, lo="0", hi=None, halo="0"):
+    """One step over the blocks ``[lo, hi)`` and the halo ``[halo, lo)`` below them (loop 1 only),
+    reading the positions in buffer ``xr`` and writing them to ``xw``; needs the names of
+    :func:`_constants`.  ``lo``, ``hi``, ``halo``: literals or names of the thread's range."""
+    hi = str(lay.nblocks) if hi is None else hi
+    S(ind, f"for blk in range({halo}, {hi}):")
+    if halo.isdigit():
+        S(ind + 1, f"b = blk * {BLOCK}")
+    else:  # a run-time range: the mask (2^40 nodes) tells LLVM that b ≥ 0, so that Numba's
+        # negative-index wrap test folds away and the loops are vectorized
+        S(ind + 1, f"b = (blk * {BLOCK}) & 0xFFFFFFFFFF")
+    S(ind + 1, f"for i in range({BLOCK}):")
+    S(ind + 2, "a = b + i")
+    _loop1(S, ind + 2, lay, xr)
+    if halo != lo:
+        S(ind + 1, f"if blk >= {lo}:")
+        ind2 = ind + 2
+    else:
+        ind2 = ind + 1
+    S(ind2, f"for i in range({BLOCK}):")
+    S(ind2 + 1, "q = b + i")
+    _loop2(S, ind2 + 1, lay, xr, xw)
+
+
+def thread_ranges(lay: Layout) -> list[tuple[int, int, int]]:
+    """(lo, hi, halo) blocks of each thread: it computes the partial sums of the blocks
+    ``[halo, hi)`` and integrates the nodes of ``[lo, hi)``.  The halo ``[halo, lo)`` is the
+    bases below its range whose partial sums reach its nodes; the thread below computes the same
+    values there (same code, same inputs), so no thread waits for another within a step."""
+    b = lay.bounds()
+    return [(b[t], b[t + 1], max(0, b[t] - -(-lay.H // BLOCK))) for t in range(lay.cfg.threads)]
 
 
 def source(cfg: Config) -> str:
-    """Python source of the kernel module for ``cfg``: ``step_<parity>_<thread>(W, prm)`` and
-    ``steps(W, prm, parity)`` (one step, all threads)."""
+    """Python source of the kernel module for ``cfg``: ``run`` (a span of steps with the plates
+    and the divergence checks), with several threads ``thread`` (one thread's part of ``run``,
+    all the threads at once, :func:`run_threads`), and ``step(W, prm, parity)`` (one step, all threads,
+    for ``run`` with several threads: the [B09] corrections, or threads that could not run at once).
+    The threads share one step body per parity: their block ranges are arguments.
+
+    The step is written out inside each entry point instead of being a function they call:
+    Numba links a callee's machine code into every caller and optimizes and compiles the linked
+    whole again, so every layer of calls around the step body compiled it once more (a
+    two-thread kernel took 32 s of CPU to compile, now a fraction of it)."""
     lay = layout(cfg)
-    f32 = cfg.precision == "f32"
     S = _Src()
     S(0, f'"""Generated by hybmss._stencil_gen for {cfg!r}."""')
     S(0, "import numpy as np")
     S(0, "from numba import njit, prange")
     S(0, "from hybmss._kernels import end_of_step, external_forces, find_bad, plate_scratch, prescribe")
     S(0, "from hybmss._cpu import atomic_load, atomic_store, barrier, flush_subnormals, restore_fp_mode")
+    S(0, "from hybmss._stencil_gen import Config")
     S(0, "_OPTS = dict(cache=True, error_model='numpy', fastmath=False, nogil=True, boundscheck=False)")
-    nl = len(cfg.offsets)
-    bounds = lay.bounds()
+    S(0, f"CONFIG = {cfg!r}")
+    T = cfg.threads
     # one thread updates the positions in place (loop 1 of a block reads only nodes at or above
     # the block, which loop 2 has not reached yet); several threads alternate two buffers
-    buffers = (("XA", "XA"),) if cfg.threads == 1 else (("XA", "XB"), ("XB", "XA"))
-    for parity, (xr, xw) in enumerate(buffers):
-        for t in range(cfg.threads):
+    buffers = (("XA", "XA"),) if T == 1 else (("XA", "XB"), ("XB", "XA"))
+    if T > 1:
+        for parity, (xr, xw) in enumerate(buffers):
             S(0, "")
             S(0, "@njit(**_OPTS)")
-            S(0, f"def step_{parity}_{t}(W, prm):")
-            for j in range(nl):
-                S(1, f"l0_{j} = prm[{j}]")
-                if f32:
-                    S(1, f"l0s_{j} = l0_{j} * l0_{j}")
-            S(1, f"dt = prm[{nl}]")
-            S(1, f"damp = prm[{nl + 1}]")
-            S(1, f"V0 = prm[{nl + 2}]")
-            lo, hi = bounds[t], bounds[t + 1]
-            if hi <= lo:
-                S(1, "return")
-                continue
-            halo = max(0, lo - -(-lay.H // BLOCK))
-            S(1, f"for blk in range({halo}, {hi}):")
-            S(2, f"b = blk * {BLOCK}")
-            S(2, f"for i in range({BLOCK}):")
-            S(3, "a = b + i")
-            _loop1(S, 3, lay, t, xr)
-            if halo < lo:
-                S(2, f"if blk >= {lo}:")
-                ind = 3
-            else:
-                ind = 2
-            S(ind, f"for i in range({BLOCK}):")
-            S(ind + 1, "q = b + i")
-            _loop2(S, ind + 1, lay, t, xr, xw)
-    S(0, "")
-    if cfg.threads == 1:
-        S(0, "@njit(**_OPTS)")
-        S(0, "def step(W, prm, parity):")
-        S(1, "step_0_0(W, prm)")
-    else:
+            S(0, f"def step_{parity}(W, prm, lo, hi, halo):")
+            _constants(S, 1, cfg)
+            _step(S, 1, lay, xr, xw, "lo", "hi", "halo")
+        S(0, "")
         S(0, "@njit(parallel=True, **_OPTS)")
         S(0, "def step(W, prm, parity):")
-        S(1, f"for t in prange({cfg.threads}):")
+        S(1, f"for t in prange({T}):")
         S(2, "fp = flush_subnormals()")
-        for parity in (0, 1):
-            S(2, f"{'if' if parity == 0 else 'else:'}{f' parity == 0:' if parity == 0 else ''}")
-            for t in range(cfg.threads):
-                kw = "if" if t == 0 else "elif"
-                S(3, f"{kw} t == {t}:")
-                S(4, f"step_{parity}_{t}(W, prm)")
+        for t, (lo, hi, halo) in enumerate(thread_ranges(lay)):
+            S(2, f"{'if' if t == 0 else 'elif'} t == {t}:")
+            S(3, f"lo, hi, halo = {lo}, {hi}, {halo}")
+        S(2, "if parity == 0:")
+        S(3, "step_0(W, prm, lo, hi, halo)")
+        S(2, "else:")
+        S(3, "step_1(W, prm, lo, hi, halo)")
         S(2, "restore_fp_mode(fp)")
-    del f32
     S(0, "")
     B = lay.base
     S(0, "@njit(**_OPTS)")
@@ -353,16 +380,21 @@ def source(cfg: Config) -> str:
     S(0, "        step0, nsteps, check_every, limit2, parity0, dt, ramp_time, F0, kc, coff, le, c, P, Fc):")
     S(1, '"""Advance ``nsteps`` steps from global step ``step0``, the current positions in buffer')
     S(1, '``parity0`` (0: XA).  Returns (steps done, bad node or -1)."""')
+    if T == 1:
+        _constants(S, 1, cfg)
     S(1, "R, u_old, u_new = plate_scratch(pl_ptr)")
     S(1, "fp = flush_subnormals()")
     S(1, "for n in range(nsteps):")
     S(2, f"par = (parity0 + n) % {len(buffers)}")
     if cfg.baudet:
-        xr = f"{B('XA0')} if par == 0 else {B('XB0')}" if cfg.threads > 1 else f"{B('XA0')}"
+        xr = f"{B('XA0')} if par == 0 else {B('XB0')}" if T > 1 else f"{B('XA0')}"
         S(2, f"external_forces(W, {xr}, {B('FE0')}, {lay.L}, {lay.N}, "
              "F0, kc, coff, le, c, P, Fc)")
-    S(2, "step(W, prm, par)")
-    S(2, f"xb = {B('XB0')} if par == 0 else {B('XA0')}" if cfg.threads > 1 else f"xb = {B('XA0')}")
+    if T == 1:
+        _step(S, 2, lay, "XA", "XA")
+    else:
+        S(2, "step(W, prm, par)")
+    S(2, f"xb = {B('XB0')} if par == 0 else {B('XA0')}" if T > 1 else f"xb = {B('XA0')}")
     S(2, f"bad = end_of_step(W, xb, {B('V0')}, {lay.L}, {lay.N}, {cfg.precision == 'f64'}, X, pl_nodes, pl_U1, "
          "pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, "
          "u_new, n, nsteps, check_every, limit2)")
@@ -371,65 +403,103 @@ def source(cfg: Config) -> str:
     S(3, "return n + 1, bad")
     S(1, "restore_fp_mode(fp)")
     S(1, "return nsteps, -1")
-    if cfg.threads > 1 and not cfg.baudet:
-        _threaded_run(S, lay)
+    if T > 1 and not cfg.baudet:
+        _thread_function(S, lay)
     return "\n".join(S.lines) + "\n"
 
 
-def _threaded_run(S: _Src, lay: Layout):
-    """``run_threads``: all the steps in one parallel region, one barrier per step."""
+THREAD_ARGS = ("W, prm, S, out, tid, lo, hi, halo, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, "
+               "pl_axis, pl_center, pl_angle, step0, nsteps, check_every, limit2, parity0, dt, ramp_time")
+"""Arguments of ``thread``: ``S`` the barrier's state (:mod:`hybmss._cpu`), ``out`` (2 T,) int64
+the steps done (``out[tid]``) and the diverged node or −1 (``out[T + tid]``), ``tid`` the thread,
+``lo, hi, halo`` its blocks (:func:`thread_ranges`), then those of ``run`` from ``X`` to
+``ramp_time``."""
+
+
+def _thread_function(S: _Src, lay: Layout):
+    """``thread``: one thread's part of every step, the plates of its nodes, and one barrier per
+    step (all T must run at once, each on its own core: :func:`run_threads`)."""
     cfg = lay.cfg
     B = lay.base
     T = cfg.threads
-    bounds = lay.bounds()
     posmode = cfg.precision == "f64"
-    args = ("W, prm, S, out, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, "
-            "pl_angle, step0, nsteps, check_every, limit2, parity0, dt, ramp_time")
-    for t in range(T):
-        S(0, "")
-        S(0, "@njit(**_OPTS)")
-        S(0, f"def thread_{t}({args}):")
-        S(1, f'"""Thread {t}: blocks [{bounds[t]}, {bounds[t + 1]}) of every step, then the plates of its nodes."""')
-        S(1, "R, u_old, u_new = plate_scratch(pl_ptr)")
-        S(1, "fp = flush_subnormals()")
-        S(1, "for n in range(nsteps):")
-        S(2, "par = (parity0 + n) % 2")
-        S(2, "if par == 0:")
-        S(3, f"step_0_{t}(W, prm)")
-        S(3, f"xb = {B('XB0')}")
-        S(2, "else:")
-        S(3, f"step_1_{t}(W, prm)")
-        S(3, f"xb = {B('XA0')}")
-        S(2, f"prescribe(W, xb, {B('V0')}, {lay.L}, {posmode}, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, "
-             f"pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, u_new, "
-             f"{bounds[t] * BLOCK}, {bounds[t + 1] * BLOCK})")
-        S(2, f"if not barrier(S, {T}):")
-        S(3, "break")
-        S(2, "if (n + 1) % check_every == 0 or n == nsteps - 1:")
-        if t == 0:
-            S(3, f"atomic_store(S, {MESSAGE}, find_bad(W, xb, {lay.L}, {lay.N}, {posmode}, X, limit2))")
-        S(3, f"if not barrier(S, {T}):")
-        S(4, "break")
-        S(3, f"bad = atomic_load(S, {MESSAGE})")
-        S(3, "if bad >= 0:")
-        S(4, f"out[{t}] = n + 1")
-        S(4, f"out[{T + t}] = bad")
-        S(4, "restore_fp_mode(fp)")
-        S(4, "return")
-        S(1, "restore_fp_mode(fp)")
-        S(1, f"out[{t}] = nsteps")
-        S(1, f"out[{T + t}] = -1")
     S(0, "")
-    S(0, "@njit(parallel=True, **_OPTS)")
-    S(0, f"def run_threads({args}):")
-    S(1, '"""Advance ``nsteps`` steps, one thread per node range (needs as many Numba threads): on')
-    S(1, '``out[:T]`` the steps done, on ``out[T:]`` the diverged node or −1; ``S[ABORT]`` set if a')
-    S(1, 'thread waited in vain for the others (the state is then unusable)."""')
-    S(1, f"for t in prange({T}):")
-    for t in range(T):
-        S(2, f"{'if' if t == 0 else 'elif'} t == {t}:")
-        S(3, f"thread_{t}({args})")
+    S(0, "@njit(**_OPTS)")
+    S(0, f"def thread({THREAD_ARGS}):")
+    S(1, '"""Thread ``tid``: blocks [lo, hi) of every step (and the halo [halo, lo)), then the plates of its nodes."""')
+    _constants(S, 1, cfg)
+    S(1, "R, u_old, u_new = plate_scratch(pl_ptr)")
+    S(1, "fp = flush_subnormals()")
+    S(1, "for n in range(nsteps):")
+    S(2, "par = (parity0 + n) % 2")
+    S(2, "if par == 0:")
+    _step(S, 3, lay, "XA", "XB", "lo", "hi", "halo")
+    S(3, f"xb = {B('XB0')}")
+    S(2, "else:")
+    _step(S, 3, lay, "XB", "XA", "lo", "hi", "halo")
+    S(3, f"xb = {B('XA0')}")
+    S(2, f"prescribe(W, xb, {B('V0')}, {lay.L}, {posmode}, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, "
+         f"pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, u_new, "
+         f"lo * {BLOCK}, hi * {BLOCK})")
+    S(2, f"if not barrier(S, {T}):")
+    S(3, "break")
+    S(2, "if (n + 1) % check_every == 0 or n == nsteps - 1:")
+    S(3, "if tid == 0:")
+    S(4, f"atomic_store(S, {MESSAGE}, find_bad(W, xb, {lay.L}, {lay.N}, {posmode}, X, limit2))")
+    S(3, f"if not barrier(S, {T}):")
+    S(4, "break")
+    S(3, f"bad = atomic_load(S, {MESSAGE})")
+    S(3, "if bad >= 0:")
+    S(4, "out[tid] = n + 1")
+    S(4, f"out[{T} + tid] = bad")
+    S(4, "restore_fp_mode(fp)")
+    S(4, "return")
+    S(1, "restore_fp_mode(fp)")
+    S(1, "out[tid] = nsteps")
+    S(1, f"out[{T} + tid] = -1")
 
+
+def run_threads(mod, args: tuple, absent: tuple = ()) -> None:
+    """Run ``thread`` of the kernel module ``mod`` for every thread at once, on T operating-system
+    threads (the calling one included).  ``args``: those of :data:`THREAD_ARGS` without ``tid, lo,
+    hi, halo``.
+
+    The function holds no GIL, so the threads run in parallel; it is compiled (or loaded from the
+    cache) before any starts, since a thread that waits at the barrier for one still compiling
+    gives up.  They are started here rather than in a Numba parallel region because a ``prange``
+    over them is one more function that links, optimizes and compiles the step bodies again.
+    ``absent``: threads not started (the others give up at the barrier: how a partner that never
+    comes is handled).  Raises what a thread raised."""
+    import threading
+
+    ranges = thread_ranges(layout(mod.CONFIG))
+    names = THREAD_ARGS.split(", ")
+    nsteps = names.index("nsteps") - names.index("X")  # its place in ``tail``
+    head, tail = args[:4], args[4:]
+
+    def call(t, tail):
+        mod.thread(*head, np.int64(t), *(np.int64(v) for v in ranges[t]), *tail)
+
+    if not mod.thread.signatures:  # zero steps: compiles, touches no state
+        call(0, (*tail[:nsteps], np.int64(0), *tail[nsteps + 1:]))
+    errors = []
+
+    def work(t):
+        try:
+            call(t, tail)
+        except BaseException as exc:  # noqa: BLE001 (handed to the calling thread)
+            errors.append(exc)
+
+    started = [threading.Thread(target=work, args=(t,), daemon=True)
+               for t in range(1, len(ranges)) if t not in absent]
+    for th in started:
+        th.start()
+    if 0 not in absent:
+        work(0)
+    for th in started:
+        th.join()
+    if errors:
+        raise errors[0]
 
 def cache_dir() -> str:
     """Folder of the generated modules (and Numba's cache of them): ``$HYBMSS_KERNEL_CACHE``, else
@@ -479,20 +549,27 @@ def kernel_module(cfg: Config):
     return mod
 
 
-def instruction_mix(cfg: Config) -> dict:
-    """Square roots and divisions in the machine code of the step of ``cfg`` (thread 0), by kind
+def instruction_mix(cfg: Config, args: tuple) -> dict:
+    """Square roots and divisions in the machine code of the function that runs the steps of
+    ``cfg`` (``run`` for one thread, ``thread`` for several; ``args`` those of ``run``), by kind
     and register: ``{("sqrt" | "div", "scalar" | "xmm" | "ymm" | "zmm"): count}``.  Compiled
     afresh (a kernel loaded from Numba's cache has no assembly to show): load-independent
     evidence that LLVM vectorized the loops."""
     import re
 
-    from numba import njit
+    from numba import njit, typeof
 
     mod = kernel_module(cfg)
-    fn = njit(error_model="numpy", fastmath=False, boundscheck=False)(mod.step_0_0.py_func)
-    dt = np.float32 if cfg.precision == "f32" else np.float64
-    fn(np.zeros(layout(cfg).size, dtype=dt), np.zeros(len(cfg.offsets) + 3, dtype=dt))
-    asm = "\n".join(fn.inspect_asm().values())
+    if cfg.threads == 1:
+        fn, a = mod.run, args
+    else:
+        lo, hi, halo = thread_ranges(layout(cfg))[0]
+        fn, a = mod.thread, (args[0], args[1], np.zeros(8, dtype=np.int64), np.zeros(2 * cfg.threads, dtype=np.int64),
+                             *(np.int64(v) for v in (0, lo, hi, halo)), *args[2:19])
+    fn = njit(error_model="numpy", fastmath=False, boundscheck=False)(fn.py_func)
+    sig = tuple(typeof(v) for v in a)
+    fn.compile(sig)
+    asm = fn.inspect_asm(sig)
     out = {}
     for op, name in (("sqrt", "vsqrt"), ("div", "vdiv")):
         out[(op, "scalar")] = len(re.findall(rf"\b{name}s[sd]\b", asm))

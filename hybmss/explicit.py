@@ -360,32 +360,32 @@ class Stencil:
 
     def advance(self, step0: int, nsteps: int, check_every: int, limit2: float) -> tuple[int, int]:
         """Run ``nsteps`` steps from global step ``step0`` in place.  Returns (steps done, bad grid
-        node or −1).  Several threads run all the steps in one parallel region (a spinning barrier
-        per step, :mod:`hybmss._cpu`); the [B09] corrections, or threads that do not all run at
-        once, take one parallel region per step."""
-        import numba
-
+        node or −1).  Several threads run all the steps at once, one operating-system thread each
+        and a spinning barrier per step (:mod:`hybmss._cpu`); the [B09] corrections, or threads
+        that did not all run at once, take one Numba parallel region per step."""
         mod = self.module()
         args = self._args(step0, nsteps, check_every, limit2)
         T = int(self.threads)
-        if T > 1:
-            old = numba.get_num_threads()
-            numba.set_num_threads(min(T, numba.config.NUMBA_NUM_THREADS))
-            try:
-                done = bad = None
-                if self.corrections is None and T <= numba.config.NUMBA_NUM_THREADS:
-                    done, bad = self._run_threads(mod, args)
-                if done is None:  # one parallel region per step
+        done = bad = None
+        if T > 1 and self.corrections is None:
+            done, bad = self._run_threads(mod, args)
+        if done is None:
+            if T > 1:  # one parallel region per step
+                import numba
+
+                old = numba.get_num_threads()
+                numba.set_num_threads(min(T, numba.config.NUMBA_NUM_THREADS))
+                try:
                     done, bad = mod.run(*args)
-            finally:
-                numba.set_num_threads(old)
-        else:
-            done, bad = mod.run(*args)
+                finally:
+                    numba.set_num_threads(old)
+            else:
+                done, bad = mod.run(*args)
         self.parity = (self.parity + int(done)) % 2 if self.threads > 1 else 0
         return int(done), int(bad)
 
     def _args(self, step0: int, nsteps: int, check_every: int, limit2: float) -> tuple:
-        """Arguments of the generated ``run`` (``run_threads`` takes ``[2:19]`` of them)."""
+        """Arguments of the generated ``run`` (``thread`` takes ``[2:19]`` of them)."""
         dtype = self.dtype
         prm = np.array(list(self.l0) + [self.dt, self.damp, self.V0], dtype=dtype)
         corr = self.corrections
@@ -403,16 +403,20 @@ class Stencil:
                 np.int64(max(1, check_every)), float(limit2), np.int64(self.parity), float(self.dt),
                 float(self.ramp_time), F0, kc, coff, le, c, P, Fc)
 
-    def _run_threads(self, mod, args) -> tuple[int | None, int | None]:
-        """All steps of :meth:`advance` in one parallel region (``run_threads``: one spinning
-        barrier per step).  (None, None) with the state restored if the threads did not all run
-        at once (a thread waited in vain at a barrier): the caller then runs one region per step."""
+    def _run_threads(self, mod, args, absent: tuple = ()) -> tuple[int | None, int | None]:
+        """All steps of :meth:`advance` on ``threads`` threads at once
+        (:func:`hybmss._stencil_gen.run_threads`: one spinning barrier per step).  (None, None)
+        with the state restored if the threads did not all run at once (a thread waited in vain at
+        a barrier): the caller then runs one parallel region per step.  ``absent``: threads not
+        started (see ``run_threads``)."""
+        from ._stencil_gen import run_threads
+
         T = int(self.threads)
         sync = np.zeros(_cpu.SLOTS, dtype=np.int64)
         out = np.zeros(2 * T, dtype=np.int64)
         saved = self.W.copy()
         W, prm = args[0], args[1]
-        mod.run_threads(W, prm, sync, out, *args[2:19])
+        run_threads(mod, (W, prm, sync, out, *args[2:19]), absent)
         if sync[_cpu.ABORT] != 0:
             self.W[:] = saved
             return None, None
@@ -717,8 +721,8 @@ def simulate_explicit(
 
     - ``kernel``: ``'numba'`` (stencil kernel) or ``'numpy'`` (readable twin); same trajectory.
     - ``ramp_time``: T (s) of the plate ramp ``s(t) = ½(1 − cos(π t/T))``, then 1 (0: no ramp).
-    - ``threads``: numba threads (each on its own node range, all steps in one parallel region
-      with a spinning barrier per step); 1 (the default) runs the serial kernel.  Two threads pay only when the second core
+    - ``threads``: kernel threads (each on its own node range, all steps at once with a spinning
+      barrier per step); 1 (the default) runs the serial kernel.  Two threads pay only when the second core
       is idle: spinning threads on a busy core make every step far slower.
     - ``precision``: ``'f64'`` or ``'f32'`` (numba kernel only: float32 displacements, about
       twice as fast, position error ~1e-6 of the largest displacement after 10,000 steps).
