@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._cpu import MESSAGE
+from ._cpu import MESSAGE, SLOTS
 
 BLOCK = 64
 """Nodes per block of the two loops (a multiple of the vector width of either precision)."""
@@ -351,9 +351,7 @@ def source(cfg: Config) -> str:
     S(0, "from numba import njit, prange")
     S(0, "from hybmss._kernels import end_of_step, external_forces, find_bad, plate_scratch, prescribe")
     S(0, "from hybmss._cpu import atomic_load, atomic_store, barrier, flush_subnormals, restore_fp_mode")
-    S(0, "from hybmss._stencil_gen import Config")
     S(0, "_OPTS = dict(cache=True, error_model='numpy', fastmath=False, nogil=True, boundscheck=False)")
-    S(0, f"CONFIG = {cfg!r}")
     T = cfg.threads
     # one thread updates the positions in place (loop 1 of a block reads only nodes at or above
     # the block, which loop 2 has not reached yet); several threads alternate two buffers
@@ -464,10 +462,10 @@ def _thread_function(S: _Src, lay: Layout):
     S(1, f"out[{T} + tid] = -1")
 
 
-def run_threads(mod, args: tuple, absent: tuple = ()) -> None:
-    """Run ``thread`` of the kernel module ``mod`` for every thread at once, on T operating-system
-    threads (the calling one included).  ``args``: those of :data:`THREAD_ARGS` without ``tid, lo,
-    hi, halo``.
+def run_threads(mod, lay: Layout, args: tuple, absent: tuple = ()) -> None:
+    """Run ``thread`` of the kernel module ``mod`` (of layout ``lay``) for every thread at once, on
+    T operating-system threads (the calling one included).  ``args``: those of
+    :data:`THREAD_ARGS` without ``tid, lo, hi, halo``.
 
     The function holds no GIL, so the threads run in parallel; it is compiled (or loaded from the
     cache) before any starts, since a thread that waits at the barrier for one still compiling
@@ -477,7 +475,7 @@ def run_threads(mod, args: tuple, absent: tuple = ()) -> None:
     comes is handled).  Raises what a thread raised."""
     import threading
 
-    ranges = thread_ranges(layout(mod.CONFIG))
+    ranges = thread_ranges(lay)
     names = THREAD_ARGS.split(", ")
     nsteps = names.index("nsteps") - names.index("X")  # its place in ``tail``
     head, tail = args[:4], args[4:]
@@ -569,7 +567,7 @@ def instruction_mix(cfg: Config, args: tuple) -> dict:
         fn, a = mod.run, args
     else:
         lo, hi, halo = thread_ranges(layout(cfg))[0]
-        fn, a = mod.thread, (args[0], args[1], np.zeros(8, dtype=np.int64), np.zeros(2 * cfg.threads, dtype=np.int64),
+        fn, a = mod.thread, (args[0], args[1], np.zeros(SLOTS, dtype=np.int64), np.zeros(2 * cfg.threads, dtype=np.int64),
                              *(np.int64(v) for v in (0, lo, hi, halo)), *args[2:19])
     fn = njit(error_model="numpy", fastmath=False, boundscheck=False)(fn.py_func)
     sig = tuple(typeof(v) for v in a)

@@ -369,18 +369,17 @@ class Stencil:
         done = bad = None
         if T > 1 and self.corrections is None:
             done, bad = self._run_threads(mod, args)
-        if done is None:
-            if T > 1:  # one parallel region per step
-                import numba
+        if done is None and T > 1:  # one parallel region per step
+            import numba
 
-                old = numba.get_num_threads()
-                numba.set_num_threads(min(T, numba.config.NUMBA_NUM_THREADS))
-                try:
-                    done, bad = mod.run(*args)
-                finally:
-                    numba.set_num_threads(old)
-            else:
+            old = numba.get_num_threads()
+            numba.set_num_threads(min(T, numba.config.NUMBA_NUM_THREADS))
+            try:
                 done, bad = mod.run(*args)
+            finally:
+                numba.set_num_threads(old)
+        elif done is None:
+            done, bad = mod.run(*args)
         self.parity = (self.parity + int(done)) % 2 if self.threads > 1 else 0
         return int(done), int(bad)
 
@@ -416,7 +415,7 @@ class Stencil:
         out = np.zeros(2 * T, dtype=np.int64)
         saved = self.W.copy()
         W, prm = args[0], args[1]
-        run_threads(mod, (W, prm, sync, out, *args[2:19]), absent)
+        run_threads(mod, self.layout, (W, prm, sync, out, *args[2:19]), absent)
         if sync[_cpu.ABORT] != 0:
             self.W[:] = saved
             return None, None
