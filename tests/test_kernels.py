@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from hybmss import Body, Material, Model, Motion, Plate, Region, Scene
-from hybmss._stencil_gen import instruction_mix
+from hybmss._stencil_gen import BLOCK, LOOP1_SHARE, Config, instruction_mix, layout, thread_ranges
 from hybmss.explicit import dt_crit, simulate_explicit, stencil
 from hybmss import models
 from hybmss.scene import Load
@@ -126,6 +126,30 @@ def test_two_threads_give_the_same_trajectory(name):
     _assert_same(r2, r_np)
     r1, _ = _run_both(scene, threads=1)
     assert np.array_equal(r1.u, r2.u)
+
+
+@pytest.mark.parametrize("shape, threads", [((11, 11, 11), 2), ((31, 31, 31), 2), ((5, 5, 25), 2),
+                                            ((9, 9, 49), 3), ((21, 21, 21), 4), ((3, 3, 3), 2)])
+def test_thread_ranges_tile_the_blocks_with_equal_work(shape, threads):
+    """The threads' block ranges tile the blocks in order; each halo reaches every base whose
+    partial sums land in the thread's nodes (``H = s0 + s1 + 1`` nodes below its first); the
+    work of a thread with blocks, its blocks plus LOOP1_SHARE of one per halo block, is within
+    one block of the others'; a thread left without blocks has no halo."""
+    cfg = Config(shape, ((0, 0, 1),), True, False, False, False, False, "f64", threads, 1.0)
+    lay = layout(cfg)
+    ranges = thread_ranges(lay)
+    assert ranges[0][0] == 0 and ranges[-1][1] == lay.nblocks
+    assert [r[0] for r in ranges[1:]] == [r[1] for r in ranges[:-1]]
+    reach = -(-(shape[1] * shape[2] + shape[2] + 1) // BLOCK)
+    work = []
+    for lo, hi, halo in ranges:
+        assert lo <= hi
+        if hi == lo:
+            assert halo == lo
+        else:
+            assert halo == max(0, lo - reach)
+            work.append((hi - lo) + LOOP1_SHARE * (lo - halo))
+    assert max(work) - min(work) <= 1.0, ranges
 
 
 def test_float32_displacements_follow_float64():
