@@ -28,7 +28,7 @@ import time
 
 from . import models
 from .experiments import SceneSpec
-from .explicit import dt_crit, simulate_explicit
+from .explicit import WARM_UP_THREADS, dt_crit, simulate_explicit
 from .scene import Scene
 from .solvers import solve_static
 from .system import build
@@ -102,13 +102,13 @@ class _Config:
             steps = steps if steps < 100 else steps // 10 * 10
         self.steps = int(steps)
 
-    def _run(self, n):
+    def _run(self, n, warm_up=0.0):
         return simulate_explicit(self.scene, dt=DT, steps=n, kernel=self.kernel, threads=self.threads,
                                  precision=self.precision, system=self.system, dt_crit_value=self.dc,
-                                 compute_dt_crit=False, check_every=max(n, 1))
+                                 compute_dt_crit=False, check_every=max(n, 1), warm_up=warm_up)
 
     def time_once(self):
-        r = self._run(self.steps)
+        r = self._run(self.steps, warm_up=WARM_UP_THREADS if self.threads > 1 else 0.0)
         self.substeps = int(r.info.get("substeps", 1))
         if r.wall_time_s < self.best[0]:
             self.best = (r.wall_time_s, r.info["cpu_time_s"], load_average())

@@ -56,6 +56,14 @@ REST_RTOL = 1e-3
 """Default tolerance of the rest criterion of an explicit run (:func:`rest_report`)."""
 BLOWUP_FACTOR = 10.0
 """A displacement beyond this many body sizes (largest bounding-box edge) counts as divergence."""
+WARM_UP_STEPS = 100
+"""Steps per kernel call of an explicit run's ``warm_up``."""
+WARM_UP_THREADS = 0.1
+"""Seconds of untimed steps that benchmarks run before timing several threads (``warm_up`` of
+:func:`simulate_explicit`).  A core that was idle steps at about half speed for its first
+~100 ms: without them, 1,000 two-thread steps took 1.555 s per 10k on the 15³ cube and 1.415 on
+the 8×8×48 beam, no faster than one thread (1.83, 1.42); with them 1.017 and 0.834.  One thread
+runs on the core that was busy all along and shows no such start."""
 
 OFFSETS = np.array(
     [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) > (0, 0, 0)],
@@ -715,6 +723,7 @@ def simulate_explicit(
     damping: float | None = None,
     rest_rtol: float = REST_RTOL,
     compile_first: bool = True,
+    warm_up: float = 0.0,
 ) -> Result:
     """Integrate ``scene`` with semi-implicit Euler for ``steps`` steps of ``dt`` (module docstring).
 
@@ -730,6 +739,10 @@ def simulate_explicit(
     - ``rest_rtol``: tolerance of the rest criterion reported in ``info['rest']`` and
       ``converged`` (see :func:`rest_report`).
     - ``compile_first``: generate and compile (or load) the kernel before the timed span.
+    - ``warm_up``: seconds of untimed steps of the numba kernel before the timed span, from the
+      same initial state, which is then loaded again (benchmarks: a core that was idle steps at
+      about half speed for its first ~100 ms; two threads on the 15³ cube took 0.20 ms per step
+      for their first 500 steps, then 0.106).
     - ``record_every``: if > 0, ``info['history']`` holds t, energies and the largest
       displacement every that many steps (and at t = 0).
     - ``x0``/``v0``: initial positions and (half-step) velocities (n, 3); default rest.
@@ -779,7 +792,10 @@ def simulate_explicit(
     threads = int(threads)
     if threads < 1:
         raise ValueError(f"threads must be >= 1, got {threads}")
+    if not (warm_up >= 0 and math.isfinite(warm_up)):
+        raise ValueError(f"warm_up must be >= 0 s, got {warm_up}")
     t_setup = time.perf_counter()
+    warm_s = 0.0
     sys_ = system if system is not None else build(scene)
     if (sys_.mass <= 0).any():
         raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
@@ -809,6 +825,15 @@ def simulate_explicit(
         state = st.state
         if compile_first:  # compile (or load from the cache) outside the timed span: a 0-step run
             st.advance(0, 0, check_every, limit2)
+        if warm_up > 0.0:
+            t_warm, k = time.perf_counter(), 0
+            while time.perf_counter() - t_warm < warm_up:
+                done, bad = st.advance(k, WARM_UP_STEPS, WARM_UP_STEPS, limit2)
+                k += done
+                if bad >= 0:
+                    break
+            st.load(x, v)
+            warm_s = time.perf_counter() - t_warm
     else:
         if threads != 1:
             raise ValueError("the numpy kernel runs on one thread (threads=1)")
@@ -821,7 +846,7 @@ def simulate_explicit(
         def state():
             return x.copy(), v.copy()
 
-    setup_s = time.perf_counter() - t_setup - t_dc
+    setup_s = time.perf_counter() - t_setup - t_dc - warm_s
     history = None
     if record_every > 0:
         history = {"t": [], "max_displacement": []}
@@ -886,6 +911,7 @@ def simulate_explicit(
         "load_factor": s_end,
         "cpu_time_s": cpu,
         "setup_s": setup_s,
+        "warm_up_s": warm_s,
         "dt_crit_s": t_dc,
         "postprocess_s": time.perf_counter() - t_post,
         "max_speed": float(np.linalg.norm(vs, axis=1).max()) if len(vs) else 0.0,

@@ -152,6 +152,21 @@ def test_thread_ranges_tile_the_blocks_with_equal_work(shape, threads):
     assert max(work) - min(work) <= 1.0, ranges
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_warm_up_steps_do_not_change_the_run(threads):
+    """``warm_up`` steps a copy of the initial state untimed, then starts again from it: the
+    trajectory is the one without, bit for bit, and the warm-up is kept out of the timings."""
+    scene = _scene("hybmss", 0.3, body=Body.box(4, 3, 5, 0.5), plates="rotate", E=1e6, gravity=(0, 0, -10))
+    system = build(scene)
+    kw = dict(dt=0.5 * dt_crit(system), steps=300, threads=threads, system=system, compute_dt_crit=False)
+    cold = simulate_explicit(scene, **kw)
+    warm = simulate_explicit(scene, warm_up=0.02, **kw)
+    assert np.array_equal(cold.u, warm.u)
+    assert warm.info["warm_up_s"] >= 0.02 and cold.info["warm_up_s"] == 0.0
+    with pytest.raises(ValueError, match="warm_up"):
+        simulate_explicit(scene, warm_up=-1.0, **kw)
+
+
 def test_float32_displacements_follow_float64():
     """The 10³ compression cube at ν = 0.499 (volume term on), 10,000 steps of 1 ms: the float32
     kernel (displacements u = x − X) stays within 1e-5 of the largest displacement of float64."""
