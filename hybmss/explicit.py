@@ -769,6 +769,8 @@ def simulate_explicit(
                          f"use kernel={model.kernels[0]!r}")
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+    if not (warm_up >= 0 and math.isfinite(warm_up)):
+        raise ValueError(f"warm_up must be >= 0 s, got {warm_up}")
     if damping is not None:
         damping = float(damping)
         if not (damping >= 0 and math.isfinite(damping)):
@@ -792,8 +794,6 @@ def simulate_explicit(
     threads = int(threads)
     if threads < 1:
         raise ValueError(f"threads must be >= 1, got {threads}")
-    if not (warm_up >= 0 and math.isfinite(warm_up)):
-        raise ValueError(f"warm_up must be >= 0 s, got {warm_up}")
     t_setup = time.perf_counter()
     warm_s = 0.0
     sys_ = system if system is not None else build(scene)

@@ -20,8 +20,8 @@ publication's ratios (``studies/data/g20_performance.csv``) are joined by its na
 (more for runs shorter than :data:`MIN_SPAN`/``repeats``),
 and the variants of one mesh and thread count are timed round-robin (variant 1, 2, 3, 4, then
 again) so that the ratios compare runs made in the same minute.  Every timed run on several
-threads follows :data:`hybmss.explicit.WARM_UP_THREADS` of untimed steps, so that it is not timed while the second core
-wakes up.  ``wall_time_s`` of
+threads follows :data:`hybmss.explicit.WARM_UP_THREADS` of untimed steps, so that it is not
+timed while the second core wakes up.  ``wall_time_s`` of
 :func:`hybmss.explicit.simulate_explicit` is the stepping alone (no set-up, no dt_crit).
 
 **Bandwidth ceiling.**  The memory bandwidth is measured in the same run with NumPy on arrays
@@ -183,23 +183,23 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
     rows = []
     for th in threads:
         times = {v: [] for v in timed}
-        warm = WARM_UP_THREADS if th > 1 else 0.0
+
+        def timed_run(v, th=th):
+            scene, S = systems[v]
+            return simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S, compute_dt_crit=False,
+                                     check_every=steps, warm_up=WARM_UP_THREADS if th > 1 else 0.0).wall_time_s
+
         for v in timed:  # warm-up (loads the cached compiled kernels)
             scene, S = systems[v]
             simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S, compute_dt_crit=False)
         for v in timed:  # the first round, whose longest run sets the number of rounds
-            scene, S = systems[v]
-            times[v].append(simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
-                                              compute_dt_crit=False, check_every=steps, warm_up=warm).wall_time_s)
+            times[v].append(timed_run(v))
         t_est = max(ts[0] for ts in times.values())
         # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
         n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(min_span / max(t_est, 1e-6)))))
         for _ in range(n_rep - 1):
             for v in timed:
-                scene, S = systems[v]
-                r = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S,
-                                      compute_dt_crit=False, check_every=steps, warm_up=warm)
-                times[v].append(r.wall_time_s)
+                times[v].append(timed_run(v))
         for (model, nu), ts in times.items():
             scene, S = systems[(model, nu)]
             st = stencil(S, dt, 1.0)
