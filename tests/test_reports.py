@@ -550,3 +550,34 @@ def test_stability_outcomes(status, inverted, state):
     from reports.findings import outcome
 
     assert outcome(status, inverted) == state
+
+
+def test_beam_figure_skips_beams_without_stored_centre_lines(tmp_path):
+    """Beams under gravity of another study (no centre line stored) get no panel, and the
+    figure is drawn with the curves that are stored (Fig. 5)."""
+    from reports import figures
+
+    z = np.linspace(0.0, 2.4, 5)
+    curves = pd.DataFrame({"key": "a" * 24, "method": "hybmss static", "mesh": "4x4x24", "E": 1e7, "z": z,
+                           "u_y": -0.01 * z ** 2})
+    theory = pd.DataFrame({"mesh": "4x4x24", "E": 1e7, "z": z, "u_y": -0.011 * z ** 2})
+    rows = pd.DataFrame({"key": ["a" * 24, "b" * 24], "method": ["hybmss static", "hybmss static"],
+                         "scene_mesh": ["4x4x24", "1x1x6"], "scene_E": [1e7, 1e7], "scene_nu": 0.25,
+                         "scene_rho": 1000.0, "scene_gravity": 10.0, "study": ["bending", "pareto"]})
+
+    class _Results:
+        def find(self, experiment):
+            return rows
+
+        def table(self, name):
+            return {"bending_curves": curves, "euler_bernoulli": theory}[name]
+
+        def method_order(self, methods):
+            return list(methods)
+
+    fig = figures.beam_deflection(_Results(), tmp_path / "fig5.png")
+    assert fig is not None and fig.path.stat().st_size > 0
+    from PIL import Image
+
+    w, h = Image.open(fig.path).size
+    assert h < w  # one row of panels (4x4x24), not a second for the 1x1x6 beam without curves
