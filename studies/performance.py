@@ -1,6 +1,7 @@
 """Performance of the explicit kernel: [G20] Figs 11–12 and Table 6.
 
-Wall time of ``steps`` (1,000) semi-implicit Euler steps of
+Wall time of ``steps`` (1,000; fewer on the largest grids, :func:`timed_steps`) semi-implicit
+Euler steps of
 
 - the compression scene on the cubes 10³, 15³, 20³, 30³ (dt = 1 ms, the publication's);
 - the beam under gravity (the bending scene, E = 10 MPa) on 4×4×24, 8×8×48, 10×10×60,
@@ -63,6 +64,10 @@ CUBE_DT = 1e-3
 WORD = 8  # bytes (float64)
 MIN_SPAN = 0.5
 """Seconds of stepping each figure spans at least (short runs get more repeats)."""
+MAX_NODE_STEPS = 10_000_000
+"""Grid nodes × steps of one timed run at most (:func:`timed_steps`): the 30³ cube and the
+16×16×96 beam (~3·10⁴ nodes) run 300 steps instead of 1,000, about 0.4 s on one thread (three
+rounds still span over 1 s)."""
 MAX_REPEATS = 25
 
 
@@ -167,6 +172,15 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
 
 
 # ------------------------------------------------------------------------------ timing
+def timed_steps(mesh, steps: int) -> int:
+    """Steps of one timed run on ``mesh`` (cells per axis): ``steps``, or fewer (in hundreds, at
+    least 100) where the grid has so many nodes that ``steps`` would exceed :data:`MAX_NODE_STEPS`."""
+    nodes = int(np.prod([n + 1 for n in mesh]))
+    if steps * nodes <= MAX_NODE_STEPS:
+        return steps
+    return min(steps, max(100, 100 * (MAX_NODE_STEPS // (100 * nodes))))
+
+
 def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS,
               min_span: float = MIN_SPAN) -> list[dict]:
     """Best-of-``repeats`` wall time of ``steps`` steps for every variant and thread count on
@@ -296,7 +310,7 @@ def run_performance(quick: bool = False, steps: int | None = None, repeats: int 
     for kind, mesh, dt in jobs:
         if progress:
             print(f"performance: {kind} {'x'.join(map(str, mesh))}", flush=True)
-        rows += time_mesh(kind, mesh, dt, steps, repeats, threads, min_span)
+        rows += time_mesh(kind, mesh, dt, timed_steps(mesh, steps), repeats, threads, min_span)
     bw2 = measure_bandwidth(n_bytes, trials=3 if quick else 5)
     bandwidth = {k: max(bw[k], bw2[k]) for k in bw}
     return _derive(pd.DataFrame(rows), bandwidth), bandwidth

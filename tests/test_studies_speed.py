@@ -132,3 +132,18 @@ def test_performance_quick_table():
     paper = s.dropna(subset=["paper_ratio_to_baseline"])
     assert dict(zip(paper["variant"], paper["paper_ratio_to_baseline"])) == {"hybmss": 2.1, "hybmss-cf": 1.4}
     assert (paper["nu"] == 0.3).all()
+
+
+def test_timed_steps_cap_the_largest_grids_only():
+    """The publication's meshes below the node-step cap keep their steps; above it a run is cut
+    to whole hundreds within the cap (never below 100 steps, never more than asked)."""
+    for mesh in performance.CUBES + performance.BEAMS:
+        nodes = int(np.prod([n + 1 for n in mesh]))
+        n = performance.timed_steps(mesh, 1000)
+        if 1000 * nodes <= performance.MAX_NODE_STEPS:
+            assert n == 1000, mesh
+        else:
+            assert 100 <= n < 1000 and n % 100 == 0 and n * nodes <= performance.MAX_NODE_STEPS, mesh
+    assert performance.timed_steps((30, 30, 30), 1000) == 300
+    assert performance.timed_steps((200, 200, 200), 1000) == 100  # the floor
+    assert performance.timed_steps((2, 2, 12), 20) == 20
