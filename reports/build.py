@@ -294,8 +294,12 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     pdf_path, pages, texts, anchors = None, 0, [], []
     if pdf:
         pdf_path = out / "report.pdf"
-        # the PDF depends on the HTML only; the build time stamp aside, an unchanged page reuses it
-        key = hashlib.sha256(html.replace(generated, "").encode()).hexdigest()[:20]
+        # the printed page: the HTML without what print hides (screen-only sections, tables and
+        # rows), which weasyprint would otherwise parse and style (the full reproduction: ~5e5
+        # elements, most of the PDF's time); the PDF depends on it only, so that, the build time
+        # stamp aside, an unchanged page reuses it
+        printed = _render_html(results, ov, sections, len(vtu_files), warnings, generated, printed=True)
+        key = hashlib.sha256(printed.replace(generated, "").encode()).hexdigest()[:20]
         cached_pdf, cached_meta = cache / f"report-{key}.pdf", cache / f"report-{key}.json"
         if cached_pdf.exists() and cached_meta.exists():
             meta = json.loads(cached_meta.read_text())
@@ -304,7 +308,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
         else:
             from weasyprint import HTML
 
-            doc = HTML(string=html, base_url=str(out)).render()
+            doc = HTML(string=printed, base_url=str(out)).render()
             pages = len(doc.pages)
             texts = [_page_text(p) for p in doc.pages]
             anchors = [sorted(p.anchors) for p in doc.pages]
@@ -367,7 +371,9 @@ def _page_text(page) -> str:
     return " ".join(parts)
 
 
-def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warnings: list, generated: str) -> str:
+def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warnings: list, generated: str,
+                 printed: bool = False) -> str:
+    """The page (``printed``: without the screen-only sections, tables and rows, for the PDF)."""
     import jinja2
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
@@ -379,7 +385,7 @@ def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warning
         title="hybmss: reproduction of the hybrid 3D mass-spring system of Golec et al. [G20]",
         generated=generated,
         results_dir=str(results.root), ov=ov, sections=sections, css=css, n_vtu=n_vtu, warnings=warnings,
-        thresholds=summary.thresholds())
+        thresholds=summary.thresholds(), printed=printed)
 
 
 def _duration(s) -> str:
