@@ -497,12 +497,20 @@ def explicit_table(results: Results) -> Table | None:
     rows = []
     # the static twin: the same stored scene, every parameter exact, but the dynamic solvers' damping
     keys = [c for c in ex.columns if c.startswith("scene_") and c not in ("scene_damping", "scene_variant")]
+
+    def cell(v):
+        if isinstance(v, (list, tuple, np.ndarray)):
+            return tuple(v)
+        return None if pd.isna(v) else v  # a missing value matches a missing value
+
+    def scene_of(r) -> tuple:
+        return tuple(cell(r[k]) for k in keys)
+
+    twins: dict = {}
+    for _, t in st.iterrows():  # the first stored static run of each scene
+        twins.setdefault(scene_of(t), t)
     for _, r in ex.sort_values(["study", "label"]).iterrows():
-        m = st
-        for k in keys:
-            if k in m:
-                m = m[(m[k] == r[k]) | (m[k].isna() & pd.isna(r[k]))]
-        twin = m.iloc[0] if len(m) else None
+        twin = twins.get(scene_of(r))
         ok = r["status"] == "ok"
         rel = de = np.nan
         if ok and twin is not None:
