@@ -602,7 +602,7 @@ def _numpy_advance(system, x, v, dt, damp, ramp_time, step0, nsteps, check_every
 def _divergence(system, x, particle, step, dt, limit, dt_c, check_every):
     grid = tuple(int(g) for g in system.lattice.grid[particle])
     u = x[particle] - system.X[particle]
-    unorm = float(np.linalg.norm(u))
+    unorm = float(np.hypot.reduce(u))  # no overflow of the squares: a run away can reach 1e200 m
     if not np.all(np.isfinite(u)):
         what = "has a non-finite position"
     else:

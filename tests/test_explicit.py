@@ -142,6 +142,23 @@ def test_run_beyond_the_stability_limit_raises_naming_step_and_particle(kernel, 
     assert err.dt_crit == pytest.approx(dc, rel=1e-9)
 
 
+def test_a_particle_far_beyond_the_overflow_of_its_square_is_reported_without_warning():
+    """A run that ran away to 1e200 m (|u|² overflows) names the distance, finite, with no
+    floating-point warning on the way (the message of a diverged dt bisection)."""
+    import warnings
+
+    from hybmss.explicit import _divergence
+
+    system = build(_clamped_cube(2))
+    x = system.X.copy()
+    x[3] += (1e200, 2e200, -2e200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        err = _divergence(system, x, 3, 812, 1e-3, 10.0, 0.5, 100)
+    assert err.displacement == pytest.approx(3e200, rel=1e-12)
+    assert "moved 3e+200 m" in str(err) and "particle 3" in str(err)
+
+
 # ------------------------------------------------------------------------- conservation laws
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_free_body_conserves_momentum_and_angular_momentum(kernel):

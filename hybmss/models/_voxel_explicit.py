@@ -77,7 +77,7 @@ def divergence(system: System, x: np.ndarray, particle: int, step: int, dt: floa
     """The :class:`DivergenceError` of a run that left the physical range at ``step``."""
     grid = tuple(int(g) for g in system.lattice.grid[particle])
     u = x[particle] - system.X[particle]
-    unorm = float(np.linalg.norm(u))
+    unorm = float(np.hypot.reduce(u))  # no overflow of the squares: a run away can reach 1e200 m
     limit = BLOWUP_FACTOR * max(system.scene.body.size)
     what = ("has a non-finite position" if not np.all(np.isfinite(u)) else
             f"moved {unorm:.3g} m, more than {BLOWUP_FACTOR:g}× the body size ({limit:.3g} m)")
