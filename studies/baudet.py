@@ -197,45 +197,64 @@ def moduli_table(quick: bool = False, progress: bool = False):
     return pd.DataFrame(rows)
 
 
-def volume_table(quick: bool = False, progress: bool = False):
-    """Relative volume change ``e`` (%) of baudet2009 and hybmss in [G20]'s compression (cube) and
-    tension (beam) scenes, static, next to [G20]'s LS-Dyna values: where the corrections, linear
-    in the forces, stop standing in for a volume term at large strain and ν → ½."""
-    import pandas as pd
-
-    from hybmss.solvers import solve_static
-
+def volume_tasks(quick: bool = False) -> list[tuple[dict, "Task"]]:
+    """(row fields, static run) of :func:`volume_table`: [G20]'s compression (cube) and tension
+    (beam) scenes at the (ν, d) of its Tables 2 and 3, every model of the b09 role.  They are the
+    compression and tension studies' own static runs (the same keys), so the reproduction's pool
+    computes them once."""
     from .paper import load as load_paper
-    from .reproduce import beams, cube
+    from .reproduce import STATIC, beams, cube
+    from .runner import Task
     from .scenes import SceneSpec
 
-    rows = []
+    out = []
     for experiment, mesh, paper_name in (("compression", cube(quick), "g20_table2_compression"),
                                          ("tension", beams(quick)[0], "g20_table3_tension")):
-        paper = load_paper(paper_name)
-        for _, p in paper.iterrows():
+        for _, p in load_paper(paper_name).iterrows():
             spec = SceneSpec.default(experiment, mesh=mesh, nu=float(p["nu"]), deformation=float(p["deformation"]))
-            row = {"experiment": experiment, "mesh": "x".join(map(str, mesh)), "nu": float(p["nu"]),
-                   "d_pct": 100 * float(p["deformation"])}
+            meta = {"experiment": experiment, "mesh": "x".join(map(str, mesh)), "nu": float(p["nu"]),
+                    "d_pct": 100 * float(p["deformation"]), "paper_fem_e_pct": float(p["fem_lsdyna"])}
             for model in MODELS:
-                try:
-                    r = solve_static(spec.replace(model=model).build())
-                    row[f"{model}_e_pct"] = 100 * abs(r.volume_change)
-                    row[f"{model}_state"] = "ok"
-                except Exception as exc:  # noqa: BLE001 - a lost equilibrium is a result (κ < 0 at ν < 1/4)
-                    row[f"{model}_e_pct"] = float("nan")
-                    row[f"{model}_state"] = f"failed ({type(exc).__name__})"
-            row["paper_fem_e_pct"] = float(p["fem_lsdyna"])
-            rows.append(row)
-            if progress:
-                print(f"volume {experiment} nu={row['nu']} d={row['d_pct']:g}%: "
-                      + ", ".join(f"{m} {row[f'{m}_e_pct']:.2f}" if row[f"{m}_state"] == "ok" else
-                                  f"{m} {row[f'{m}_state']}" for m in MODELS), flush=True)
-    return pd.DataFrame(rows)
+                out.append(({**meta, "model": model}, Task(spec.replace(model=model), STATIC, experiment)))
+    return out
 
 
-TABLES = {"baudet_moduli": moduli_table, "baudet_cantilever": cantilever_table, "baudet_lshape": lshape_table,
-          "baudet_volume": volume_table}
+def tasks(quick: bool = False) -> list:
+    """The pooled runs of :func:`run` (``make reproduce-paper`` computes them in the sweep's one
+    pool, so that :func:`run` finds them stored)."""
+    return [t for _, t in volume_tasks(quick)]
+
+
+def volume_table(pairs: list[tuple[dict, "Task"]], rows: list[dict], progress: bool = False):
+    """Relative volume change ``e`` (%) of the b09 models in [G20]'s compression (cube) and
+    tension (beam) scenes, static, next to [G20]'s LS-Dyna values: where baudet2009's corrections,
+    linear in the forces, stop standing in for a volume term at large strain and ν → ½.  ``pairs``:
+    :func:`volume_tasks`; ``rows``: their stored runs, in that order."""
+    import pandas as pd
+
+    table: dict = {}
+    for (meta, _), row in zip(pairs, rows):
+        m = meta["model"]
+        out = table.setdefault((meta["experiment"], meta["nu"], meta["d_pct"]),
+                               {k: v for k, v in meta.items() if k not in ("model", "paper_fem_e_pct")})
+        if row.get("status") in ("ok", "not-converged"):
+            out[f"{m}_e_pct"] = 100 * abs(float(row["volume_change"]))
+            out[f"{m}_state"] = "ok" if row["status"] == "ok" else "not converged"
+        else:  # a lost equilibrium is a result (κ < 0 at ν < 1/4)
+            out[f"{m}_e_pct"] = float("nan")
+            out[f"{m}_state"] = f"failed ({str(row.get('message', '')).split(':', 1)[0] or row.get('status')})"
+        out.pop("paper_fem_e_pct", None)
+        out["paper_fem_e_pct"] = meta["paper_fem_e_pct"]  # the last column
+    if progress:
+        for r in table.values():
+            print(f"volume {r['experiment']} nu={r['nu']} d={r['d_pct']:g}%: "
+                  + ", ".join(f"{m} {r[f'{m}_e_pct']:.2f}" if r[f"{m}_state"] == "ok" else f"{m} {r[f'{m}_state']}"
+                              for m in MODELS), flush=True)
+    return pd.DataFrame(list(table.values()))
+
+
+TABLES = {"baudet_moduli": moduli_table, "baudet_cantilever": cantilever_table, "baudet_lshape": lshape_table}
+"""The tables computed here, a process each (the volume table reads stored runs: :func:`run`)."""
 
 
 def _table(job: tuple):
@@ -244,9 +263,14 @@ def _table(job: tuple):
 
 
 def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, runner=None) -> None:
-    """Write ``baudet_moduli``, ``baudet_cantilever``, ``baudet_lshape`` and ``baudet_volume``
-    into ``store``, the four computed ``jobs`` processes at a time."""
+    """Write ``baudet_moduli``, ``baudet_cantilever`` and ``baudet_lshape`` (computed ``jobs``
+    processes at a time) and ``baudet_volume`` (from the stored runs of :func:`tasks`, computed
+    by ``runner`` where missing) into ``store``."""
     from .executors import map_local
+    from .runner import run_tasks
 
+    vol = volume_tasks(quick)
+    rows = run_tasks([t for _, t in vol], store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner)
+    store.write_table("baudet_volume", volume_table(vol, rows, progress))
     for name, df in zip(TABLES, map_local(_table, [(n, quick, progress) for n in TABLES], jobs)):
         store.write_table(name, df)
