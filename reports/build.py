@@ -125,6 +125,58 @@ def _fig(f, number: str = "") -> dict:
             "src": _b64(f.path), "caption": f.caption, "number": number, "file": f"figures/{f.path.name}"}
 
 
+class _Exports:
+    """The VTU files of every run and the 3D renders (:func:`reports.render.render_figures`):
+    ``start`` forks a process that makes them (``None`` where processes cannot be forked), ``join``
+    returns ``(vtu files, renders, warnings)``, made here if no process did (or it failed)."""
+
+    def __init__(self, results: Results, out: Path, fig_dir: Path, render_cache: Path):
+        self.results, self.out, self.fig_dir, self.render_cache = results, out, fig_dir, render_cache
+
+    def make(self) -> tuple[list, list, list[str]]:
+        vtu_files = vtu.export_all(self.results, self.out / "vtu")
+        with palette.models(self.results.table("models")):
+            try:
+                renders = rendermod.render_figures(self.results, self.fig_dir, self.render_cache)
+                return vtu_files, renders, []
+            except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
+                return vtu_files, [], [f"3D renders not made: {type(exc).__name__}: {exc}"]
+
+    def _child(self, conn) -> None:
+        try:
+            conn.send(("ok", self.make()))
+        except BaseException as exc:  # noqa: BLE001 - the parent makes them instead
+            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        finally:
+            conn.close()
+
+    def start(self):
+        import multiprocessing as mp
+
+        if "fork" not in mp.get_all_start_methods():
+            return None
+        ctx = mp.get_context("fork")
+        recv, send = ctx.Pipe(duplex=False)
+        proc = ctx.Process(target=self._child, args=(send,), daemon=True)
+        proc.start()
+        send.close()
+        return proc, recv
+
+    def join(self, side) -> tuple[list, list, list[str]]:
+        if side is not None:
+            proc, recv = side
+            try:
+                status, value = recv.recv()
+            except EOFError:  # the process died (a crash in VTK): made here instead
+                status, value = "error", "no result"
+            finally:
+                recv.close()
+                proc.join()
+            if status == "ok":
+                return value
+        return self.make()
+
+
 def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> BuildResult:
     t0 = time.perf_counter()
     results = Results(results_dir)
@@ -143,17 +195,16 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                  for d in results.damaged]
     warnings += [f"table {n} was written by another code version and is left out (run the studies again)"
                  for n in results.other_version_tables]
-    vtu_files = vtu.export_all(results, out / "vtu")
-    log(f"{len(vtu_files)} VTU files")
+    # the VTU files and the 3D renders are made by a second process while this one draws the
+    # matplotlib figures (where processes can be forked; otherwise one after the other)
+    job = _Exports(results, out, fig_dir, cache / "renders" / _fingerprint(results, rendermod)[:8])
+    side = job.start()
     with palette.models(results.table("models")):  # the models' own plot styles, as stored
         figs = _cached_figures(results, fig_dir, cache, warnings)
-        render_key = _fingerprint(results, rendermod)
-        try:
-            renders = rendermod.render_figures(results, fig_dir, cache / "renders" / render_key[:8])
-        except Exception as exc:  # noqa: BLE001 - e.g. no OpenGL context: the report without renders
-            warnings.append(f"3D renders not made: {type(exc).__name__}: {exc}")
-            renders = []
     log(f"{len(figs)} figures")
+    vtu_files, renders, render_warnings = job.join(side)
+    warnings += render_warnings
+    log(f"{len(vtu_files)} VTU files")
     log(f"{len(renders)} renders")
     for w in warnings:
         print(f"warning: {w}", flush=True)
