@@ -581,3 +581,15 @@ def test_beam_figure_skips_beams_without_stored_centre_lines(tmp_path):
 
     w, h = Image.open(fig.path).size
     assert h < w  # one row of panels (4x4x24), not a second for the 1x1x6 beam without curves
+
+
+def test_exports_are_made_here_when_the_forked_process_fails(results, tmp_path, monkeypatch):
+    """The VTU files and renders come from a forked process; one that dies without a result
+    leaves them to the building process: the same files, no warning."""
+    from reports import build as build_mod
+
+    monkeypatch.setattr(build_mod._Exports, "_child", lambda self, conn: conn.close())
+    res = build_mod.build(results, tmp_path, pdf=False)
+    assert res.warnings == []
+    assert res.vtu == len(list((tmp_path / "vtu").glob("*.vtu"))) > 0
+    assert any(p.name.startswith("render_") for p in (tmp_path / "figures").glob("*.png"))
