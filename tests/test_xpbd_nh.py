@@ -291,3 +291,22 @@ def test_lane_sweep_is_the_cell_by_cell_sweep_bit_for_bit(name, posmode):
                     np.empty(K.SLOTS * K.LANES))
     assert np.abs(a - x).max() > 1e-4 * body.le  # the sweep moved the nodes
     assert np.array_equal(a, b)
+
+
+def test_scenes_it_cannot_represent_are_refused_with_the_reason():
+    """Surface loads are not applied by the projection (it would return the unloaded body), and
+    the static answer of a massless body (the rest state of a damped run) does not exist: both
+    are refused before any work, naming the parameter."""
+    from hybmss.explicit import simulate_explicit as harness_explicit
+    from hybmss.scene import Load
+
+    clamp = (Plate("bottom", Region("z-"), Motion("clamped")),)
+    loaded = Scene(Body.box(1, 1, 2, 0.5), Material(1e4, 0.3, 1000.0), Model("xpbd-nh"), plates=clamp,
+                   loads=(Load(Region("z+"), (0.0, 0.0, -10.0)),))
+    with pytest.raises(ValueError, match="^loads: xpbd-nh applies gravity only"):
+        harness_static(loaded)
+    with pytest.raises(ValueError, match="^loads: xpbd-nh applies gravity only"):
+        harness_explicit(loaded, dt=1e-3, steps=10)
+    massless = Scene(Body.box(1, 1, 2, 0.5), Material(1e4, 0.3, 0.0), Model("xpbd-nh"), plates=clamp)
+    with pytest.raises(ValueError, match="^rho: .* needs rho > 0, got 0"):
+        harness_static(massless)

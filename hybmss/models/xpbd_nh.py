@@ -71,6 +71,7 @@ from ..result import Result
 from ..scene import Material
 from ..solvers import StaticSolveError
 from ..system import System, build
+from ..terms import DeadLoad
 from .base import STUDY_ROLES, ModelBase, Style, check
 from .corot_hex8 import CorotHex8, frequency_range, omega_max
 from ._voxel_explicit import (blowup_limit2, divergence, find_bad, kernel_state, one_thread, read_state,
@@ -624,6 +625,19 @@ def auto_substeps(system: System, dt: float) -> int:
     return max(1, int(math.ceil(dt * highest_frequency(system) / H_OMEGA - 1e-9)))
 
 
+def check_supported(system: System, static: bool) -> None:
+    """Refuse, before any work, a scene the substeps cannot represent: surface loads
+    (``Scene.loads``), which the projection does not apply (it moves the particles under gravity
+    only), and, for the static answer (the rest state of a damped run), a body without mass."""
+    loads = sum(1 for t in system.terms if isinstance(t, DeadLoad) and np.any(t.f))
+    if loads:
+        raise ValueError(f"loads: xpbd-nh applies gravity only, not surface loads (the scene has {loads}); "
+                         "allowed: none")
+    if static and not (system.mass > 0).all():
+        raise ValueError(f"rho: the static answer of xpbd-nh is the rest state of a damped run of its masses, "
+                         f"which needs rho > 0, got {system.scene.material.rho:g}")
+
+
 def xpbd_term(system: System) -> XpbdNH:
     """The constraint set of a system built for ``xpbd-nh``."""
     for t in system.terms:
@@ -642,6 +656,7 @@ def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "
     :func:`auto_substeps`)."""
     one_thread(threads, "xpbd-nh")
     S = system if system is not None else build(scene)
+    check_supported(S, static=False)
     p = scene.model.params
     substeps = p.substeps or auto_substeps(S, dt)
     return simulate_explicit(S, xpbd_term(S), dt, steps, kernel, ramp_time, substeps=substeps,
@@ -655,6 +670,7 @@ def solve_scene(scene, options=None, system: System | None = None) -> Result:
     Newton solvers do not apply).  Raises :class:`hybmss.solvers.StaticSolveError` if the run does
     not come to rest in its time budget."""
     S = system if system is not None else build(scene)
+    check_supported(S, static=True)
     p = scene.model.params
     r = solve_static(S, xpbd_term(S), substeps=p.substeps or AUTO_SUBSTEPS_STATIC, iterations=p.iterations,
                      coupled=not p.sequential)
