@@ -37,7 +37,8 @@ solved one after the other (C_D then C_H at the updated positions, the textbook 
 far from satisfied at rest (C_D = √3) and their alternation leaves the unloaded body a pre-strain
 of order (h ω)² (measured: 5e-4 le at h ω_max = 0.1 on a 2³ cube), which biases small-strain
 moduli by percents; with the coupled solve the reference state is an exact fixed point.
-Explicit only.
+Explicit only.  External loads: gravity only; a scene with surface loads (``Scene.loads``) is
+refused (:func:`check_supported`), since the substeps would not apply them.
 
 Substeps (XPBD is unconditionally stable: the rule is one of accuracy).  The rest state of the
 iteration differs from the energy's minimizer by a relative bias ≈ κ (h ω_max)², with
