@@ -37,8 +37,9 @@ solved one after the other (C_D then C_H at the updated positions, the textbook 
 far from satisfied at rest (C_D = √3) and their alternation leaves the unloaded body a pre-strain
 of order (h ω)² (measured: 5e-4 le at h ω_max = 0.1 on a 2³ cube), which biases small-strain
 moduli by percents; with the coupled solve the reference state is an exact fixed point.
-Explicit only.  External loads: gravity only; a scene with surface loads (``Scene.loads``) is
-refused (:func:`check_supported`), since the substeps would not apply them.
+Explicit only.  External loads (gravity, surface loads) act as accelerations of the particles
+(:func:`external_acceleration`); a massless body (ρ = 0) has a static answer only
+(:func:`massless_static`).
 
 Substeps (XPBD is unconditionally stable: the rule is one of accuracy).  The rest state of the
 iteration differs from the energy's minimizer by a relative bias ≈ κ (h ω_max)², with
@@ -59,6 +60,7 @@ the compliance ``α + h² ∇CᵀW∇C`` instead of α, a relative stiffness bia
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -229,9 +231,10 @@ def _tet_constraint(term: XpbdNH, x: np.ndarray, t: int, kind: int) -> tuple[flo
 
 def numpy_substep(term: XpbdNH, x, v, winv, h, damp, iterations, gravity, set_plates, coupled=True):
     """One substep of the readable twin on (n, 3) arrays, in place (module docstring).
+    ``gravity``: (3,), or (n, 3) per particle (:func:`external_acceleration`), or None.
     ``set_plates(x)`` moves the prescribed components to their targets at t + h."""
-    if gravity is not None:
-        v += h * gravity[None, :]
+    if gravity is not None:  # (3,) or (n, 3): gravity, or every external acceleration
+        v += h * (gravity if gravity.ndim == 2 else gravity[None, :])
     v *= damp
     x_prev = x.copy()
     x += h * v
@@ -333,12 +336,11 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
     rest_disp = rest_tol * system.scene.body.le
     x, v = initial_state(system, x0, v0, ramp_time)
     winv = inverse_masses(system)
+    accel = external_acceleration(system)
 
     if kernel == "numba":
         W, xg, vg, posmode = kernel_state(x, v, system.X, precision)
-        gacc = np.zeros((3, system.n))
-        if system.gravity is not None:
-            gacc[:] = system.gravity[:, None]
+        gacc = np.zeros((3, system.n)) if accel is None else np.ascontiguousarray(accel.T)
         Xg, wg, plates = np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), plate_arrays(system)
         xprev, lamb = np.empty((3, system.n)), np.empty((len(term.tets), 2))
         bnodes, bcount = term.batches()
@@ -347,7 +349,7 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
         def advance(sub0, n):
             done, bad, rest = _kernels_xpbd.run(
                 W, posmode, Xg, wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam, term.gamma, gacc,
-                system.gravity is not None, h, damp, float(ramp_time), *plates.args(), np.int64(sub0), np.int64(n),
+                accel is not None, h, damp, float(ramp_time), *plates.args(), np.int64(sub0), np.int64(n),
                 np.int64(iterations), bool(coupled), np.int64(check_sub), float(limit2), np.int64(rest_after),
                 float(rest_disp), xprev, lamb, bnodes, bcount, B)
             return int(done), int(bad), bool(rest)
@@ -366,7 +368,7 @@ def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int
                 def set_plates(xx, target=target):
                     xx[fixed] = target[fixed]
 
-                numpy_substep(term, x, v, winv, h, damp, iterations, system.gravity, set_plates, coupled)
+                numpy_substep(term, x, v, winv, h, damp, iterations, accel, set_plates, coupled)
                 if (k + 1) % check_sub == 0 or k == n - 1:
                     bad = find_bad(x, system.X, limit2)
                     if bad >= 0:
@@ -488,8 +490,9 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
     x, _ = initial_state(system, None, None, ramp_time)
     winv = inverse_masses(system)
     gdisp = np.zeros((system.n, 3))
-    if system.gravity is not None:
-        gdisp[:] = d_h * h * h * system.gravity[None, :]
+    accel = external_acceleration(system)
+    if accel is not None:
+        gdisp[:] = d_h * h * h * accel
     gdisp[winv == 0.0] = 0.0
     c0, t0 = time.process_time(), time.perf_counter()
     if kernel == "numba":
@@ -500,7 +503,7 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
         xprev, y = xg.copy(), np.empty((3, n))
         plates = plate_arrays(system)
         args = (np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), term.tets, term.Dminv, term.Vt,
-                term.mu, term.lam, term.gamma, np.ascontiguousarray(gdisp.T), system.gravity is not None, h, over,
+                term.mu, term.lam, term.gamma, np.ascontiguousarray(gdisp.T), accel is not None, h, over,
                 beta, H, float(ramp_time), *plates.args())
         lamb = np.empty((len(term.tets), 2))
         bnodes, bcount = term.batches()
@@ -626,17 +629,32 @@ def auto_substeps(system: System, dt: float) -> int:
     return max(1, int(math.ceil(dt * highest_frequency(system) / H_OMEGA - 1e-9)))
 
 
-def check_supported(system: System, static: bool) -> None:
-    """Refuse, before any work, a scene the substeps cannot represent: surface loads
-    (``Scene.loads``), which the projection does not apply (it moves the particles under gravity
-    only), and, for the static answer (the rest state of a damped run), a body without mass."""
-    loads = sum(1 for t in system.terms if isinstance(t, DeadLoad) and np.any(t.f))
-    if loads:
-        raise ValueError(f"loads: xpbd-nh applies gravity only, not surface loads (the scene has {loads}); "
-                         "allowed: none")
-    if static and not (system.mass > 0).all():
-        raise ValueError(f"rho: the static answer of xpbd-nh is the rest state of a damped run of its masses, "
-                         f"which needs rho > 0, got {system.scene.material.rho:g}")
+def external_acceleration(system: System) -> np.ndarray | None:
+    """(n, 3) acceleration of the particles by their external loads: gravity and the surface
+    loads (``Scene.loads``, constant nodal forces over the particle masses, applied whole as the
+    mass-spring explicit run applies them); ``None`` without any."""
+    loads = [t.f for t in system.terms if isinstance(t, DeadLoad) and np.any(t.f)]
+    if system.gravity is None and not loads:
+        return None
+    a = np.zeros((system.n, 3))
+    if system.gravity is not None:
+        a[:] = system.gravity[None, :]
+    for f in loads:
+        a += f / system.mass[:, None]
+    return a
+
+
+def massless_static(system: System) -> System:
+    """The system whose relaxation gives the static answer of a body without mass (ρ = 0): unit
+    density and no weight.  The rest state of :func:`relax_static` does not depend on a uniform
+    density (scaling every mass by c scales h² and 1/ω by c and √c, leaving ``h² W``,
+    ``α/(h² ∇CᵀW∇C)``, ``c_h h`` and the load's ``h² f/m`` unchanged); ``system`` itself if it
+    has mass."""
+    if (system.mass > 0).all():
+        return system
+    if np.any(system.mass > 0):
+        raise ValueError("rho: every particle must have mass, or none")
+    return dataclasses.replace(system, mass=system.lattice.masses_per_density * 1.0, gravity=None)
 
 
 def xpbd_term(system: System) -> XpbdNH:
@@ -657,7 +675,6 @@ def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "
     :func:`auto_substeps`)."""
     one_thread(threads, "xpbd-nh")
     S = system if system is not None else build(scene)
-    check_supported(S, static=False)
     p = scene.model.params
     substeps = p.substeps or auto_substeps(S, dt)
     return simulate_explicit(S, xpbd_term(S), dt, steps, kernel, ramp_time, substeps=substeps,
@@ -670,8 +687,7 @@ def solve_scene(scene, options=None, system: System | None = None) -> Result:
     of a damped run (:func:`solve_static`, defaults from the body's frequencies; ``options`` of the
     Newton solvers do not apply).  Raises :class:`hybmss.solvers.StaticSolveError` if the run does
     not come to rest in its time budget."""
-    S = system if system is not None else build(scene)
-    check_supported(S, static=True)
+    S = massless_static(system if system is not None else build(scene))
     p = scene.model.params
     r = solve_static(S, xpbd_term(S), substeps=p.substeps or AUTO_SUBSTEPS_STATIC, iterations=p.iterations,
                      coupled=not p.sequential)
