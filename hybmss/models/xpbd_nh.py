@@ -632,7 +632,8 @@ def auto_substeps(system: System, dt: float) -> int:
 def external_acceleration(system: System) -> np.ndarray | None:
     """(n, 3) acceleration of the particles by their external loads: gravity and the surface
     loads (``Scene.loads``, constant nodal forces over the particle masses, applied whole as the
-    mass-spring explicit run applies them); ``None`` without any."""
+    mass-spring explicit run applies them); ``None`` without any.  A substep damps it with the
+    velocity (``v ← (v + h a)/(1 + c h)``), so a rest state feels ``a/(1 + c h)``."""
     loads = [t.f for t in system.terms if isinstance(t, DeadLoad) and np.any(t.f)]
     if system.gravity is None and not loads:
         return None
