@@ -143,10 +143,8 @@ class _Exports:
                 return vtu_files, [], [f"3D renders not made: {type(exc).__name__}: {exc}"]
 
     def _child(self, conn) -> None:
-        try:
-            conn.send(("ok", self.make()))
-        except BaseException as exc:  # noqa: BLE001 - the parent makes them instead
-            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        try:  # nothing is sent on failure: the parent then makes them itself
+            conn.send(self.make())
         finally:
             conn.close()
 
@@ -166,14 +164,12 @@ class _Exports:
         if side is not None:
             proc, recv = side
             try:
-                status, value = recv.recv()
-            except EOFError:  # the process died (a crash in VTK): made here instead
-                status, value = "error", "no result"
+                return recv.recv()
+            except EOFError:  # the process failed or died (a crash in VTK): made here instead
+                pass
             finally:
                 recv.close()
                 proc.join()
-            if status == "ok":
-                return value
         return self.make()
 
 

@@ -237,12 +237,13 @@ def volume_table(pairs: list[tuple[dict, "Task"]], rows: list[dict], progress: b
         m = meta["model"]
         out = table.setdefault((meta["experiment"], meta["nu"], meta["d_pct"]),
                                {k: v for k, v in meta.items() if k not in ("model", "paper_fem_e_pct")})
-        if row.get("status") in ("ok", "not-converged"):
+        status = row.get("status")
+        if status == "ok":
             out[f"{m}_e_pct"] = 100 * abs(float(row["volume_change"]))
-            out[f"{m}_state"] = "ok" if row["status"] == "ok" else "not converged"
-        else:  # a lost equilibrium is a result (κ < 0 at ν < 1/4)
+            out[f"{m}_state"] = "ok"
+        else:  # no value: a lost equilibrium is a result (κ < 0 at ν < 1/4), named by its exception
             out[f"{m}_e_pct"] = float("nan")
-            out[f"{m}_state"] = f"failed ({str(row.get('message', '')).split(':', 1)[0] or row.get('status')})"
+            out[f"{m}_state"] = f"failed ({str(row.get('message') or '').split(':', 1)[0] or status})"
         out.pop("paper_fem_e_pct", None)
         out["paper_fem_e_pct"] = meta["paper_fem_e_pct"]  # the last column
     if progress:

@@ -229,12 +229,12 @@ def _tet_constraint(term: XpbdNH, x: np.ndarray, t: int, kind: int) -> tuple[flo
     return C, np.vstack([-G.sum(axis=1), G.T])
 
 
-def numpy_substep(term: XpbdNH, x, v, winv, h, damp, iterations, gravity, set_plates, coupled=True):
+def numpy_substep(term: XpbdNH, x, v, winv, h, damp, iterations, accel, set_plates, coupled=True):
     """One substep of the readable twin on (n, 3) arrays, in place (module docstring).
-    ``gravity``: (3,), or (n, 3) per particle (:func:`external_acceleration`), or None.
-    ``set_plates(x)`` moves the prescribed components to their targets at t + h."""
-    if gravity is not None:  # (3,) or (n, 3): gravity, or every external acceleration
-        v += h * (gravity if gravity.ndim == 2 else gravity[None, :])
+    ``accel``: (n, 3) external acceleration of the particles (:func:`external_acceleration`) or
+    None.  ``set_plates(x)`` moves the prescribed components to their targets at t + h."""
+    if accel is not None:
+        v += h * accel
     v *= damp
     x_prev = x.copy()
     x += h * v
@@ -651,10 +651,8 @@ def massless_static(system: System) -> System:
     density (scaling every mass by c scales h² and 1/ω by c and √c, leaving ``h² W``,
     ``α/(h² ∇CᵀW∇C)``, ``c_h h`` and the load's ``h² f/m`` unchanged); ``system`` itself if it
     has mass."""
-    if (system.mass > 0).all():
+    if system.scene.material.rho > 0:
         return system
-    if np.any(system.mass > 0):
-        raise ValueError("rho: every particle must have mass, or none")
     return dataclasses.replace(system, mass=system.lattice.masses_per_density * 1.0, gravity=None)
 
 
