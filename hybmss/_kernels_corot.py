@@ -165,7 +165,7 @@ def run_serial(W, posmode, X, cells, Ke, XI, inv4le, invm, gacc, has_gravity, dt
                 for q in range(n):
                     v[d, q] = (v[d, q] + dt * (f[d, q] * invm[q])) * damp
                     x[d, q] += dt * v[d, q]
-        bad = end_of_step(W, 0, 3 * n, n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
+        bad = end_of_step(W, np.int64(0), 3 * n, n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center,
                           pl_angle, step0 + it, dt, ramp_time, R, u_old, u_new, it, nsteps, check_every, limit2)
         if bad >= 0:
             return it + 1, bad

@@ -343,6 +343,20 @@ def thread_ranges(lay: Layout) -> list[tuple[int, int, int]]:
             for lo, hi in zip(b[:-1], b[1:])]
 
 
+def _i(v) -> str:
+    """An integer argument of a shared helper (:mod:`hybmss._kernels`) as a run-time ``int64``.
+
+    Numba types a literal argument by its value and compiles the callee anew for each: the
+    helpers were compiled once per lattice (half of a one-thread kernel's 4 s of compiling).
+    They run once per step on the plates' nodes, so the constants gain them nothing."""
+    return f"np.int64({v})"
+
+
+def _b(v) -> str:
+    """A boolean argument of a shared helper as a run-time ``bool`` (see :func:`_i`)."""
+    return f"np.bool_({v})"
+
+
 def source(cfg: Config) -> str:
     """Python source of the kernel module for ``cfg``: ``run`` (a span of steps with the plates
     and the divergence checks), with several threads ``thread`` (one thread's part of ``run``,
@@ -404,14 +418,15 @@ def source(cfg: Config) -> str:
     S(2, f"par = (parity0 + n) % {len(buffers)}")
     if cfg.baudet:
         xr = f"{B('XA0')} if par == 0 else {B('XB0')}" if T > 1 else f"{B('XA0')}"
-        S(2, f"external_forces(W, {xr}, {B('FE0')}, {lay.L}, {lay.N}, "
+        S(2, f"external_forces(W, {_i(xr)}, {_i(B('FE0'))}, {_i(lay.L)}, {_i(lay.N)}, "
              "F0, kc, coff, le, c, P, Fc)")
     if T == 1:
         _step(S, 2, lay, "XA", "XA")
     else:
         S(2, "step(W, prm, par)")
     S(2, f"xb = {B('XB0')} if par == 0 else {B('XA0')}" if T > 1 else f"xb = {B('XA0')}")
-    S(2, f"bad = end_of_step(W, xb, {B('V0')}, {lay.L}, {lay.N}, {cfg.precision == 'f64'}, X, pl_nodes, pl_U1, "
+    S(2, f"bad = end_of_step(W, {_i('xb')}, {_i(B('V0'))}, {_i(lay.L)}, {_i(lay.N)}, "
+         f"{_b(cfg.precision == 'f64')}, X, pl_nodes, pl_U1, "
          "pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, "
          "u_new, n, nsteps, check_every, limit2)")
     S(2, "if bad >= 0:")
@@ -454,14 +469,15 @@ def _thread_function(S: _Src, lay: Layout):
     S(2, "else:")
     _step(S, 3, lay, "XB", "XA", "lo", "hi", "halo")
     S(3, f"xb = {B('XA0')}")
-    S(2, f"prescribe(W, xb, {B('V0')}, {lay.L}, {posmode}, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, "
+    S(2, f"prescribe(W, {_i('xb')}, {_i(B('V0'))}, {_i(lay.L)}, {_b(posmode)}, X, pl_nodes, pl_U1, pl_ptr, "
+         "pl_mask, pl_kind, "
          f"pl_disp, pl_axis, pl_center, pl_angle, step0 + n, dt, ramp_time, R, u_old, u_new, "
          f"lo * {BLOCK}, hi * {BLOCK})")
     S(2, f"if not barrier(S, {T}):")
     S(3, "break")
     S(2, "if (n + 1) % check_every == 0 or n == nsteps - 1:")
     S(3, "if tid == 0:")
-    S(4, f"atomic_store(S, {MESSAGE}, find_bad(W, xb, {lay.L}, {lay.N}, {posmode}, X, limit2))")
+    S(4, f"atomic_store(S, {MESSAGE}, find_bad(W, {_i('xb')}, {_i(lay.L)}, {_i(lay.N)}, {_b(posmode)}, X, limit2))")
     S(3, f"if not barrier(S, {T}):")
     S(4, "break")
     S(3, f"bad = atomic_load(S, {MESSAGE})")

@@ -321,3 +321,23 @@ def test_threads_that_cannot_run_at_once_give_up_and_restore_the_state():
     one.load(x0, v0)
     one.advance(0, 20, 5, 1e30)
     assert np.array_equal(st.state()[0], one.state()[0])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_shared_helpers_compile_once_for_every_lattice(threads, tmp_path, monkeypatch):
+    """The generated kernels pass their lattice's constants to the shared helpers (plates,
+    divergence check) as run-time integers: a second lattice size adds no compiled version of
+    them (each was about 2 s of compiling per kernel when typed by value).  The kernels are
+    compiled afresh (an empty kernel cache), so that each resolves its calls to the helpers."""
+    from hybmss import _kernels
+
+    monkeypatch.setenv("HYBMSS_KERNEL_CACHE", str(tmp_path))
+    helpers = (_kernels.end_of_step, _kernels.prescribe, _kernels.apply_plates, _kernels.find_bad)
+    before = None
+    for shape in ((3, 4, 3), (5, 3, 3)):  # sizes no other test compiles (kept in memory once loaded)
+        scene = _scene("hybmss", 0.3, body=Body.box(*shape, 0.5), plates="rotate")
+        simulate_explicit(scene, dt=1e-4, steps=3, threads=threads)
+        now = [set(h.signatures) for h in helpers]
+        if before is not None:
+            assert now == before, [h.py_func.__name__ for h, a, b in zip(helpers, now, before) if a != b]
+        before = now
