@@ -106,7 +106,7 @@ def build(scene: Scene, lattice: Lattice | None = None) -> System:
     l0 = np.linalg.norm(X[b] - X[a], axis=1)
 
     if c.kappa != 0.0:
-        vol_cells = lat.cells
+        vol_cells = np.ascontiguousarray(lat.cells)  # one layout for the kernels (compiled once)
         vol_V0 = lat.cell_volumes(X)
     else:
         vol_cells = np.zeros((0, 8), dtype=np.int64)
