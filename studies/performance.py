@@ -149,7 +149,7 @@ def _compile_one(job: tuple) -> tuple:
 def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = None, progress: bool = False) -> int:
     """Compile the generated kernel of every configuration the timings will run, ``workers``
     processes at a time, before any is timed: each (mesh, offsets, terms, threads) has its own
-    kernel (:mod:`hybmss._stencil_gen`), about 5 s of compilation on one thread and 10 s on two
+    kernel (:mod:`hybmss._stencil_gen`), about 3 s of compilation on one thread and 6 s on two
     (the 10³ cube at ν = 0.499), most of it Numba's type inference of the step bodies.  The
     timings then load them from the cache.  ``jobs``: (kind, mesh, dt); returns the kernels
     compiled."""
