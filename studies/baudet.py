@@ -233,10 +233,12 @@ def volume_table(pairs: list[tuple[dict, "Task"]], rows: list[dict], progress: b
     import pandas as pd
 
     table: dict = {}
+    paper: dict = {}
     for (meta, _), row in zip(pairs, rows):
         m = meta["model"]
-        out = table.setdefault((meta["experiment"], meta["nu"], meta["d_pct"]),
-                               {k: v for k, v in meta.items() if k not in ("model", "paper_fem_e_pct")})
+        key = (meta["experiment"], meta["nu"], meta["d_pct"])
+        out = table.setdefault(key, {k: v for k, v in meta.items() if k not in ("model", "paper_fem_e_pct")})
+        paper[key] = meta["paper_fem_e_pct"]
         status = row.get("status")
         if status == "ok":
             out[f"{m}_e_pct"] = 100 * abs(float(row["volume_change"]))
@@ -244,14 +246,12 @@ def volume_table(pairs: list[tuple[dict, "Task"]], rows: list[dict], progress: b
         else:  # no value: a lost equilibrium is a result (κ < 0 at ν < 1/4), named by its exception
             out[f"{m}_e_pct"] = float("nan")
             out[f"{m}_state"] = f"failed ({str(row.get('message') or '').split(':', 1)[0] or status})"
-        out.pop("paper_fem_e_pct", None)
-        out["paper_fem_e_pct"] = meta["paper_fem_e_pct"]  # the last column
     if progress:
         for r in table.values():
             print(f"volume {r['experiment']} nu={r['nu']} d={r['d_pct']:g}%: "
                   + ", ".join(f"{m} {r[f'{m}_e_pct']:.2f}" if r[f"{m}_state"] == "ok" else f"{m} {r[f'{m}_state']}"
                               for m in MODELS), flush=True)
-    return pd.DataFrame(list(table.values()))
+    return pd.DataFrame([{**r, "paper_fem_e_pct": paper[k]} for k, r in table.items()])  # paper last
 
 
 TABLES = {"baudet_moduli": moduli_table, "baudet_cantilever": cantilever_table, "baudet_lshape": lshape_table}
