@@ -59,70 +59,156 @@ def polar_rotation(F, R, T):
     return POLAR_MAX_ITER
 
 
+LANES = 4
+"""Cells whose polar rotations :func:`polar_rotation_lanes` computes side by side (one AVX2
+register of doubles)."""
+
+
+@njit(**_OPTS)
+def polar_rotation_lanes(F, R, active):
+    """:func:`polar_rotation` of :data:`LANES` matrices at once, bit for bit: ``F`` and ``R``
+    (3, 3, LANES), ``active`` (LANES,) bool scratch.  Every lane makes the iterations it would
+    make alone (one that has converged keeps its R while the others go on), so LLVM can run the
+    lanes in one SIMD register: the divisions, most of the iteration's cost, then cost a quarter.
+    On the 8×8×48 beam the force stage of a step took 338 ns per cell with the scalar iteration
+    (120 ns of it the rotation)."""
+    for i in range(3):
+        for j in range(3):
+            for l in range(LANES):
+                R[i, j, l] = F[i, j, l]
+    for l in range(LANES):
+        active[l] = True
+    for _ in range(POLAR_MAX_ITER):
+        for l in range(LANES):
+            r00, r01, r02 = R[0, 0, l], R[0, 1, l], R[0, 2, l]
+            r10, r11, r12 = R[1, 0, l], R[1, 1, l], R[1, 2, l]
+            r20, r21, r22 = R[2, 0, l], R[2, 1, l], R[2, 2, l]
+            # cof(R), entry (i, j) = R[i+1, j+1] R[i+2, j+2] − R[i+1, j+2] R[i+2, j+1] (indices mod 3)
+            t00 = r11 * r22 - r12 * r21
+            t01 = r12 * r20 - r10 * r22
+            t02 = r10 * r21 - r11 * r20
+            t10 = r21 * r02 - r22 * r01
+            t11 = r22 * r00 - r20 * r02
+            t12 = r20 * r01 - r21 * r00
+            t20 = r01 * r12 - r02 * r11
+            t21 = r02 * r10 - r00 * r12
+            t22 = r00 * r11 - r01 * r10
+            det = r00 * t00 + r01 * t01 + r02 * t02
+            n00 = 0.5 * (r00 + t00 / det)
+            n01 = 0.5 * (r01 + t01 / det)
+            n02 = 0.5 * (r02 + t02 / det)
+            n10 = 0.5 * (r10 + t10 / det)
+            n11 = 0.5 * (r11 + t11 / det)
+            n12 = 0.5 * (r12 + t12 / det)
+            n20 = 0.5 * (r20 + t20 / det)
+            n21 = 0.5 * (r21 + t21 / det)
+            n22 = 0.5 * (r22 + t22 / det)
+            change = 0.0
+            change = max(change, abs(n00 - r00))
+            change = max(change, abs(n01 - r01))
+            change = max(change, abs(n02 - r02))
+            change = max(change, abs(n10 - r10))
+            change = max(change, abs(n11 - r11))
+            change = max(change, abs(n12 - r12))
+            change = max(change, abs(n20 - r20))
+            change = max(change, abs(n21 - r21))
+            change = max(change, abs(n22 - r22))
+            a = active[l]
+            R[0, 0, l] = n00 if a else r00
+            R[0, 1, l] = n01 if a else r01
+            R[0, 2, l] = n02 if a else r02
+            R[1, 0, l] = n10 if a else r10
+            R[1, 1, l] = n11 if a else r11
+            R[1, 2, l] = n12 if a else r12
+            R[2, 0, l] = n20 if a else r20
+            R[2, 1, l] = n21 if a else r21
+            R[2, 2, l] = n22 if a else r22
+            active[l] = a and not change <= POLAR_TOL
+        going = False
+        for l in range(LANES):
+            going = going or active[l]
+        if not going:
+            return
+
+
 @njit(**_OPTS)
 def corot_forces(x, X, posmode, cells, Ke, XI, inv4le, f, Rs, U, G):
     """Internal forces f (3, n) of the corotational hexahedra at positions x (3, n) (overwritten).
 
-    Three passes: per cell the rotation ``Rs[e]`` and local displacement ``U[e]`` (24,); then
-    ``G = U K_e`` for all cells at once (one matrix product, K_e symmetric); then the scatter of
-    ``−R_e G_e`` to the corners.  ``Rs`` (m, 3, 3), ``U`` and ``G`` (m, 24) are scratch.
-    ``x`` holds positions (``posmode``) or displacements from ``X`` (the float32 state: the element
-    arithmetic is float64 on ``X + u``, relative positions ``(X_c − X̄) + (u_c − ū)``)."""
+    Three passes: per cell the rotation ``Rs[e]`` and local displacement ``U[e]`` (24,), the
+    rotations of :data:`LANES` cells at once (:func:`polar_rotation_lanes`; the last batch repeats
+    its last cell); then ``G = U K_e`` for all cells at once (one matrix product, K_e symmetric);
+    then the scatter of ``−R_e G_e`` to the corners.  ``Rs`` (m, 3, 3), ``U`` and ``G`` (m, 24)
+    are scratch.  ``x`` holds positions (``posmode``) or displacements from ``X`` (the float32
+    state: the element arithmetic is float64 on ``X + u``, relative positions
+    ``(X_c − X̄) + (u_c − ū)``)."""
     n = x.shape[1]
     m = cells.shape[0]
-    F = np.empty((3, 3))
-    T = np.empty((3, 3))
-    xl = np.empty((8, 3))
-    for e in range(m):
-        R = Rs[e]
-        xb0 = 0.0
-        xb1 = 0.0
-        xb2 = 0.0
-        Xb0 = 0.0
-        Xb1 = 0.0
-        Xb2 = 0.0
-        for c in range(8):
-            q = cells[e, c]
-            xb0 += np.float64(x[0, q])
-            xb1 += np.float64(x[1, q])
-            xb2 += np.float64(x[2, q])
-            Xb0 += X[0, q]
-            Xb1 += X[1, q]
-            Xb2 += X[2, q]
-        xb0 *= 0.125
-        xb1 *= 0.125
-        xb2 *= 0.125
-        Xb0 *= 0.125
-        Xb1 *= 0.125
-        Xb2 *= 0.125
-        for a in range(3):
-            for b in range(3):
-                F[a, b] = 0.0
-        for c in range(8):
-            q = cells[e, c]
-            xl[c, 0] = np.float64(x[0, q]) - xb0
-            xl[c, 1] = np.float64(x[1, q]) - xb1
-            xl[c, 2] = np.float64(x[2, q]) - xb2
-            if not posmode:  # displacements: relative positions (X_c − X̄) + (u_c − ū)
-                xl[c, 0] += X[0, q] - Xb0
-                xl[c, 1] += X[1, q] - Xb1
-                xl[c, 2] += X[2, q] - Xb2
+    Fl = np.empty((3, 3, LANES))
+    Rl = np.empty((3, 3, LANES))
+    active = np.empty(LANES, dtype=np.bool_)
+    xl = np.empty((LANES, 8, 3))
+    Xbl = np.empty((LANES, 3))
+    for e0 in range(0, m, LANES):
+        for l in range(LANES):
+            e = min(e0 + l, m - 1)
+            xb0 = 0.0
+            xb1 = 0.0
+            xb2 = 0.0
+            Xb0 = 0.0
+            Xb1 = 0.0
+            Xb2 = 0.0
+            for c in range(8):
+                q = cells[e, c]
+                xb0 += np.float64(x[0, q])
+                xb1 += np.float64(x[1, q])
+                xb2 += np.float64(x[2, q])
+                Xb0 += X[0, q]
+                Xb1 += X[1, q]
+                Xb2 += X[2, q]
+            xb0 *= 0.125
+            xb1 *= 0.125
+            xb2 *= 0.125
+            Xb0 *= 0.125
+            Xb1 *= 0.125
+            Xb2 *= 0.125
+            Xbl[l, 0] = Xb0
+            Xbl[l, 1] = Xb1
+            Xbl[l, 2] = Xb2
             for a in range(3):
-                xa = np.float64(x[a, q]) if posmode else X[a, q] + np.float64(x[a, q])
                 for b in range(3):
-                    F[a, b] += xa * XI[c, b]
-        for a in range(3):
-            for b in range(3):
-                F[a, b] *= inv4le
-        polar_rotation(F, R, T)
-        u = U[e]
-        for c in range(8):
-            q = cells[e, c]
+                    Fl[a, b, l] = 0.0
+            for c in range(8):
+                q = cells[e, c]
+                xl[l, c, 0] = np.float64(x[0, q]) - xb0
+                xl[l, c, 1] = np.float64(x[1, q]) - xb1
+                xl[l, c, 2] = np.float64(x[2, q]) - xb2
+                if not posmode:  # displacements: relative positions (X_c − X̄) + (u_c − ū)
+                    xl[l, c, 0] += X[0, q] - Xb0
+                    xl[l, c, 1] += X[1, q] - Xb1
+                    xl[l, c, 2] += X[2, q] - Xb2
+                for a in range(3):
+                    xa = np.float64(x[a, q]) if posmode else X[a, q] + np.float64(x[a, q])
+                    for b in range(3):
+                        Fl[a, b, l] += xa * XI[c, b]
+            for a in range(3):
+                for b in range(3):
+                    Fl[a, b, l] *= inv4le
+        polar_rotation_lanes(Fl, Rl, active)
+        for l in range(min(LANES, m - e0)):
+            e = e0 + l
+            R = Rs[e]
             for i in range(3):
-                u[3 * c + i] = R[0, i] * xl[c, 0] + R[1, i] * xl[c, 1] + R[2, i] * xl[c, 2]
-            u[3 * c] -= X[0, q] - Xb0
-            u[3 * c + 1] -= X[1, q] - Xb1
-            u[3 * c + 2] -= X[2, q] - Xb2
+                for j in range(3):
+                    R[i, j] = Rl[i, j, l]
+            u = U[e]
+            for c in range(8):
+                q = cells[e, c]
+                for i in range(3):
+                    u[3 * c + i] = R[0, i] * xl[l, c, 0] + R[1, i] * xl[l, c, 1] + R[2, i] * xl[l, c, 2]
+                u[3 * c] -= X[0, q] - Xbl[l, 0]
+                u[3 * c + 1] -= X[1, q] - Xbl[l, 1]
+                u[3 * c + 2] -= X[2, q] - Xbl[l, 2]
     G[:, :] = np.dot(U, Ke)
     for d in range(3):
         for q in range(n):
@@ -191,4 +277,4 @@ def advance(W, X, cells, Ke, XI, le, invm, gacc, has_gravity, dt, damp, ramp_tim
     return int(done), int(bad)
 
 
-__all__ = ["polar_rotation", "corot_forces", "run_serial", "forces", "advance"]
+__all__ = ["polar_rotation", "polar_rotation_lanes", "corot_forces", "run_serial", "forces", "advance"]
