@@ -37,6 +37,16 @@ def ramp(t, T):
     return 0.5 * (1.0 - math.cos(math.pi * t / T))
 
 
+@njit(inline="always")
+def cofactor3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """cof(M) of a 3×3 matrix, entries by rows: (i, j) is ``M[i+1, j+1] M[i+2, j+2] −
+    M[i+1, j+2] M[i+2, j+1]`` (indices mod 3), so ``det M = Σ_j M[0, j] cof[0, j]`` and
+    ``M⁻ᵀ = cof / det M`` (the lane kernels of xpbd-nh and the corotational rotations)."""
+    return (m11 * m22 - m12 * m21, m12 * m20 - m10 * m22, m10 * m21 - m11 * m20,
+            m21 * m02 - m22 * m01, m22 * m00 - m20 * m02, m20 * m01 - m21 * m00,
+            m01 * m12 - m02 * m11, m02 * m10 - m00 * m12, m00 * m11 - m01 * m10)
+
+
 @njit(**_OPTS)
 def _rotation(axis, angle, R):
     k0, k1, k2 = axis[0], axis[1], axis[2]

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import end_of_step, plate_scratch
+from ._kernels import cofactor3, end_of_step, plate_scratch
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
 
@@ -83,16 +83,7 @@ def polar_rotation_lanes(F, R, active):
             r00, r01, r02 = R[0, 0, l], R[0, 1, l], R[0, 2, l]
             r10, r11, r12 = R[1, 0, l], R[1, 1, l], R[1, 2, l]
             r20, r21, r22 = R[2, 0, l], R[2, 1, l], R[2, 2, l]
-            # cof(R), entry (i, j) = R[i+1, j+1] R[i+2, j+2] − R[i+1, j+2] R[i+2, j+1] (indices mod 3)
-            t00 = r11 * r22 - r12 * r21
-            t01 = r12 * r20 - r10 * r22
-            t02 = r10 * r21 - r11 * r20
-            t10 = r21 * r02 - r22 * r01
-            t11 = r22 * r00 - r20 * r02
-            t12 = r20 * r01 - r21 * r00
-            t20 = r01 * r12 - r02 * r11
-            t21 = r02 * r10 - r00 * r12
-            t22 = r00 * r11 - r01 * r10
+            t00, t01, t02, t10, t11, t12, t20, t21, t22 = cofactor3(r00, r01, r02, r10, r11, r12, r20, r21, r22)
             det = r00 * t00 + r01 * t01 + r02 * t02
             n00 = 0.5 * (r00 + t00 / det)
             n01 = 0.5 * (r01 + t01 / det)

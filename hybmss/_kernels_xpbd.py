@@ -35,7 +35,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernels import apply_plates, find_bad, plate_scratch, ramp
+from ._kernels import apply_plates, cofactor3, find_bad, plate_scratch, ramp
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
 
@@ -365,15 +365,7 @@ def _tet_lanes(pattern: int):
             s2 += F22 * F22
             CD = math.sqrt(s2)
             ic = 1.0 / CD
-            P00 = F11 * F22 - F12 * F21
-            P01 = F12 * F20 - F10 * F22
-            P02 = F10 * F21 - F11 * F20
-            P10 = F21 * F02 - F22 * F01
-            P11 = F22 * F00 - F20 * F02
-            P12 = F20 * F01 - F21 * F00
-            P20 = F01 * F12 - F02 * F11
-            P21 = F02 * F10 - F00 * F12
-            P22 = F00 * F11 - F01 * F10
+            P00, P01, P02, P10, P11, P12, P20, P21, P22 = cofactor3(F00, F01, F02, F10, F11, F12, F20, F21, F22)
             CH = F00 * P00 + F01 * P01 + F02 * P02 - gamma
             a11 = aD
             a12 = 0.0
