@@ -5,7 +5,8 @@ positions, velocities (at half steps) and reference positions, ``invm`` (n,) 1/m
 gravity.  One step:
 
 1. per cell: the deformation gradient at the centre ``F = (1/(4 le)) Σ_c x_c ⊗ ξ_c``, its polar
-   rotation R (Newton iteration ``R ← ½ (R + R⁻ᵀ)``, :func:`polar_rotation`), the local
+   rotation R (Newton iteration ``R ← ½ (R + R⁻ᵀ)``, :func:`polar_rotation`; in the kernel four
+   cells at once, :func:`polar_rotation_lanes`, the same bits), the local
    displacement ``u_c = Rᵀ (x_c − x̄) − (X_c − X̄)``, ``g = K_e u`` and the forces ``−R g_c``
    added to the corners (serial scatter); ``g = K_e u`` is one matrix product over all cells;
 2. ``v ← (v + dt (f/m + g)) / (1 + c dt)``, ``x ← x + dt v``;
