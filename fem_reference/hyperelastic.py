@@ -45,7 +45,7 @@ import numpy as np
 from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
-from .laws import LAWS, deviatoric, volumetric
+from .laws import LAWS, deviatoric, kinematics, volumetric
 from .linalg import SolveStats, solve_saddle, solve_spd
 from .linear import Discretization, Solution
 
@@ -123,8 +123,9 @@ class Hyperelasticity(Discretization):
         J = np.linalg.det(F)
         if not np.all(J > 0):
             return None
-        W0, P0, A0 = deviatoric(self.law, F, mu, tangent)
-        g, G, H = volumetric(self.law, F, tangent)
+        kin = kinematics(self.law, F, tangent, J)  # det F, F⁻¹ and their products once for both parts
+        W0, P0, A0 = deviatoric(self.law, F, mu, tangent, kin)
+        g, G, H = volumetric(self.law, F, tangent, kin)
         out = {"minJ": float(J.min())}
         if self.mixed:
             pq = self.pspace.value(p)

@@ -33,18 +33,30 @@ _I = np.eye(3)
 _II = np.einsum("ik,jl->ijkl", _I, _I)  # δ_ik δ_JL
 
 
-def deviatoric(law: str, F: np.ndarray, mu: float, tangent: bool = True):
-    """``(W₀, P₀, A₀)`` of ``law`` at ``F[..., 3, 3]`` (``A₀`` is ``None`` without ``tangent``)."""
+def kinematics(law: str, F: np.ndarray, tangent: bool = True, J: np.ndarray | None = None):
+    """What both parts of ``law`` take from ``F``, computed once for the two: for Neo-Hookean
+    ``(J, F⁻¹, f_Li f_Jk)`` (the last, the product in both tangents, only with ``tangent``);
+    ``None`` for SVK, whose parts use ``F`` alone.  ``J``: ``det F`` if the caller has it."""
+    if law != "neo-hookean":
+        return None
+    J = np.linalg.det(F) if J is None else J
+    Finv = np.linalg.inv(F)
+    ff = np.einsum("...Li,...Jk->...iJkL", Finv, Finv) if tangent else None
+    return J, Finv, ff
+
+
+def deviatoric(law: str, F: np.ndarray, mu: float, tangent: bool = True, kin=None):
+    """``(W₀, P₀, A₀)`` of ``law`` at ``F[..., 3, 3]`` (``A₀`` is ``None`` without ``tangent``);
+    ``kin``: :func:`kinematics` of ``F`` (computed here if not given)."""
     if law == "neo-hookean":
-        J = np.linalg.det(F)
-        Finv = np.linalg.inv(F)
+        J, Finv, ff = kinematics(law, F, tangent) if kin is None else kin
         FinvT = np.swapaxes(Finv, -1, -2)
         I1 = np.einsum("...iJ,...iJ->...", F, F)
         W0 = 0.5 * mu * (I1 - 3.0) - mu * np.log(J)
         P0 = mu * (F - FinvT)
         if not tangent:
             return W0, P0, None
-        A0 = mu * _II + mu * np.einsum("...Li,...Jk->...iJkL", Finv, Finv)
+        A0 = mu * _II + mu * ff
         return W0, P0, A0
     if law == "svk":
         C = np.einsum("...kI,...kJ->...IJ", F, F)
@@ -63,17 +75,16 @@ def deviatoric(law: str, F: np.ndarray, mu: float, tangent: bool = True):
     raise ValueError(f"law must be one of {', '.join(LAWS)}; got {law!r}")
 
 
-def volumetric(law: str, F: np.ndarray, tangent: bool = True):
+def volumetric(law: str, F: np.ndarray, tangent: bool = True, kin=None):
     """``(g, G, H)``: the volumetric measure of ``law`` and its first two derivatives
-    (``H`` is ``None`` without ``tangent``)."""
+    (``H`` is ``None`` without ``tangent``); ``kin`` as for :func:`deviatoric`."""
     if law == "neo-hookean":
-        J = np.linalg.det(F)
-        Finv = np.linalg.inv(F)
+        J, Finv, ff = kinematics(law, F, tangent) if kin is None else kin
         g = np.log(J)
         G = np.swapaxes(Finv, -1, -2)
         if not tangent:
             return g, G, None
-        H = -np.einsum("...Li,...Jk->...iJkL", Finv, Finv)
+        H = -ff
         return g, G, H
     if law == "svk":
         g = 0.5 * (np.einsum("...iJ,...iJ->...", F, F) - 3.0)
@@ -87,13 +98,15 @@ def volumetric(law: str, F: np.ndarray, tangent: bool = True):
 
 def energy_density(law: str, F: np.ndarray, lam: float, mu: float) -> np.ndarray:
     """``ψ(F)`` of the displacement formulation."""
-    W0, _, _ = deviatoric(law, F, mu, tangent=False)
-    g, _, _ = volumetric(law, F, tangent=False)
+    kin = kinematics(law, F, tangent=False)
+    W0, _, _ = deviatoric(law, F, mu, tangent=False, kin=kin)
+    g, _, _ = volumetric(law, F, tangent=False, kin=kin)
     return W0 + 0.5 * lam * g**2
 
 
 def first_piola(law: str, F: np.ndarray, lam: float, mu: float) -> np.ndarray:
     """``P = ∂ψ/∂F``."""
-    _, P0, _ = deviatoric(law, F, mu, tangent=False)
-    g, G, _ = volumetric(law, F, tangent=False)
+    kin = kinematics(law, F, tangent=False)
+    _, P0, _ = deviatoric(law, F, mu, tangent=False, kin=kin)
+    g, G, _ = volumetric(law, F, tangent=False, kin=kin)
     return P0 + lam * g[..., None, None] * G

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fem_reference.hyperelastic import Hyperelasticity
-from fem_reference.laws import LAWS, deviatoric, volumetric
+from fem_reference.laws import LAWS, deviatoric, kinematics, volumetric
 from fem_reference.dirichlet import plate_dirichlet
 from fem_reference.mesh import build_mesh
 from fem_reference.space import Space
@@ -47,6 +47,20 @@ def test_laws_without_tangent(law):
     assert A2 is None and H2 is None
     assert np.array_equal(W, W2) and np.array_equal(P, P2)
     assert np.array_equal(g, g2) and np.array_equal(G, G2)
+
+
+@pytest.mark.parametrize("tangent", [True, False])
+@pytest.mark.parametrize("law", LAWS)
+def test_shared_kinematics_same_bits(law, tangent):
+    """det F, F⁻¹ and f_Li f_Jk computed once for both parts (as the Newton solver does) give the
+    parts each computes alone, bit for bit."""
+    F = np.eye(3) + 0.2 * np.random.default_rng(5).standard_normal((7, 4, 3, 3))
+    kin = kinematics(law, F, tangent, np.linalg.det(F))
+    assert (kin is None) == (law != "neo-hookean")
+    for part, args in ((deviatoric, (F, 0.7, tangent)), (volumetric, (F, tangent))):
+        alone, shared = part(law, *args), part(law, *args, kin=kin)
+        for a, b in zip(alone, shared):
+            assert (a is None and b is None) or (a.tobytes() == b.tobytes() and a.shape == b.shape)
 
 
 @pytest.mark.parametrize("law", LAWS)
