@@ -255,9 +255,9 @@ class Hyperelasticity(Discretization):
 
     def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
               amg_cache=None, guess=None, inexact=True, lu_cache=None, extend_to=None):
-        """One load step to ``s``: ``(converged, U, p, iterations, residual, factorizations)``.
-        ``maxiter`` factorizations, raised one at a time up to ``extend_to`` while the last full
-        update cut the residual :data:`BASIN_CONTRACTION`-fold."""
+        """One load step to ``s``: ``(converged, U, p, iterations, residual, fresh tangents)``.
+        ``maxiter`` fresh tangent solves (chord steps aside), raised one at a time up to
+        ``extend_to`` while the last full update cut the residual :data:`BASIN_CONTRACTION`-fold."""
         mu = material.G
         D = dirichlet.dofs
         target = dirichlet.values(s)
@@ -277,7 +277,7 @@ class Hyperelasticity(Discretization):
             return False, U, p, 0, np.inf, 0
         res = np.inf
         it = fresh = 0
-        limit = maxiter  # factorizations allowed; raised up to ``extend_to`` while converging fast
+        limit = maxiter  # fresh tangent solves allowed
         extend_to = maxiter if extend_to is None else max(maxiter, extend_to)
         chord = False  # the next iteration may reuse the last factorization (a chord step)
         while fresh < limit and it < CHORD_MAXITER_FACTOR * limit:
