@@ -25,14 +25,15 @@ is the whole load; an increment that converged in at most :data:`GROW_ITERATIONS
 :data:`BASIN_CONTRACTION`-fold (Newton's quadratic basin: it is about to converge), up to
 ``maxiter``; if it fails, the next increment is ``1/steps``.  Linear systems
 inside Newton are solved inexactly when iterative (relative tolerance ``0.1 ‖R‖/‖f‖`` within
-[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]); a direct factorization (the mixed
-element's saddle point, small displacement systems) is reused for chord steps near the solution
-while they converge fast (:data:`CHORD_RATIO`, :data:`CHORD_NEAR`).  The load steps before the
-last converge to :data:`INTERMEDIATE_RTOL` only: their states serve as starting points, and the
-last step converges to ``rtol`` from wherever they are (the solution at load factor 1 does not
-depend on how the path got there).  A trial update
-is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at a quadrature
-point) or lowers neither the residual norm nor (displacement formulation) the potential energy;
+[:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]; the pressure CG of the mixed element's
+saddle point within [:data:`~fem_reference.linalg.SCHUR_RTOL`, :data:`LINEAR_RTOL_MAX`]); a
+direct factorization (the mixed element's saddle point, small displacement systems) is reused
+for chord steps near the solution while they converge fast (:data:`CHORD_RATIO`,
+:data:`CHORD_NEAR`).  The load steps before the last converge to :data:`INTERMEDIATE_RTOL`
+only: their states serve as starting points, and the last step converges to ``rtol`` from
+wherever they are (the solution at load factor 1 does not depend on how the path got there).  A
+trial update is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at
+a quadrature point) or lowers neither the residual norm nor (displacement formulation) the potential energy;
 if a step does not converge the load increment is halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
 
 The reaction of the plates is ``r = f_int(u) − f_ext`` at the prescribed dofs.
@@ -48,7 +49,7 @@ from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
 from .laws import LAWS, deviatoric, kinematics, volumetric
-from .linalg import SolveStats, solve_saddle, solve_spd
+from .linalg import SCHUR_RTOL, SchurSolve, SolveStats, solve_saddle, solve_spd
 from .linear import Discretization, Solution
 
 
@@ -294,10 +295,12 @@ class Hyperelasticity(Discretization):
             # warrants (forcing term η ≤ 0.1 ‖R‖/‖f‖ keeps the convergence quadratic; convergence
             # is tested on the true residual).
             eta = float(np.clip(0.1 * res0 / max(ref0, 1e-300), LINEAR_RTOL_MIN, LINEAR_RTOL_MAX))
+            # the mixed element's pressure CG (SchurSolve) the same way, down to its own tighter floor
+            eta_p = float(np.clip(0.1 * res0 / max(ref0, 1e-300), SCHUR_RTOL, LINEAR_RTOL_MAX))
             if not inexact:
-                eta = LINEAR_RTOL_MIN
+                eta, eta_p = LINEAR_RTOL_MIN, SCHUR_RTOL
             if use_chord:
-                du, dp = self._chord_solve(factors["lu"], st, free)
+                du, dp = self._chord_solve(factors["lu"], st, free, eta_p)
                 stats.calls += 1
             else:
                 fresh += 1
@@ -305,7 +308,7 @@ class Hyperelasticity(Discretization):
                     du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
                                           self.nullspace, 1.0 / mu + 1.0 / material.lam,
                                           method=method, stats=stats, cache=lu_cache, order=self.order,
-                                          separator=self.separator)
+                                          separator=self.separator, schur_rtol=eta_p)
                 else:
                     du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
                                    stats=stats, cache=amg_cache, order=self.order,
@@ -362,12 +365,14 @@ class Hyperelasticity(Discretization):
         """Π = ∫ψ − s fext·u (displacement formulation)."""
         return self.space.integrate(st["psi"]) - s * float(fext @ U)
 
-    def _chord_solve(self, lu, st, free):
-        """Newton update with an earlier factorization (prescribed dofs already at their values)."""
+    def _chord_solve(self, lu, st, free, schur_rtol: float = SCHUR_RTOL):
+        """Newton update with an earlier factorization (prescribed dofs already at their values);
+        the pressure CG of a :class:`~fem_reference.linalg.SchurSolve` to ``schur_rtol``."""
         du = np.zeros(len(free))
         if self.mixed:
             nf = int(free.sum())
-            x = lu.solve(np.concatenate([-st["Ru"][free], -st["Rp"]]))
+            b = np.concatenate([-st["Ru"][free], -st["Rp"]])
+            x = lu.solve(b, schur_rtol) if isinstance(lu, SchurSolve) else lu.solve(b)
             du[free] = x[:nf]
             return du, x[nf:]
         du[free] = lu.solve(-st["Ru"][free])

@@ -80,7 +80,9 @@ factor of the same pattern; past this many CG iterations the tangent is factoriz
 factorization costs about 50 preconditioned iterations on the publication's meshes)."""
 
 SCHUR_RTOL = 1e-13
-"""Relative tolerance of the CG on the pressure Schur complement (:class:`SchurSolve`)."""
+"""Relative tolerance of the CG on the pressure Schur complement (:class:`SchurSolve`) of a
+stand-alone solve, and the tightest one inside Newton (which asks for less far from the solution:
+``schur_rtol`` of :func:`solve_saddle`)."""
 SCHUR_MAXITER = 300
 """Its iteration limit; past it the saddle point is factorized by SuperLU."""
 
@@ -243,7 +245,7 @@ class SchurSolve:
     equivalent to the pressure mass, of which ``C`` is a multiple; PCG does not depend on the
     multiple), then ``u = A⁻¹ (b_u − Bᵀ p)``.  One CG iteration is one pair of triangular solves
     with the factor: 22 iterations to 1e-12 on the mixed 10×10×10 cube.  :attr:`converged` tells
-    whether the last :meth:`solve` reached ``rtol``."""
+    whether the last :meth:`solve` reached its tolerance (``rtol``, or the one it was given)."""
 
     def __init__(self, factor: CholmodFactor, Bf: sp.csr_matrix, C: sp.spmatrix, C_lu, rtol: float,
                  maxiter: int = SCHUR_MAXITER):
@@ -251,15 +253,15 @@ class SchurSolve:
         self.C_lu, self.rtol, self.maxiter = C_lu, rtol, maxiter
         self.iterations, self.converged = 0, False
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
         nf, m = self.Bf.shape[1], self.Bf.shape[0]
         bu, bp = b[:nf], b[nf:]
         A_solve, Bf, BfT, C = self.factor.solve, self.Bf, self.BfT, self.C
         S = spla.LinearOperator((m, m), matvec=lambda q: C @ q + Bf @ A_solve(BfT @ q), dtype=float)
         P = spla.LinearOperator((m, m), matvec=self.C_lu.solve, dtype=float)
         count = [0]
-        p, info = spla.cg(S, Bf @ A_solve(bu) - bp, M=P, rtol=self.rtol, atol=0.0, maxiter=self.maxiter,
-                          callback=lambda xk: count.__setitem__(0, count[0] + 1))
+        p, info = spla.cg(S, Bf @ A_solve(bu) - bp, M=P, rtol=self.rtol if rtol is None else rtol, atol=0.0,
+                          maxiter=self.maxiter, callback=lambda xk: count.__setitem__(0, count[0] + 1))
         self.iterations, self.converged = count[0], info == 0
         return np.concatenate([A_solve(bu - BfT @ p), p])
 
@@ -420,6 +422,7 @@ def solve_saddle(
     cache: dict | None = None,
     order: np.ndarray | None = None,
     separator: int | None = None,
+    schur_rtol: float = SCHUR_RTOL,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Solve ``[[A, Bᵀ], [B, −C]] [u; p] = [f; g]`` with ``u[D] = uD``; returns ``(u, p)``.
 
@@ -432,8 +435,9 @@ def solve_saddle(
     A direct solve with CHOLMOD at hand, an ``order`` and a displacement block that
     :data:`DIRECT_MAX_SEPARATOR` admits (``separator``: dofs of the first separator of the
     displacement unknowns) eliminates the pressure by :class:`SchurSolve` (``cache["lu"]`` is then
-    that solver, ``cache["cholmod"]`` the analysis of ``A``); when ``A`` is not positive definite or
-    the CG stalls, SuperLU factorizes the whole saddle point.
+    that solver, ``cache["cholmod"]`` the analysis of ``A``), its CG to ``schur_rtol`` (Newton's
+    forcing term, :mod:`fem_reference.hyperelastic`); when ``A`` is not positive definite or the CG
+    stalls, SuperLU factorizes the whole saddle point.
     """
     n, m = A.shape[0], B.shape[0]
     free = np.ones(n, dtype=bool)
@@ -451,7 +455,7 @@ def solve_saddle(
     if kind == "direct" and cholmod is not None and order is not None and method == "auto" \
             and _choose_spd("auto", Aff.nnz, separator) == "direct":
         x = _schur_solve(A, Bf, C, rhs, free, _local_order(order, np.concatenate([free, np.zeros(m, bool)])),
-                         cache, stats)
+                         cache, stats, schur_rtol)
         if x is not None:
             u[free] = x[: int(free.sum())]
             return u, x[int(free.sum()):]
@@ -512,7 +516,7 @@ def _pcg_on_factor(K, f, u, free, fac: CholmodFactor, rtol: float):
     return (x, count[0]) if info == 0 else None
 
 
-def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats):
+def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats, rtol: float = SCHUR_RTOL):
     """:class:`SchurSolve` of the saddle point (see :func:`solve_saddle`), or ``None`` if ``A`` is not
     positive definite or the CG does not converge."""
     if not A.has_sorted_indices:
@@ -531,7 +535,7 @@ def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats):
         fac.factorize(A)
     except ArithmeticError:
         return None
-    solver = SchurSolve(fac, Bf.tocsr(), C, C_lu, SCHUR_RTOL)
+    solver = SchurSolve(fac, Bf.tocsr(), C, C_lu, rtol)
     x = solver.solve(rhs)
     if not solver.converged:
         return None
