@@ -28,7 +28,14 @@ have no zero-energy mode (:func:`_cell_zero_energy_modes`: hybmss, hybmss-cf) me
 Hessian (the volume term's ``(J − 1) ∂²J`` far from ``J = 1`` at ν → ½) with the same shifts,
 Cholesky only, instead of the unshifted LDLᵀ step: a descent direction, and 5× fewer iterations on
 the 10³ cube at ν = 0.499 in 20 % compression, to the same equilibrium.  A lattice with such
-modes keeps the unshifted step: its equilibria depend on the path (buckled, hourglassed states).
+modes keeps the unshifted step: its equilibria depend on the path (buckled, hourglassed states),
+down to rounding.  Measured on the 127 hybmss-fd static runs of ``make reproduce-paper``: with
+the same Newton matrices factorized by SuperLU in its minimum-degree order instead of the
+nested-dissection one (the same steps up to rounding), 92 reach the same equilibrium (forces,
+volume change, largest displacement within 5e-5), 8 its mirror image (the torques change sign),
+and 3 another one: the 10³ and 6³ cubes in 5 % compression at ν = 0 escape the saddle at which
+they stop otherwise (plate force −4,737 N instead of −11,464 N on 10³), and the 4×4×24 beam in
+5 % tension at ν = 0.499 moves by 6e-4.  Such answers hold for this factorization only.
 
 **Loss of stability.**  For ν < 1/4, κ < 0 and the volume energy is unbounded below under
 dilation; at large tension the equilibrium disappears.  When the load step cannot be reduced
