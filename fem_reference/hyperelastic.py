@@ -33,8 +33,8 @@ for chord steps near the solution while they converge fast (:data:`CHORD_RATIO`,
 only: their states serve as starting points, and the last step converges to ``rtol`` from
 wherever they are (the solution at load factor 1 does not depend on how the path got there).  A
 trial update is shortened (halved, down to 1/64) while it inverts an element (``det F ≤ 0`` at
-a quadrature point) or lowers neither the residual norm nor (displacement formulation) the potential energy;
-if a step does not converge the load increment is halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
+a quadrature point) or lowers neither the residual norm nor (displacement formulation) the
+potential energy; if a step does not converge the load increment is halved.  Convergence: ``‖R_free‖ ≤ rtol · max(‖f_int‖, ‖f_ext‖) + atol``.
 
 The reaction of the plates is ``r = f_int(u) − f_ext`` at the prescribed dofs.
 """
@@ -294,9 +294,10 @@ class Hyperelasticity(Discretization):
             # Inexact Newton: solve the linear system only as accurately as the current residual
             # warrants (forcing term η ≤ 0.1 ‖R‖/‖f‖ keeps the convergence quadratic; convergence
             # is tested on the true residual).
-            eta = float(np.clip(0.1 * res0 / max(ref0, 1e-300), LINEAR_RTOL_MIN, LINEAR_RTOL_MAX))
+            forcing = 0.1 * res0 / max(ref0, 1e-300)
+            eta = float(np.clip(forcing, LINEAR_RTOL_MIN, LINEAR_RTOL_MAX))
             # the mixed element's pressure CG (SchurSolve) the same way, down to its own tighter floor
-            eta_p = float(np.clip(0.1 * res0 / max(ref0, 1e-300), SCHUR_RTOL, LINEAR_RTOL_MAX))
+            eta_p = float(np.clip(forcing, SCHUR_RTOL, LINEAR_RTOL_MAX))
             if not inexact:
                 eta, eta_p = LINEAR_RTOL_MIN, SCHUR_RTOL
             if use_chord:
