@@ -259,19 +259,26 @@ TABLES = {"baudet_moduli": moduli_table, "baudet_cantilever": cantilever_table, 
 
 
 def _table(job: tuple):
-    name, quick, progress = job
-    return TABLES[name](quick, progress)
+    name, quick = job
+    return TABLES[name](quick, False)
+
+
+def _table_progress(job: tuple):
+    name, quick = job
+    return TABLES[name](quick, True)
 
 
 def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, runner=None) -> None:
     """Write ``baudet_moduli``, ``baudet_cantilever`` and ``baudet_lshape`` (computed ``jobs``
-    processes at a time) and ``baudet_volume`` (from the stored runs of :func:`tasks`, computed
-    by ``runner`` where missing) into ``store``."""
-    from .executors import map_local
+    processes at a time and kept in ``store``: :func:`studies.executors.map_stored`) and
+    ``baudet_volume`` (from the stored runs of :func:`tasks`, computed by ``runner`` where
+    missing) into ``store``."""
+    from .executors import map_stored
     from .runner import run_tasks
 
     vol = volume_tasks(quick)
     rows = run_tasks([t for _, t in vol], store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner)
     store.write_table("baudet_volume", volume_table(vol, rows, progress))
-    for name, df in zip(TABLES, map_local(_table, [(n, quick, progress) for n in TABLES], jobs)):
+    fn = _table_progress if progress else _table
+    for name, df in zip(TABLES, map_stored(store, "baudet_tables", fn, [(n, quick) for n in TABLES], jobs)):
         store.write_table(name, df)

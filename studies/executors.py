@@ -25,6 +25,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
 
+from .store import DamagedRun
+
 EXECUTORS = ("local", "dask")
 
 #: worker deaths a run survives on a cluster started by the runner (the scheduler's
@@ -146,13 +148,78 @@ class LocalPool:
 def map_local(fn: Callable, items: list, workers: int | None = None) -> list:
     """``[fn(i) for i in items]`` on up to ``workers`` processes of this machine (all cores by
     default; :func:`worker_context`), in order: for the work of a study that is not a stored run
-    (a bisection, compiling kernels).  ``fn`` must be importable (a module-level function)."""
+    (compiling kernels; :func:`map_stored` keeps the results).  ``fn`` must be importable (a
+    module-level function).  Ctrl-C (or an exception in ``fn``) kills the workers at once."""
     items = list(items)
-    n = min(workers or os.cpu_count() or 1, len(items))
+    out: list = [None] * len(items)
+
+    def keep(i, result):
+        out[i] = result
+
+    _map(fn, items, list(range(len(items))), workers, keep)
+    return out
+
+
+def map_stored(store, name: str, fn: Callable, items: list, workers: int | None = None) -> list:
+    """:func:`map_local` for the results a study computes outside runs (a bisection, a table of
+    its own): the result of each item is kept in ``store`` (a :class:`studies.store.Store`) as
+    computation ``name`` as soon as it is done (:meth:`~studies.store.Store.save_computed`, keyed by
+    the item and the code version), and an item whose result is stored is not computed again, so
+    an interrupted study resumes and a finished one costs nothing when run again.  A damaged
+    stored result is moved aside and computed again.  Results come back as stored (the same
+    values, NumPy scalars made plain, tuples lists)."""
+    items = list(items)
+    keys = [store.computed_key(name, item) for item in items]
+    out: list = [None] * len(items)
+    todo = []
+    for i, key in enumerate(keys):
+        try:
+            found, result = store.load_computed(name, key)
+        except DamagedRun as exc:
+            store.quarantine(exc)
+            print(f"{name}: damaged stored result moved aside, computing it again ({exc.reason})", flush=True)
+            found = False
+        if found:
+            out[i] = result
+        else:
+            todo.append(i)
+
+    def keep(i, result):
+        out[i] = store.save_computed(name, keys[i], result)
+
+    _map(fn, items, todo, workers, keep)
+    return out
+
+
+def _map(fn: Callable, items: list, todo: list, workers: int | None, done: Callable) -> None:
+    """``done(i, fn(items[i]))`` for each ``i`` of ``todo``, on up to ``workers`` processes (in this
+    one for a single worker), each as soon as it finishes.  On an exception or Ctrl-C the queued
+    items are dropped and the workers killed before it is raised."""
+    n = min(workers or os.cpu_count() or 1, len(todo))
     if n <= 1:
-        return [fn(i) for i in items]
-    with ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt) as pool:
-        return list(pool.map(fn, items))
+        for i in todo:
+            done(i, fn(items[i]))
+        return
+    before = set(multiprocessing.active_children())
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt)
+    try:
+        futures = {pool.submit(fn, items[i]): i for i in todo}
+        pending = set(futures)
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in sorted(finished, key=futures.get):
+                try:
+                    result = fut.result()
+                except BrokenProcessPool:
+                    raise SweepError("a worker process died (killed or out of memory): rerun (stored "
+                                     "results are kept)") from None
+                done(futures[fut], result)
+    except BaseException:
+        procs = [p for p in multiprocessing.active_children() if p not in before]
+        pool.shutdown(wait=False, cancel_futures=True)
+        kill_processes(procs)
+        raise
+    pool.shutdown(wait=True)
 
 
 def local_executor(fn: Callable, jobs: int | None, todo: int):

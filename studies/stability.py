@@ -169,16 +169,19 @@ def _dt_row(job: tuple) -> dict:
 
 
 def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = None,
-             workers: int | None = None) -> pd.DataFrame:
+             workers: int | None = None, store: Store | None = None) -> pd.DataFrame:
     """Part (a): one bisection per ν and variant, ``workers`` processes at a time (each is
-    deterministic: the table does not depend on how they are spread)."""
-    from .executors import map_local
+    deterministic: the table does not depend on how they are spread), each kept in ``store``
+    when one is given (:func:`studies.executors.map_stored`: a rerun computes only the missing)."""
+    from .executors import map_local, map_stored
 
     mesh = (2, 2, 2) if quick else (4, 4, 4)
     steps = steps or (2000 if quick else 10_000)
     jobs = [(nu, model, mesh, steps) for nu in nus
             for model in (variants if variants is not None else stability_models())]
-    return pd.DataFrame(map_local(_dt_row, jobs, workers))
+    rows = map_local(_dt_row, jobs, workers) if store is None else map_stored(store, "dt_stability", _dt_row, jobs,
+                                                                             workers)
+    return pd.DataFrame(rows)
 
 
 # ------------------------------------------------------------------------------ (b, c) extreme
@@ -362,13 +365,16 @@ def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str | None = 
     return out
 
 
-def irregular_table(quick: bool = False, workers: int | None = None) -> pd.DataFrame:
-    """Part (e): the rows of each ν computed ``workers`` processes at a time."""
-    from .executors import map_local
+def irregular_table(quick: bool = False, workers: int | None = None, store: Store | None = None) -> pd.DataFrame:
+    """Part (e): the rows of each ν computed ``workers`` processes at a time, kept in ``store``
+    when one is given (as in :func:`dt_table`)."""
+    from .executors import map_local, map_stored
 
     nus = (0.0, 0.499) if quick else NU_EXTREME
-    return pd.DataFrame([r for rows in map_local(_irregular_rows, [(quick, nu) for nu in nus], workers)
-                         for r in rows])
+    jobs = [(quick, nu) for nu in nus]
+    parts = map_local(_irregular_rows, jobs, workers) if store is None else map_stored(
+        store, "stability_irregular", _irregular_rows, jobs, workers)
+    return pd.DataFrame([r for rows in parts for r in rows])
 
 
 def _irregular_rows(job: tuple) -> list[dict]:
@@ -498,7 +504,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     tables = {}
     for part in parts:
         if part == "a":
-            tables["dt_stability"] = dt_table(quick, workers=jobs)
+            tables["dt_stability"] = dt_table(quick, workers=jobs, store=store)
             store.write_table("dt_stability", tables["dt_stability"])
         elif part == "d":
             lim = limit_tasks(quick)
@@ -520,7 +526,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
             store.write_table("stability_extreme", tables["stability_extreme"])
             tables["stability"] = _combined(store)
         elif part == "e":
-            tables["stability_irregular"] = irregular_table(quick, workers=jobs)
+            tables["stability_irregular"] = irregular_table(quick, workers=jobs, store=store)
             store.write_table("stability_irregular", tables["stability_irregular"])
             tables["stability"] = _combined(store)
     return tables

@@ -8,7 +8,10 @@ temporary name in the same folder and renamed (``os.replace`` is atomic on POSIX
 Rows are strict JSON (a non-finite number is stored as ``null``).  A row names its key and
 carries the SHA-256 of its arrays (:func:`arrays_digest`), so a truncated or empty row, a row
 without its key, a truncated NPZ or an NPZ of another run is detected (:meth:`Store.check`);
-the runner moves such a run aside (``damaged/``) and computes it again.  A process claims a run
+the runner moves such a run aside (``damaged/``) and computes it again.  The same holds for the
+results a study computes outside runs (a bisection, a table of its own): ``computed/<name>/<key>.json``,
+keyed by the job and the code version, with the SHA-256 of the result beside it
+(:meth:`Store.save_computed`, :func:`studies.executors.map_stored`).  A process claims a run
 before computing it (:meth:`Store.claim`, a POSIX lock on ``locks/<key>.lock`` that the kernel
 releases when the process ends, however it ends), so two processes on one folder share the work
 and a lock left by a killed process never blocks.
@@ -237,9 +240,57 @@ def _restore_nonfinite(row: dict) -> dict:
     return row
 
 
+def encode(obj):
+    """``obj`` as plain JSON values, exactly: a non-finite float becomes ``{"$float": "nan"}``
+    (``"inf"``, ``"-inf"``), a pandas DataFrame ``{"$frame": {"columns": [...], "rows": [[...]]}}``,
+    NumPy scalars and arrays plain numbers and lists, tuples lists (:func:`decode` reverses all
+    but the last two)."""
+    if isinstance(obj, dict):
+        return {str(k): encode(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [encode(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return encode(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else {"$float": repr(float(obj))}
+    if hasattr(obj, "columns") and hasattr(obj, "itertuples"):  # a pandas DataFrame
+        return {"$frame": {"columns": [str(c) for c in obj.columns],
+                           "rows": [encode(list(r)) for r in obj.itertuples(index=False)]}}
+    return obj
+
+
+def decode(obj):
+    """The value :func:`encode` made ``obj`` from (a DataFrame as a DataFrame)."""
+    if isinstance(obj, list):
+        return [decode(v) for v in obj]
+    if isinstance(obj, dict):
+        if set(obj) == {"$float"}:
+            return float(obj["$float"])
+        if set(obj) == {"$frame"}:
+            import pandas as pd
+
+            return pd.DataFrame([decode(r) for r in obj["$frame"]["rows"]], columns=obj["$frame"]["columns"])
+        return {k: decode(v) for k, v in obj.items()}
+    return obj
+
+
+def _sha256(text: str) -> str:
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _ordered_json(obj) -> str:
+    """Strict JSON of plain values with the keys in their order (:func:`dumps` sorts them)."""
+    return json.dumps(obj, allow_nan=False, indent=1)
+
+
 class Store:
     """Folder of run records: ``runs/<key>.json`` (row) and ``runs/<key>.npz`` (arrays);
-    ``locks/`` holds the claims of runs being computed, ``damaged/`` the runs moved aside."""
+    ``locks/`` holds the claims of runs being computed, ``damaged/`` the runs moved aside,
+    ``computed/<name>/`` the results a study computes outside runs (:meth:`save_computed`)."""
 
     def __init__(self, root):
         if isinstance(root, str) and not root.strip():
@@ -248,6 +299,7 @@ class Store:
         self.runs = self.root / "runs"
         self.locks = self.root / "locks"
         self.damaged_dir = self.root / "damaged"
+        self.computed = self.root / "computed"
 
     # ----------------------------------------------------------------- writing
     def check_writable(self) -> None:
@@ -381,16 +433,55 @@ class Store:
             warnings.warn(f"damaged run left out: {d}", stacklevel=2)
         return rows
 
+    # ----------------------------------------------------------------- computed results
+    def computed_key(self, name: str, job) -> str:
+        """Key of the result of ``job`` (JSON-able: numbers, strings, tuples) of the computation
+        ``name``, made with the code version of the whole checkout (a change anywhere computes it
+        again: these results mix the solvers)."""
+        payload = dumps({"name": name, "job": encode(job), "code": code_version()})
+        return _sha256(payload)[:24]
+
+    def save_computed(self, name: str, key: str, result):
+        """Store ``result`` (:func:`encode`-able) of job ``key`` of ``name`` atomically, with the
+        SHA-256 of its text (keys in their order: a row's columns keep theirs); returns it as
+        :meth:`load_computed` will give it back."""
+        body = _ordered_json(encode(result))
+        atomic_write_text(self.computed / name / f"{key}.json", _ordered_json(
+            {"key": key, "name": name, "sha256": _sha256(body), "result": loads(body)}) + "\n")
+        return decode(loads(body))
+
+    def load_computed(self, name: str, key: str) -> tuple[bool, object]:
+        """``(True, result)`` of a stored job of ``name``, ``(False, None)`` if not stored;
+        raises :class:`DamagedRun` for a file that is unreadable, not its own or altered."""
+        path = self.computed / name / f"{key}.json"
+        try:
+            text = path.read_text()
+        except FileNotFoundError:
+            return False, None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise DamagedRun(key, path, f"unreadable ({type(exc).__name__}: {exc})") from None
+        try:
+            doc = loads(text)
+        except ValueError as exc:
+            raise DamagedRun(key, path, f"not valid JSON ({exc})") from None
+        if not isinstance(doc, dict) or doc.get("key") != key or doc.get("name") != name or "result" not in doc:
+            raise DamagedRun(key, path, "not the result of this job (key, name or result missing)")
+        if _sha256(_ordered_json(doc["result"])) != doc.get("sha256"):
+            raise DamagedRun(key, path, "the result does not match its checksum (altered)")
+        return True, decode(doc["result"])
+
     # ----------------------------------------------------------------- healing
     def quarantine(self, damaged: DamagedRun) -> Path:
-        """Move a damaged run's files to ``damaged/`` (with the reason beside them)."""
+        """Move a damaged run's files (or a damaged computed result) to ``damaged/`` (with the
+        reason beside them)."""
         stamp = time.strftime("%Y%m%dT%H%M%S") + f"-{os.getpid()}"
         dest = self.damaged_dir
         dest.mkdir(parents=True, exist_ok=True)
-        for suffix in (".json", ".npz"):
-            src = self.runs / f"{damaged.key}{suffix}"
+        files = ([self.runs / f"{damaged.key}{suffix}" for suffix in (".json", ".npz")]
+                 if damaged.path.parent == self.runs else [damaged.path])
+        for src in files:
             if src.exists():
-                os.replace(src, dest / f"{damaged.key}.{stamp}{suffix}")
+                os.replace(src, dest / f"{damaged.key}.{stamp}{src.suffix}")
         atomic_write_text(dest / f"{damaged.key}.{stamp}.reason.txt", f"{damaged}\n")
         return dest
 
