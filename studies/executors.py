@@ -169,6 +169,7 @@ def map_stored(store, name: str, fn: Callable, items: list, workers: int | None 
     stored result is moved aside and computed again.  Results come back as stored (the same
     values, NumPy scalars made plain, tuples lists)."""
     items = list(items)
+    store.remove_orphans()
     keys = [store.computed_key(name, item) for item in items]
     out: list = [None] * len(items)
     todo = []

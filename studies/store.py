@@ -446,8 +446,11 @@ class Store:
         SHA-256 of its text (keys in their order: a row's columns keep theirs); returns it as
         :meth:`load_computed` will give it back."""
         body = _ordered_json(encode(result))
-        atomic_write_text(self.computed / name / f"{key}.json", _ordered_json(
-            {"key": key, "name": name, "sha256": _sha256(body), "result": loads(body)}) + "\n")
+        claim = self.claim(key)  # None: another process is writing the same job's result
+        if claim is not None:
+            with claim:
+                atomic_write_text(self.computed / name / f"{key}.json", _ordered_json(
+                    {"key": key, "name": name, "sha256": _sha256(body), "result": loads(body)}) + "\n")
         return decode(loads(body))
 
     def load_computed(self, name: str, key: str) -> tuple[bool, object]:
@@ -517,12 +520,11 @@ class Store:
             return ""
 
     def remove_orphans(self) -> list[Path]:
-        """Delete temporary files in ``runs/`` left by a process that was killed while writing
-        (a key's files are written only under its claim: an unclaimed key's are orphans)."""
+        """Delete temporary files in ``runs/`` and ``computed/`` left by a process that was killed
+        while writing (a key's files are written only under its claim: an unclaimed key's are
+        orphans)."""
         removed = []
-        if not self.runs.is_dir():
-            return removed
-        for tmp in sorted(self.runs.glob(".*.tmp")):
+        for tmp in sorted([*self.runs.glob(".*.tmp"), *self.computed.glob("*/.*.tmp")]):
             key = tmp.name[1:].split(".", 1)[0]
             claim = self.claim(key)
             if claim is None:

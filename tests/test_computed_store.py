@@ -113,6 +113,18 @@ def test_damaged_result_is_moved_aside_and_recomputed(damage, tmp_path, capsys):
     assert any(p.name.startswith(k1) for p in store.damaged_dir.iterdir())
 
 
+def test_orphan_of_a_killed_writer_is_removed(tmp_path):
+    folder = str(tmp_path / "marks")
+    os.mkdir(folder)
+    store = Store(tmp_path / "results")
+    map_stored(store, "demo", job, [(folder, 0)], workers=1)
+    key = store.computed_key("demo", (folder, 0))
+    orphan = store.computed / "demo" / f".{key}.json.abc123.tmp"
+    orphan.write_text('{"key": "')
+    out = map_stored(store, "demo", job, [(folder, 0)], workers=1)
+    assert not orphan.exists() and calls(folder) == [0] and same(out[0], expected(0))
+
+
 def test_another_code_version_computes_again(tmp_path, monkeypatch):
     folder = str(tmp_path / "marks")
     os.mkdir(folder)
