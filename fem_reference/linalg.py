@@ -298,12 +298,27 @@ def _submatrix_nnz(K: sp.csr_matrix, keep: np.ndarray) -> int:
     return int(np.count_nonzero(rows & keep[K.indices]))
 
 
+AMG_SEED = 0
+"""Seed of the start vector of pyamg's spectral-radius estimate (the Jacobi smoothing of its
+prolongator): pyamg draws it from NumPy's global generator, so without a seed the same system
+gave another preconditioner, other CG iterates and answers that differed by ~1e-14 from one
+process to the next (the [B09] L-shape's reference)."""
+
+
 def _amg(A: sp.csr_matrix, B: np.ndarray):
+    """Smoothed-aggregation AMG of ``A`` (near-null space ``B``) as a V-cycle preconditioner, the
+    same for the same matrix in any process (:data:`AMG_SEED`; NumPy's global generator is left as
+    it was)."""
     import pyamg
 
-    ml = pyamg.smoothed_aggregation_solver(
-        A, B=B, symmetry="hermitian", strength="symmetric", max_coarse=500, coarse_solver="splu"
-    )
+    state = np.random.get_state()
+    np.random.seed(AMG_SEED)
+    try:
+        ml = pyamg.smoothed_aggregation_solver(
+            A, B=B, symmetry="hermitian", strength="symmetric", max_coarse=500, coarse_solver="splu"
+        )
+    finally:
+        np.random.set_state(state)
     return ml.aspreconditioner(cycle="V")
 
 
