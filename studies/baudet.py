@@ -258,14 +258,9 @@ TABLES = {"baudet_moduli": moduli_table, "baudet_cantilever": cantilever_table, 
 """The tables computed here, a process each (the volume table reads stored runs: :func:`run`)."""
 
 
-def _table(job: tuple):
+def _table(job: tuple, progress: bool = False):
     name, quick = job
-    return TABLES[name](quick, False)
-
-
-def _table_progress(job: tuple):
-    name, quick = job
-    return TABLES[name](quick, True)
+    return TABLES[name](quick, progress)
 
 
 def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, runner=None) -> None:
@@ -273,12 +268,14 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     processes at a time and kept in ``store``: :func:`studies.executors.map_stored`) and
     ``baudet_volume`` (from the stored runs of :func:`tasks`, computed by ``runner`` where
     missing) into ``store``."""
+    from functools import partial
+
     from .executors import map_stored
     from .runner import run_tasks
 
     vol = volume_tasks(quick)
     rows = run_tasks([t for _, t in vol], store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner)
     store.write_table("baudet_volume", volume_table(vol, rows, progress))
-    fn = _table_progress if progress else _table
+    fn = partial(_table, progress=progress)
     for name, df in zip(TABLES, map_stored(store, "baudet_tables", fn, [(n, quick) for n in TABLES], jobs)):
         store.write_table(name, df)

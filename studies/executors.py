@@ -167,7 +167,9 @@ def map_stored(store, name: str, fn: Callable, items: list, workers: int | None 
     the item and the code version), and an item whose result is stored is not computed again, so
     an interrupted study resumes and a finished one costs nothing when run again.  A damaged
     stored result is moved aside and computed again.  Results come back as stored (the same
-    values, NumPy scalars made plain, tuples lists)."""
+    values, NumPy scalars made plain, tuples lists).  ``store`` None: :func:`map_local`."""
+    if store is None:
+        return map_local(fn, items, workers)
     items = list(items)
     store.remove_orphans()
     keys = [store.computed_key(name, item) for item in items]

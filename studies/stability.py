@@ -173,15 +173,13 @@ def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = 
     """Part (a): one bisection per ν and variant, ``workers`` processes at a time (each is
     deterministic: the table does not depend on how they are spread), each kept in ``store``
     when one is given (:func:`studies.executors.map_stored`: a rerun computes only the missing)."""
-    from .executors import map_local, map_stored
+    from .executors import map_stored
 
     mesh = (2, 2, 2) if quick else (4, 4, 4)
     steps = steps or (2000 if quick else 10_000)
     jobs = [(nu, model, mesh, steps) for nu in nus
             for model in (variants if variants is not None else stability_models())]
-    rows = map_local(_dt_row, jobs, workers) if store is None else map_stored(store, "dt_stability", _dt_row, jobs,
-                                                                             workers)
-    return pd.DataFrame(rows)
+    return pd.DataFrame(map_stored(store, "dt_stability", _dt_row, jobs, workers))
 
 
 # ------------------------------------------------------------------------------ (b, c) extreme
@@ -368,12 +366,10 @@ def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str | None = 
 def irregular_table(quick: bool = False, workers: int | None = None, store: Store | None = None) -> pd.DataFrame:
     """Part (e): the rows of each ν computed ``workers`` processes at a time, kept in ``store``
     when one is given (as in :func:`dt_table`)."""
-    from .executors import map_local, map_stored
+    from .executors import map_stored
 
     nus = (0.0, 0.499) if quick else NU_EXTREME
-    jobs = [(quick, nu) for nu in nus]
-    parts = map_local(_irregular_rows, jobs, workers) if store is None else map_stored(
-        store, "stability_irregular", _irregular_rows, jobs, workers)
+    parts = map_stored(store, "stability_irregular", _irregular_rows, [(quick, nu) for nu in nus], workers)
     return pd.DataFrame([r for rows in parts for r in rows])
 
 
