@@ -46,6 +46,7 @@ Tables (``Store.write_table``): ``baudet_cantilever``, ``baudet_lshape``, ``baud
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 
@@ -268,8 +269,6 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     processes at a time and kept in ``store``: :func:`studies.executors.map_stored`) and
     ``baudet_volume`` (from the stored runs of :func:`tasks`, computed by ``runner`` where
     missing) into ``store``."""
-    from functools import partial
-
     from .executors import map_stored
     from .runner import run_tasks
 

@@ -72,22 +72,32 @@ def _json_default(o):
     raise TypeError(f"not JSON serializable: {type(o)}")
 
 
+def _plain(obj, nonfinite):
+    """``obj`` as plain JSON values: NumPy scalars and arrays made plain, tuples and sets lists, a
+    pandas DataFrame ``{"$frame": {"columns": [...], "rows": [[...]]}}``, and each non-finite
+    float replaced by ``nonfinite(value)``."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v, nonfinite) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, set)):
+        return [_plain(v, nonfinite) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist(), nonfinite)
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else nonfinite(float(obj))
+    if hasattr(obj, "columns") and hasattr(obj, "itertuples"):  # a pandas DataFrame
+        return {"$frame": {"columns": [str(c) for c in obj.columns],
+                           "rows": [_plain(list(r), nonfinite) for r in obj.itertuples(index=False)]}}
+    return obj
+
+
 def strict(obj):
     """``obj`` with every non-finite float (NaN, ±inf) replaced by ``None`` and NumPy scalars and
     arrays made plain, so that it serialises as strict JSON."""
-    if isinstance(obj, dict):
-        return {str(k): strict(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple, set)):
-        return [strict(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return strict(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
+    return _plain(obj, lambda v: None)
 
 
 def dumps(obj) -> str:
@@ -241,26 +251,10 @@ def _restore_nonfinite(row: dict) -> dict:
 
 
 def encode(obj):
-    """``obj`` as plain JSON values, exactly: a non-finite float becomes ``{"$float": "nan"}``
-    (``"inf"``, ``"-inf"``), a pandas DataFrame ``{"$frame": {"columns": [...], "rows": [[...]]}}``,
-    NumPy scalars and arrays plain numbers and lists, tuples lists (:func:`decode` reverses all
-    but the last two)."""
-    if isinstance(obj, dict):
-        return {str(k): encode(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [encode(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return encode(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else {"$float": repr(float(obj))}
-    if hasattr(obj, "columns") and hasattr(obj, "itertuples"):  # a pandas DataFrame
-        return {"$frame": {"columns": [str(c) for c in obj.columns],
-                           "rows": [encode(list(r)) for r in obj.itertuples(index=False)]}}
-    return obj
+    """``obj`` as plain JSON values, exactly: as :func:`strict`, but a non-finite float becomes
+    ``{"$float": "nan"}`` (``"inf"``, ``"-inf"``) (:func:`decode` reverses all but NumPy types and
+    tuples)."""
+    return _plain(obj, lambda v: {"$float": repr(v)})
 
 
 def decode(obj):
@@ -446,12 +440,13 @@ class Store:
         SHA-256 of its text (keys in their order: a row's columns keep theirs); returns it as
         :meth:`load_computed` will give it back."""
         body = _ordered_json(encode(result))
+        plain = loads(body)
         claim = self.claim(key)  # None: another process is writing the same job's result
         if claim is not None:
             with claim:
                 atomic_write_text(self.computed / name / f"{key}.json", _ordered_json(
-                    {"key": key, "name": name, "sha256": _sha256(body), "result": loads(body)}) + "\n")
-        return decode(loads(body))
+                    {"key": key, "name": name, "sha256": _sha256(body), "result": plain}) + "\n")
+        return decode(plain)
 
     def load_computed(self, name: str, key: str) -> tuple[bool, object]:
         """``(True, result)`` of a stored job of ``name``, ``(False, None)`` if not stored;
