@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("hybmss", "fem_reference", "studies", "reports", "benchmarks")
 LAYER = {"hybmss": 0, "fem_reference": 1, "studies": 2, "reports": 3, "benchmarks": 4}
 

@@ -18,7 +18,7 @@ from hybmss.models import ModelBase, NoParameters, Style
 from hybmss.scene import Material, Model, Scene
 from hybmss.system import build
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PUBLICATION_MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009")
 COMPETITORS = ("corot-hex8", "corot-hex8-sri", "xpbd-nh")
 """What a user would pick instead of an MSS (SPEC §10), listed after the publications' models."""
