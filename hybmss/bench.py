@@ -52,10 +52,9 @@ PROBE_STEPS = 10
 
 
 def default_variants() -> list[tuple[str, float]]:
-    """(model, ν) of the explicit rows: every registered model at ν = 0.499, the first
-    ``performance`` model at ν = 1/4 too."""
-    perf = models.in_role("performance")
-    return [(m, NU) for m in models.names()] + [(perf[0], 0.25)]
+    """(model, ν) of the explicit rows: every registered model at ν = 0.499, the registry's
+    default model at ν = 1/4 too."""
+    return [(m, NU) for m in models.names()] + [(models.default_name(), 0.25)]
 
 
 def compression_scene(model: str, nu: float, mesh=MESH, le: float = LE, d: float = 0.05) -> Scene:
@@ -149,7 +148,7 @@ def time_config(model: str | None = None, nu: float = NU, mesh=MESH, threads: in
 def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool = False,
               threads=(1, 2), numpy_steps: int | None = None, repeats: int | None = None,
               meshes=None, precisions=("f64", "f32"), variants=None, static: bool = True,
-              target_s: float | None = None) -> dict:
+              target_s: float | None = None, static_models=None) -> dict:
     """Time the explicit kernels; returns ``{"explicit": [row, ...], "static": [...],
     "not_run": [...]}`` (the configurations a model refused, with its reason).
 
@@ -160,7 +159,7 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
     that fit in ``target_s`` (default :data:`TARGET_S`; at most :data:`MAX_STEPS`); ``steps`` fixes the Numba steps of
     every configuration and ``numpy_steps`` those of the NumPy twin (first mesh only, one
     thread, float64).  Models whose kernel is serial have no two-thread rows.  The static rows
-    solve the first mesh.  ``quick``: the :data:`QUICK_MESH` cube only, float64, one thread,
+    solve the first mesh, for the models ``static_models`` (:func:`static_cases`).  ``quick``: the :data:`QUICK_MESH` cube only, float64, one thread,
     runs of :data:`QUICK_TARGET_S`, one repeat (a smoke run, not a measurement).
     """
     if quick:  # one small mesh, one thread, float64: each configuration compiles a kernel of its own
@@ -198,26 +197,28 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
         for cfg in configs:
             cfg.time_once()
     rows = [c.row() for c in configs]
-    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats, mesh=meshes[0]) if static else [],
+    return {"explicit": rows, "static": static_bench(quick=quick, repeats=repeats, mesh=meshes[0], names=static_models) if static else [],
             "cores": os.cpu_count(),
             "not_run": [{"model": m, "reason": why, "configurations": c} for (m, why), c in skipped.items()]}
 
 
-def static_cases() -> list[tuple[str, float, float]]:
-    """(model, ν, d) of the static rows: the first ``performance`` model at ν = 1/4 and 0.499 (5 %)
-    and at 20 %, every other one at ν = 0.3 (5 %)."""
-    names = models.in_role("performance")
+def static_cases(names=None) -> list[tuple[str, float, float]]:
+    """(model, ν, d) of the static rows of the models ``names`` (default: every registered model
+    with a static solver, in the registry's order): the first at ν = 1/4 and 0.499 (5 %) and at
+    20 %, every other one at ν = 0.3 (5 %)."""
+    names = list(names) if names is not None else [m.name for m in models.all_models() if m.supports("static")]
     return ([(names[0], 0.25, 0.05), (names[0], 0.499, 0.05)] + [(m, 0.3, 0.05) for m in names[1:]]
             + [(names[0], 0.25, 0.20)])
 
 
-def static_bench(quick: bool = False, repeats: int | None = None, mesh=None) -> list[dict]:
+def static_bench(quick: bool = False, repeats: int | None = None, mesh=None, names=None) -> list[dict]:
     """Wall time of the static Newton solve of the compression cube ``mesh`` (default the 10³
     cube, :data:`QUICK_MESH` when ``quick``; best of ``repeats``, after a warm-up of the
-    sparsity pattern cache).  ``quick``: the first case of :func:`static_cases` only."""
+    sparsity pattern cache) of the models ``names`` (:func:`static_cases`).  ``quick``: the first
+    case of :func:`static_cases` only."""
     reps = repeats or (1 if quick else 3)
     mesh = tuple(mesh) if mesh is not None else (QUICK_MESH if quick else MESH)
-    cases = static_cases()[:1] if quick else static_cases()
+    cases = static_cases(names)[:1] if quick else static_cases(names)
     rows = []
     for model, nu, d in cases:
         scene = compression_scene(model, nu, mesh=mesh, d=d)
@@ -244,7 +245,7 @@ def _pick(rows, **key):
 def format_bench(d: dict) -> str:
     """Readable table of :func:`run_bench`'s result, with the ratios measured in the same run:
     float32 / float64, two threads / one, Numba / NumPy, each model over the fastest one and over
-    the reference model (the first ``performance`` model, hybmss) at the same ν (float64, one
+    the reference model (the registry's default model, hybmss) at the same ν (float64, one
     thread; [G20] C++: hybmss-cf/hybmss-fd 1.4, hybmss/hybmss-fd 2.1)."""
     rows = d.get("explicit", [])
     out = ["explicit dynamics, compression cube (dt = 1 ms; time per 10,000 steps, best of the repeats)", ""]
@@ -264,7 +265,7 @@ def format_bench(d: dict) -> str:
         out.append(f"(1-min load average {min(loads):.2f}-{max(loads):.2f} on {d.get('cores') or os.cpu_count()} "
                    "cores during the runs: above the core count, figures are not the kernel's)")
     out += ["", "ratios in this run (time per step)"]
-    reference = models.in_role("performance")[0]
+    reference = models.default_name()
     meshes = sorted({r["mesh"] for r in rows}, key=lambda m: int(m.split("x")[0]))
     for mesh in meshes:
         own = [(r["s_per_10k_steps"], r["model"], r["nu"]) for r in rows if r["mesh"] == mesh

@@ -52,7 +52,9 @@ import numpy as np
 
 from hybmss import models
 
-MODELS = tuple(sorted(models.in_role("b09"), key=lambda m: models.get(m).conservative))
+from . import roles
+
+MODELS = tuple(sorted(roles.in_role("b09"), key=lambda m: models.get(m).conservative))
 """The models of the moduli and volume tables (the non-conservative first: baudet2009, hybmss)."""
 ERROR_MODELS = models.names()
 """Every model of the harness, in [B09]'s two experiments."""

@@ -20,7 +20,7 @@ from hybmss import models
 from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
 from hybmss.scene import Material, Model, Scene
 
-from . import sizing
+from . import roles, sizing
 from .compare import default_law, diff_metrics
 from .reproduce import EXTRA_STUDIES, STUDIES
 from .runner import Runner, SolverSpec, Task, exit_now, measure, solve
@@ -200,7 +200,7 @@ def bench(args):
                           precision=one["precision"] or "f64", steps=args.steps, repeats=1 if args.quick else 3)
         d = {"explicit": [row], "static": []}
     else:
-        d = run_bench(steps=args.steps, quick=args.quick)
+        d = run_bench(steps=args.steps, quick=args.quick, static_models=roles.in_role("performance"))
     return d, format_bench(d)
 
 

@@ -55,6 +55,7 @@ import itertools
 import numpy as np
 import pandas as pd
 
+from . import roles
 from .compare import default_law
 from hybmss import models
 from hybmss.experiments import SceneSpec
@@ -66,7 +67,7 @@ EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending")
 NUS = (0.0, 0.25, 0.499)
 def pareto_models() -> tuple[str, ...]:
     """The models compared (registry order; the first is the reference model, also run implicitly)."""
-    return models.in_role("pareto")
+    return roles.in_role("pareto")
 DAMPING = 2.0
 PROTOCOL = SolverSpec("explicit", dt=1e-3, steps=10_000, ramp_time=1.0)
 IMPLICIT = SolverSpec("implicit", dt=0.25, steps=40, ramp_time=1.0)
@@ -155,7 +156,7 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
         for model in pareto_models():
             sm = s.replace(model=model)
             add("candidate", f, sm, STATIC, f"{model} static")
-            if f < finest or model in models.in_role("explicit-tables") or quick:
+            if f < finest or model in roles.in_role("explicit-tables") or quick:
                 add("candidate", f, sm.replace(damping=DAMPING), PROTOCOL, f"{model} explicit")
             if f == 1 and model == pareto_models()[0] and models.get(model).supports("implicit"):
                 add("candidate", f, sm.replace(damping=DAMPING), IMPLICIT, f"{model} implicit")

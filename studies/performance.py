@@ -45,10 +45,9 @@ import time
 import numpy as np
 import pandas as pd
 
-from hybmss import models
 from hybmss.explicit import WARM_UP_THREADS
 
-from . import paper, publications
+from . import paper, publications, roles
 from .scenes import SceneSpec
 from .store import Store
 
@@ -104,7 +103,7 @@ def bytes_per_step(n_grid: int, n_off: int, has_volume: bool, has_gravity: bool)
 def variants() -> tuple[tuple[str, float], ...]:
     """(model, ν) of every timed variant: the ``performance`` models [G20] reports at
     :data:`NU_OTHER`, then its proposed model at ν = ¼ (registry order)."""
-    timed = [m for m in models.in_role("performance") if publications.published_name(m, PUBLICATION)]
+    timed = [m for m in roles.in_role("performance") if publications.published_name(m, PUBLICATION)]
     out = [(m, NU_OTHER) for m in timed]
     proposed = publications.model_in(PUBLICATION, "proposed")
     if proposed in timed:

@@ -1,7 +1,7 @@
 """The one place where the harness's models meet the publications' names for them.
 
-A model names itself in a publication by its ``published`` declaration
-(:mod:`hybmss.models.base`); the publication's data file of models
+A model's name in a publication is declared with its part in the studies (``published``,
+:mod:`studies.roles`); the publication's data file of models
 (``studies/data/<key>_models.csv``) gives the part each name plays in the publication's claims
 (``role``: ``proposed``, ``no-face-diagonals``, ...).  Study code asks for a model by that role and
 joins with the published tables by the publication's own name; the studies store the join as
@@ -15,6 +15,7 @@ import pandas as pd
 
 from hybmss import models
 
+from . import roles
 from .paper import load
 
 PUBLICATIONS = ("G20", "B09")
@@ -27,7 +28,7 @@ def models_of(publication: str) -> pd.DataFrame:
     ``description`` and ``model``, the registered model that declares that name in its
     ``published`` (``""`` if none does)."""
     t = load(f"{publication.lower()}_models")
-    own = {m.published[publication]: m.name for m in models.all_models() if publication in m.published}
+    own = {roles.published(m)[publication]: m for m in models.names() if publication in roles.published(m)}
     t["model"] = t["name"].map(own).fillna("")
     t.insert(0, "publication", publication)
     return t
@@ -47,11 +48,11 @@ def model_in(publication: str, role: str) -> str | None:
 
 def published_name(model: str, publication: str) -> str | None:
     """The name ``publication``'s tables give the registered ``model`` (None if it reports none)."""
-    return models.get(model).published.get(publication)
+    return roles.published(models.get(model).name).get(publication)
 
 
 def model_named(publication: str, name: str) -> str | None:
     """The registered model that ``publication`` calls ``name`` (None if none declares it)."""
-    return next((m.name for m in models.all_models() if m.published.get(publication) == name), None)
+    return next((m for m in models.names() if roles.published(m).get(publication) == name), None)
 
 

@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybmss import models
 from hybmss.experiments import SceneSpec
 
+from . import roles
 from .compare import diff_metrics
 from .runner import SolverSpec, Task, run_tasks
 from .store import Store, atomic_write_text
@@ -67,7 +67,7 @@ def measure(store: Store | None = None, jobs: int | None = 1, progress: bool = F
         for spec in cases():
             fem = Task(spec, SolverSpec("fem", element="auto", law="linear"), "regression")
             tasks.append(fem)
-            for m in models.in_role("regression"):
+            for m in roles.in_role("regression"):
                 t = Task(spec.replace(model=m), SolverSpec("static"), "regression")
                 tasks.append(t)
                 pairs.append((spec, m, t, fem))

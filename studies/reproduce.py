@@ -17,6 +17,7 @@ from pathlib import Path
 from hybmss import models
 from hybmss.experiments import SceneSpec
 
+from . import roles
 from .runner import SolverSpec, Task, run_tasks
 from .store import Store
 
@@ -60,13 +61,13 @@ def fem_solvers(spec: SceneSpec, quick: bool, sweep_svk: bool = True) -> list[So
 def _mss_models(nu: float) -> list[dict]:
     """Every model of the ``tables`` role with each parameter set it is compared in at ν (its
     defaults first; e.g. the E-form of [G20] eq. 5.12 where it differs from the G-form)."""
-    return [dict(model=m.name, **v) for m in models.all_models() if m.takes_part("tables")
+    return [dict(model=m.name, **v) for m in models.all_models() if roles.takes_part(m.name, "tables")
             for v in m.study_variants(nu)]
 
 
 def _with_fem(study: str, specs: list[SceneSpec], quick: bool) -> list[Task]:
     tasks = []
-    explicit = models.in_role("explicit-tables")
+    explicit = roles.in_role("explicit-tables")
     for spec in specs:
         for m in _mss_models(spec.nu):
             s = spec.replace(**m)
@@ -104,7 +105,7 @@ def torsion(quick: bool = False) -> list[Task]:
     if not quick:  # torque against angle at ν = 1/4
         for a in TORSION_SWEEP:
             spec = SceneSpec.default("torsion", mesh=cube(quick), nu=0.25, angle_deg=a)
-            for m in models.in_role("torsion-sweep"):
+            for m in roles.in_role("torsion-sweep"):
                 tasks.append(Task(spec.replace(model=m), STATIC, "torsion-sweep"))
             for fs in fem_solvers(spec, quick, sweep_svk=False):
                 if fs.law == "linear" and a > TORSION_SWEEP_LINEAR_MAX:
@@ -117,7 +118,7 @@ def bending(quick: bool = False) -> list[Task]:
     tasks = []
     for mesh, E in itertools.product(beams(quick), (1e7, 2e6)):
         spec = SceneSpec.default("bending", mesh=mesh, E=E, nu=0.25, gravity=10.0)
-        for m in models.in_role("bending"):
+        for m in roles.in_role("bending"):
             tasks.append(Task(spec.replace(model=m), STATIC, "bending"))
         tasks.append(Task(spec, SolverSpec("fem", element="hex2", law="linear"), "bending"))
         tasks.append(Task(spec, SolverSpec("fem", element="hex2", law="neo-hookean"), "bending"))

@@ -207,7 +207,7 @@ def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
 
 def _expected_cost(task: Task) -> float:
     """A rough relative cost, only to order the runs (longest first): finite-strain FEM on large
-    meshes, the other runs by their model's own estimate (:meth:`run_cost`)."""
+    meshes, the other runs by their model's estimate (:func:`studies.roles.run_cost`)."""
     cells = float(np.prod(task.scene.mesh))
     s = task.solver
     if s.kind == "fem":
@@ -215,10 +215,10 @@ def _expected_cost(task: Task) -> float:
         if task.scene.nu >= 0.45:
             per *= 3.0  # mixed u-p
         return cells * per
-    from hybmss import models
+    from . import roles
 
     try:
-        per = models.get(task.scene.model).run_cost(task.scene, s.kind)
+        per = roles.run_cost(task.scene, s.kind)
     except (KeyError, ValueError, AttributeError):
         per = 1.0
     if s.kind == "explicit":

@@ -58,13 +58,14 @@ from hybmss import models
 from hybmss.experiments import SceneSpec
 from hybmss.scene import Material
 
+from . import roles
 from .compare import diff_metrics
 from .runner import SolverSpec, Task, run_tasks
 from .store import Store
 
 def stability_models() -> tuple[str, ...]:
     """The models of the stability study (registry order; the first is the reference model)."""
-    return models.in_role("stability")
+    return roles.in_role("stability")
 NU_DT = (-0.9, -0.5, 0.45, 0.49, 0.499, 0.4999)
 UNLIMITED_FACTOR = 20.0
 """A model with no explicit stability limit runs once at this many dt_crit (for the simulated time

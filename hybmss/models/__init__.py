@@ -21,11 +21,11 @@ import importlib
 import importlib.metadata
 import pkgutil
 
-from .base import (KERNELS, NO_SPRINGS, SOLVER_KINDS, STUDY_ROLES, ModelBase, NoParameters, Style,
-                   check)
+from .base import KERNELS, NO_SPRINGS, SOLVER_KINDS, ModelBase, NoParameters, Style, check
 
-__all__ = ["ENTRY_POINT_GROUP", "KERNELS", "NO_SPRINGS", "SOLVER_KINDS", "STUDY_ROLES", "ModelBase",
-           "NoParameters", "REGISTRY", "Registry", "Style", "all_models", "check", "default_name", "get", "in_role", "names", "parameter_fields", "register", "unregister"]
+__all__ = ["ENTRY_POINT_GROUP", "KERNELS", "NO_SPRINGS", "SOLVER_KINDS", "ModelBase", "NoParameters", "REGISTRY",
+           "Registry", "Style", "all_models", "check", "default_name", "get", "names", "parameter_fields", "register",
+           "unregister"]
 
 ENTRY_POINT_GROUP = "hybmss.models"
 
@@ -133,10 +133,3 @@ def parameter_fields() -> dict[str, dataclasses.Field]:
             out.setdefault(f.name, f)
     return out
 
-
-def in_role(role: str) -> tuple[str, ...]:
-    """Names of the models that take part in the study role ``role`` (:data:`STUDY_ROLES`), in
-    the registry's order."""
-    if role not in STUDY_ROLES:
-        raise ValueError(f"study role must be one of {', '.join(STUDY_ROLES)}; got {role!r}")
-    return tuple(m.name for m in all_models() if m.takes_part(role))

@@ -2,8 +2,9 @@
 
 A model is one object, an instance of a :class:`ModelBase` subclass, held by the registry
 (:mod:`hybmss.models`).  Everything the harness does with a model — building a system, picking
-solvers and kernels, sweeping it in the studies, colouring it in the report — asks this object;
-no code outside a model's own module compares a model's name.
+solvers and kernels, colouring it in a plot — asks this object; no code outside a model's own
+module compares a model's name.  What part a model plays in the layers above (study roles, the
+names publications give it, a sweep's cost estimates) is declared there, not here.
 
 Declaring a model
 -----------------
@@ -21,14 +22,7 @@ Class attributes (plain data):
   minimize it and implicit Euler applies);
 - ``solvers``: the solver kinds it supports, a subset of :data:`SOLVER_KINDS`;
 - ``kernels``: the explicit kernels that support it, a subset of :data:`KERNELS`;
-- ``order``: position in listings (tables, legends); in-tree models use 0–99;
-- ``studies``: the study roles it takes part in, a subset of :data:`STUDY_ROLES` (default: all
-  of them its solvers allow);
-- ``published``: the publications that report the model, each with the name its tables give the
-  model (``{"G20": "hybmss-fd"}``: a column, or a ``model`` value, of that publication's tables
-  in ``studies/data``).  The studies join the published values with its runs by this name, and
-  the publication's data file of models (``studies/data/<key>_models.csv``) says what part the
-  name plays in the publication's claims.  Default: none.
+- ``order``: position in listings (tables, legends); in-tree models use 0–99.
 
 Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
 :class:`hybmss.scene.Material`, ``le`` the cell edge in m):
@@ -90,14 +84,6 @@ SOLVER_KINDS = ("static", "explicit", "implicit")
 KERNELS = ("numba", "numpy")
 """Explicit kernels: the Numba stencil kernel and its NumPy twin."""
 
-STUDY_ROLES = ("tables", "explicit-tables", "torsion-sweep", "bending", "regression", "stability",
-               "pareto", "performance", "b09")
-"""Roles a model can take in the studies: the per-experiment error ``tables`` (static runs), their
-explicit rows (``explicit-tables``), the ``torsion-sweep`` of torque against angle, the cantilever
-under its weight (``bending``), the CI ``regression`` cases, the ``stability`` study, speed against
-error (``pareto``), explicit time per step (``performance``) and the [B09] cantilever and L-shape
-(``b09``)."""
-
 NO_SPRINGS = Constants(ke=0.0, kf=0.0, kc=0.0, kappa=0.0, G_springs=0.0)
 """Constants of a model that is not a spring lattice: no springs, no volume term."""
 
@@ -155,8 +141,6 @@ class ModelBase:
     solvers: ClassVar[tuple[str, ...]] = SOLVER_KINDS
     kernels: ClassVar[tuple[str, ...]] = KERNELS
     order: ClassVar[int] = 100
-    studies: ClassVar[tuple[str, ...]] = STUDY_ROLES
-    published: ClassVar[dict[str, str]] = {}
     solve_static: ClassVar[Callable | None] = None
     simulate_explicit: ClassVar[Callable | None] = None
 
@@ -177,11 +161,6 @@ class ModelBase:
         """Whether the solver kind (and, for explicit runs, the kernel) supports this model."""
         return solver in self.solvers and (kernel is None or solver != "explicit" or kernel in self.kernels)
 
-    def takes_part(self, role: str) -> bool:
-        """Whether the model joins the study role ``role`` (one of :data:`STUDY_ROLES`)."""
-        needs = {"explicit-tables": "explicit", "performance": "explicit", "stability": "explicit"}
-        return role in self.studies and needs.get(role, "static") in self.solvers
-
     # ------------------------------------------------------------------ physics
     def constants(self, p, material, le: float) -> Constants:
         return NO_SPRINGS
@@ -194,17 +173,6 @@ class ModelBase:
 
     def dt_crit(self, system) -> float | None:
         return None
-
-    def run_cost(self, scene, kind: str) -> float:
-        """A rough cost per cell of a run of ``kind`` (``static``, ``explicit``, ``implicit``) of
-        ``scene``, in the sweep's units (8×8×48 beam: about 3,800 per second; only to order the
-        runs of a sweep, longest first): a static Newton solve at 5 % costs 1, larger plate
-        displacements more load steps (``(d / 5 %)²`` above 5 %); an explicit run of the
-        publication's protocol 0.5."""
-        if kind == "explicit":
-            return 0.5
-        d = abs(float(getattr(scene, "deformation", 0.0) or 0.0))
-        return max(1.0, d / 0.05) ** 2
 
     # ------------------------------------------------------------------ naming
     def variant(self, p) -> str:
@@ -228,14 +196,10 @@ class ModelBase:
             raise ValueError(f"model name must match {_NAME.pattern}, got {name!r}")
         if not dataclasses.is_dataclass(self.Parameters):
             raise ValueError(f"model {name}: Parameters must be a frozen dataclass")
-        for what, got, allowed in (("solvers", self.solvers, SOLVER_KINDS), ("kernels", self.kernels, KERNELS),
-                                   ("studies", self.studies, STUDY_ROLES)):
+        for what, got, allowed in (("solvers", self.solvers, SOLVER_KINDS), ("kernels", self.kernels, KERNELS)):
             bad = [g for g in got if g not in allowed]
             if bad:
                 raise ValueError(f"model {name}: {what} must be among {', '.join(allowed)}; got {bad[0]!r}")
-        if not isinstance(self.published, dict) or not all(
-                isinstance(k, str) and isinstance(v, str) for k, v in self.published.items()):
-            raise ValueError(f"model {name}: published must map publication keys to names (str -> str)")
         if not self.conservative and "implicit" in self.solvers:
             raise ValueError(f"model {name}: implicit Euler needs a conservative model")
         self.parameters()  # the defaults must be valid

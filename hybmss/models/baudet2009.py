@@ -17,8 +17,6 @@ class Baudet2009(ModelBase):
     solvers = ("static", "explicit")
     kernels = ("numba", "numpy")  # the Numba kernel runs its corrections (float64)
     order = 3
-    published = {"B09": "baudet2009"}
-    studies = ("tables", "b09")
 
     def constants(self, p, material, le):
         return b09_springs(material, le)

@@ -55,7 +55,7 @@ from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
 from ..system import System, build
-from .base import STUDY_ROLES, ModelBase, Style
+from .base import ModelBase, Style
 from ._voxel_explicit import (blowup_limit2, divergence, find_bad, kernel_state, one_thread, read_state,
                               run_result)
 
@@ -433,11 +433,6 @@ class CorotHex8Model(ModelBase):
     solvers = ("static", "explicit")
     kernels = ("numba", "numpy")
     order = 20
-    studies = tuple(r for r in STUDY_ROLES if r != "regression")
-    """Every study role but ``regression``: that baseline guards the mass-spring variants' errors
-    against getting worse; this model's answers are pinned tighter by its own tests (patch test,
-    rigid rotation, equality with scikit-fem Hex1 to 1e-6, exact moduli), which fail on any change
-    a baseline would catch."""
     sri = False
 
     def terms(self, p, scene, lattice, consts):

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..calibrate import G_e_form, hybrid_springs, kappa_e_form, kappa_from
-from .base import STUDY_ROLES, ModelBase, Style, check
+from .base import ModelBase, Style, check
 
 VOLUME_ENERGIES = ("quadratic", "squared")
 """Volume-energy forms: ``quadratic`` is κ/2 Vc ((V'−Vc)/Vc)² ([G20] eq. 5.8);
@@ -42,8 +42,6 @@ class HybMSS(ModelBase):
     style = Style("#1f77b4", "o")
     Parameters = HybridParameters
     order = 0
-    published = {"G20": "hybmss"}
-    studies = STUDY_ROLES
     E_FORM_STYLE = Style("#9467bd", "D")
 
     def constants(self, p, material, le):

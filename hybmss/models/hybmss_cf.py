@@ -13,8 +13,6 @@ class HybMSSCF(HybMSS):
     label = "cubic spring lattice, no volume energy (nu = 1/4)"
     style = Style("#2ca02c", "^")
     order = 2
-    published = {"G20": "hybmss-cf"}
-    studies = ("tables", "regression", "stability", "pareto", "performance")
 
     def constants(self, p, material, le):
         return hybrid_springs(G_e_form(material), p.A, le, 0.0)

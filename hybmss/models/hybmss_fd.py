@@ -27,14 +27,6 @@ class HybMSSFD(HybMSS):
     style = Style("#ff7f0e", "s")
     Parameters = NoFaceDiagonalParameters
     order = 1
-    published = {"G20": "hybmss-fd"}
-    studies = tuple(r for r in HybMSS.studies if r != "b09")
-
-    def run_cost(self, scene, kind: str) -> float:
-        """Static: 16× a conservative model's (without face diagonals the cells have zero-energy
-        modes and Newton follows an indefinite path; 8×8×48 beam at ν = 0.499: 12 s at 5 %,
-        60–180 s at 20 %)."""
-        return super().run_cost(scene, kind) * (16.0 if kind == "static" else 1.0)
 
 
 MODEL = HybMSSFD()

@@ -75,7 +75,7 @@ from ..scene import Material
 from ..solvers import StaticSolveError
 from ..system import System, build
 from ..terms import DeadLoad
-from .base import STUDY_ROLES, ModelBase, Style, check
+from .base import ModelBase, Style, check
 from .corot_hex8 import CorotHex8, frequency_range, omega_max
 from ._voxel_explicit import (blowup_limit2, divergence, find_bad, kernel_state, one_thread, read_state,
                               run_result)
@@ -709,21 +709,9 @@ class XpbdNHModel(ModelBase):
     solvers = ("static", "explicit")
     kernels = ("numba", "numpy")
     order = 22
-    studies = tuple(r for r in STUDY_ROLES if r != "regression")
-    """Every study role but ``regression``: that baseline guards the mass-spring variants' errors
-    against getting worse; this model's accuracy is pinned by its own tests (closed-form
-    Neo-Hookean stretch, the Lamé map at small strain, the substep bias), which fail on any
-    change a baseline would catch, and its rest runs would add the longest cases to CI."""
 
     def terms(self, p, scene, lattice, consts):
         return (XpbdNH(lattice, scene.material),)
-
-    def run_cost(self, scene, kind: str) -> float:
-        """Its substeps (explicit) and iterations to rest (static) grow as ``ω_max``, ω_max of
-        the volumetric waves, ``∝ √((λ + 2μ)/μ)``: 2.5 (static) and 8 (explicit) times that per
-        cell (8×8×48 beam at ν = 0.499: about 16 s to rest, 90 s for the explicit protocol)."""
-        nu = min(float(scene.nu), 0.4999)
-        return (8.0 if kind == "explicit" else 2.5) * math.sqrt(2.0 * (1.0 - nu) / (1.0 - 2.0 * nu))
 
     def dt_crit(self, system) -> float:
         """The limit ``2/ω_max`` of the explicit scheme on the same grid and material (linear Hex8

@@ -76,7 +76,6 @@ class _Rods(ModelBase):
     label = "edge springs only (test)"
     style = Style("#000000", "+", "--")
     solvers = ("static",)
-    studies = ("tables",)
 
     def constants(self, p, material, le):
         c = hybrid_springs(material.G, 0.0, le, 0.0)
@@ -84,10 +83,17 @@ class _Rods(ModelBase):
 
 
 def test_register_a_model_at_run_time():
+    from studies import roles
+
     models.register(_Rods())
     try:
-        assert "test-rods" in models.names() and models.in_role("tables")[-1] == "test-rods"
-        assert "test-rods" not in models.in_role("regression")
+        # undeclared, it takes every study role its solvers allow (static only: no explicit rows)
+        assert "test-rods" in models.names() and roles.in_role("tables")[-1] == "test-rods"
+        assert "test-rods" in roles.in_role("regression") and "test-rods" not in roles.in_role("explicit-tables")
+        assert roles.published("test-rods") == {} and roles.run_cost(
+            SceneSpec.default("compression", model="test-rods", deformation=0.2), "static") == 16.0
+        roles.declare("test-rods", roles.Part(roles=("tables",)))
+        assert roles.in_role("tables")[-1] == "test-rods" and "test-rods" not in roles.in_role("regression")
         spec = SceneSpec.default("compression", mesh=(2, 2, 2), model="test-rods")
         S = build(spec.build())
         assert set(np.unique(S.spring_family)) == {0}  # edges only
@@ -96,7 +102,73 @@ def test_register_a_model_at_run_time():
             models.register(type("Other", (_Rods,), {})())
     finally:
         models.unregister("test-rods")
+        roles.withdraw("test-rods")
     assert "test-rods" not in models.names()
+
+
+def test_study_roles_publications_and_costs_are_the_studies_own():
+    """The core declares no study role, publication name or run cost; the studies' table gives
+    each in-tree model the roles it had, and a model's roles stop where its solvers do."""
+    from studies import roles
+
+    for path in (ROOT / "hybmss").rglob("*.py"):
+        text = path.read_text()
+        for word in ("STUDY_ROLES", "in_role", "takes_part", "run_cost", ".published", "published ="):
+            assert word not in text, f"{path.relative_to(ROOT)} names {word}"
+    everything = set(roles.STUDY_ROLES)
+    want = {"hybmss": everything, "hybmss-fd": everything - {"b09"},
+            "hybmss-cf": {"tables", "regression", "stability", "pareto", "performance"},
+            "baudet2009": {"tables", "b09"}, "corot-hex8": everything - {"regression"},
+            "corot-hex8-sri": everything - {"regression"}, "xpbd-nh": everything - {"regression"}}
+    assert {m: {r for r in roles.STUDY_ROLES if roles.takes_part(m, r)} for m in IN_TREE} == want
+    assert {m: roles.published(m) for m in PUBLICATION_MODELS} == {
+        "hybmss": {"G20": "hybmss"}, "hybmss-fd": {"G20": "hybmss-fd"}, "hybmss-cf": {"G20": "hybmss-cf"},
+        "baudet2009": {"B09": "baudet2009"}}
+    assert all(roles.published(m) == {} for m in COMPETITORS)
+    with pytest.raises(ValueError, match="study roles must be among tables"):
+        roles.Part(roles=("tables", "paper"))
+    with pytest.raises(ValueError, match="study role must be one of"):
+        roles.in_role("paper")
+
+
+def test_run_costs_order_a_sweep():
+    """The default cost is (d / 5 %)² above 5 % for a static solve and 0.5 for the explicit
+    protocol; hybmss-fd's static solves cost 16 times that, xpbd-nh's grow as its volumetric wave
+    speed √(2(1 − ν)/(1 − 2ν)) (√3 at ν = 1/4)."""
+    from studies import roles
+
+    spec = SceneSpec.default("compression", deformation=0.2)
+    assert roles.run_cost(spec, "static") == 16.0 and roles.run_cost(spec, "explicit") == 0.5
+    assert roles.run_cost(spec.replace(deformation=0.05), "static") == 1.0
+    assert roles.run_cost(spec.replace(model="hybmss-fd"), "static") == 256.0
+    assert roles.run_cost(spec.replace(model="hybmss-fd"), "explicit") == 0.5
+    x = spec.replace(model="xpbd-nh", nu=0.25)
+    assert roles.run_cost(x, "explicit") == pytest.approx(8 * 3 ** 0.5)
+    assert roles.run_cost(x, "static") == pytest.approx(2.5 * 3 ** 0.5)
+
+
+def test_a_package_declares_its_models_part_through_an_entry_point(monkeypatch):
+    """``[project.entry-points."hybmss.studies"] my-model = "mypkg:PART"``: the studies read it at
+    their first look-up; an entry point that is not a Part is refused with its name."""
+    import importlib.metadata
+
+    from studies import roles
+
+    class EP:
+        def __init__(self, name, obj):
+            self.name, self.value, self._obj = name, f"pkg:{name}", obj
+
+        def load(self):
+            return self._obj
+
+    part = roles.Part(roles=("pareto",), published={"G20": "x"})
+    monkeypatch.setattr(importlib.metadata, "entry_points",
+                        lambda group: [EP("test-ep", part)] if group == roles.ENTRY_POINT_GROUP else [])
+    parts = roles.Parts(roles.IN_TREE)
+    assert parts.get("test-ep") is part and parts.get("hybmss") is roles.IN_TREE["hybmss"]
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [EP("test-bad", {"roles": ()})])
+    with pytest.raises(RuntimeError, match="study part 'test-bad'.*must be a studies.roles.Part"):
+        roles.Parts({}).get("test-bad")
 
 
 def test_declarations_that_break_the_protocol_are_refused():
@@ -143,6 +215,8 @@ def test_a_model_without_springs_builds_a_system_with_none():
 CHECKED = ("hybmss", "fem_reference", "studies", "benchmarks", "reports")
 """Everything that builds, solves, lists, studies, styles or reports models (a model's own module
 in ``hybmss/models/`` excepted)."""
+OWN_TABLES = ("studies/roles.py",)
+"""The studies' one table of each model's part (roles, publication names, run cost): it names models."""
 NOT_A_MODEL = {("studies/cli.py", "hybmss"): "the command's name (prog), which is the project's",
                ("hybmss/_stencil_gen.py", "hybmss"): "the project's folder of the kernel cache"}
 """String literals that equal a model's name but do not name the model, with the reason."""
@@ -152,7 +226,7 @@ def _sources():
     for part in CHECKED:
         for path in sorted((ROOT / part).rglob("*.py")):
             rel = path.relative_to(ROOT).as_posix()
-            if not rel.startswith("hybmss/models/"):
+            if not rel.startswith("hybmss/models/") and rel not in OWN_TABLES:
                 yield rel, path
 
 

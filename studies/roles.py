@@ -1,0 +1,189 @@
+"""What part each model plays in the studies: its study roles, the names publications give it and
+the estimate that orders a sweep's runs.
+
+The model core (:mod:`hybmss.models`) knows nothing of studies; this module is the studies' one
+table of the registered models' parts.  Each model's :class:`Part`:
+
+- ``roles``: the study roles it takes part in, a subset of :data:`STUDY_ROLES`.  A model joins a
+  role only when its solvers allow it too (:func:`takes_part`: the explicit rows, the stability
+  and performance studies need the explicit solver, the other roles the static one);
+- ``published``: the publications that report the model, each with the name its tables give it
+  (``{"G20": "hybmss-fd"}``: a column, or a ``model`` value, of that publication's tables in
+  ``studies/data``).  The studies join the published values with its runs by this name, and the
+  publication's data file of models (``studies/data/<key>_models.csv``) says what part the name
+  plays in the publication's claims (:mod:`studies.publications`);
+- ``run_cost(scene, kind) -> float``: a rough cost per cell of a run, only to order a sweep's runs
+  (longest first; :func:`default_run_cost` unless the model's own differs).
+
+A model of another package takes the default part (every role its solvers allow, no publication,
+the default cost) unless its package declares one: an entry point of the group
+:data:`ENTRY_POINT_GROUP` named like the model (``[project.entry-points."hybmss.studies"]
+my-model = "mypkg:PART"``, ``PART = studies.roles.Part(roles=("tables", "pareto"))``), or, for a
+model registered at run time, :func:`declare`.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from hybmss import models
+
+STUDY_ROLES = ("tables", "explicit-tables", "torsion-sweep", "bending", "regression", "stability",
+               "pareto", "performance", "b09")
+"""Roles a model can take in the studies: the per-experiment error ``tables`` (static runs), their
+explicit rows (``explicit-tables``), the ``torsion-sweep`` of torque against angle, the cantilever
+under its weight (``bending``), the CI ``regression`` cases, the ``stability`` study, speed against
+error (``pareto``), explicit time per step (``performance``) and the [B09] cantilever and L-shape
+(``b09``)."""
+
+NEEDS = {"explicit-tables": "explicit", "performance": "explicit", "stability": "explicit"}
+"""The solver kind a role needs of a model (the others: ``static``)."""
+
+ENTRY_POINT_GROUP = "hybmss.studies"
+"""Entry-point group through which another package declares the :class:`Part` of its model."""
+
+
+def default_run_cost(scene, kind: str) -> float:
+    """A rough cost per cell of a run of ``kind`` (``static``, ``explicit``, ``implicit``) of
+    ``scene``, in the sweep's units (8×8×48 beam: about 3,800 per second; only to order the runs
+    of a sweep, longest first): a static Newton solve at 5 % costs 1, larger plate displacements
+    more load steps (``(d / 5 %)²`` above 5 %); an explicit run of the publication's protocol 0.5."""
+    if kind == "explicit":
+        return 0.5
+    d = abs(float(getattr(scene, "deformation", 0.0) or 0.0))
+    return max(1.0, d / 0.05) ** 2
+
+
+def _no_face_diagonals_cost(scene, kind: str) -> float:
+    """Static: 16× a conservative model's (without face diagonals the cells have zero-energy
+    modes and Newton follows an indefinite path; 8×8×48 beam at ν = 0.499: 12 s at 5 %,
+    60–180 s at 20 %)."""
+    return default_run_cost(scene, kind) * (16.0 if kind == "static" else 1.0)
+
+
+def _xpbd_cost(scene, kind: str) -> float:
+    """Its substeps (explicit) and iterations to rest (static) grow as ``ω_max``, ω_max of the
+    volumetric waves, ``∝ √((λ + 2μ)/μ)``: 2.5 (static) and 8 (explicit) times that per cell
+    (8×8×48 beam at ν = 0.499: about 16 s to rest, 90 s for the explicit protocol)."""
+    nu = min(float(scene.nu), 0.4999)
+    return (8.0 if kind == "explicit" else 2.5) * math.sqrt(2.0 * (1.0 - nu) / (1.0 - 2.0 * nu))
+
+
+@dataclass(frozen=True)
+class Part:
+    """A model's part in the studies (module docstring)."""
+
+    roles: tuple[str, ...] = STUDY_ROLES
+    published: dict[str, str] = field(default_factory=dict)
+    run_cost: Callable[..., float] = default_run_cost
+
+    def __post_init__(self):
+        object.__setattr__(self, "roles", tuple(self.roles))
+        bad = [r for r in self.roles if r not in STUDY_ROLES]
+        if bad:
+            raise ValueError(f"study roles must be among {', '.join(STUDY_ROLES)}; got {bad[0]!r}")
+        if not isinstance(self.published, dict) or not all(
+                isinstance(k, str) and isinstance(v, str) for k, v in self.published.items()):
+            raise ValueError("published must map publication keys to names (str -> str)")
+        if not callable(self.run_cost):
+            raise ValueError("run_cost must be a function (scene, kind) -> float")
+
+
+_ALL_BUT_REGRESSION = tuple(r for r in STUDY_ROLES if r != "regression")
+"""The competitors' roles: the ``regression`` baseline guards the mass-spring variants' errors
+against getting worse; the corotational hexahedra and XPBD are pinned tighter by their own tests
+(patch test, rigid rotation, equality with scikit-fem Hex1 to 1e-6, exact moduli; closed-form
+Neo-Hookean stretch, the Lamé map at small strain, the substep bias), which fail on any change a
+baseline would catch, and XPBD's rest runs would add the longest cases to CI."""
+
+IN_TREE = {
+    "hybmss": Part(STUDY_ROLES, {"G20": "hybmss"}),
+    "hybmss-fd": Part(tuple(r for r in STUDY_ROLES if r != "b09"), {"G20": "hybmss-fd"}, _no_face_diagonals_cost),
+    "hybmss-cf": Part(("tables", "regression", "stability", "pareto", "performance"), {"G20": "hybmss-cf"}),
+    "baudet2009": Part(("tables", "b09"), {"B09": "baudet2009"}),
+    "corot-hex8": Part(_ALL_BUT_REGRESSION),
+    "corot-hex8-sri": Part(_ALL_BUT_REGRESSION),
+    "xpbd-nh": Part(_ALL_BUT_REGRESSION, run_cost=_xpbd_cost),
+}
+"""The part of each in-tree model (a model not listed here, or declared by its package, takes the
+default :class:`Part`)."""
+
+
+class Parts:
+    """The parts of the registered models: :data:`IN_TREE`, those declared through the entry-point
+    group (read at the first look-up) and those given to :meth:`declare`."""
+
+    def __init__(self, in_tree: dict[str, Part]):
+        self._parts = dict(in_tree)
+        self._declared: dict[str, Part] = {}
+        self._discovered = False
+
+    def discover(self) -> None:
+        if self._discovered:
+            return
+        self._discovered = True
+        for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+            try:
+                part = ep.load()
+            except Exception as exc:
+                raise RuntimeError(f"study part {ep.name!r} ({ep.value}) failed to load: {exc}") from exc
+            if not isinstance(part, Part):
+                raise RuntimeError(f"study part {ep.name!r} ({ep.value}) must be a studies.roles.Part, "
+                                   f"got {type(part).__name__}")
+            self._parts[ep.name] = part
+
+    def declare(self, name: str, part: Part) -> None:
+        if not isinstance(part, Part):
+            raise TypeError(f"a study part must be a studies.roles.Part, got {type(part).__name__}")
+        self._declared[name] = part
+
+    def withdraw(self, name: str) -> None:
+        self._declared.pop(name, None)
+
+    def get(self, name: str) -> Part:
+        self.discover()
+        return self._declared.get(name) or self._parts.get(name) or Part()
+
+
+PARTS = Parts(IN_TREE)
+"""The studies' one table of parts."""
+
+
+def declare(name: str, part: Part) -> None:
+    """Give the model ``name`` (registered at run time) its part in the studies."""
+    PARTS.declare(name, part)
+
+
+def withdraw(name: str) -> None:
+    """Undo :func:`declare` (the model takes its default or entry-point part again)."""
+    PARTS.withdraw(name)
+
+
+def part(model: str) -> Part:
+    """The part of the registered model ``model``."""
+    return PARTS.get(model)
+
+
+def takes_part(model: str, role: str) -> bool:
+    """Whether the model ``model`` joins the study role ``role``: declared, and its solvers allow it."""
+    return role in part(model).roles and NEEDS.get(role, "static") in models.get(model).solvers
+
+
+def in_role(role: str) -> tuple[str, ...]:
+    """Names of the models that take part in the study role ``role``, in the registry's order."""
+    if role not in STUDY_ROLES:
+        raise ValueError(f"study role must be one of {', '.join(STUDY_ROLES)}; got {role!r}")
+    return tuple(n for n in models.names() if takes_part(n, role))
+
+
+def published(model: str) -> dict[str, str]:
+    """The publications that report ``model``, each with its name for it."""
+    return part(model).published
+
+
+def run_cost(scene, kind: str) -> float:
+    """The run-cost estimate of ``scene``'s model (:func:`default_run_cost` unless it has its own)."""
+    return part(scene.model).run_cost(scene, kind)
