@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from hybmss.result import Result
-from hybmss.scene import Scene
+from hybmss.scene import Scene, nearly_incompressible
 
 from .dirichlet import plate_dirichlet
 from .hyperelastic import ConvergenceError, Hyperelasticity
@@ -32,16 +32,14 @@ from .mesh import build_mesh
 
 ELEMENT_CHOICES = ("auto",) + FORMULATIONS
 LAW_CHOICES = ("linear",) + LAWS
-MIXED_NU = 0.45
-"""``element='auto'`` takes the mixed u–p element from this Poisson ratio on, Hex2 below."""
-
-
 def resolve_element(element: str, nu: float) -> str:
-    """``'auto'`` → ``'mixed'`` if ν ≥ 0.45 else ``'hex2'``; other names are checked and kept."""
+    """``'auto'`` → ``'mixed'`` for a nearly incompressible material
+    (:func:`hybmss.scene.nearly_incompressible`, ν ≥ 0.45), else ``'hex2'``; other names are
+    checked and kept."""
     if element not in ELEMENT_CHOICES:
         raise ValueError(f"element must be one of {', '.join(ELEMENT_CHOICES)}; got {element!r}")
     if element == "auto":
-        return "mixed" if nu >= MIXED_NU else "hex2"
+        return "mixed" if nearly_incompressible(nu) else "hex2"
     return element
 
 

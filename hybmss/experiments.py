@@ -35,7 +35,8 @@ from functools import cached_property
 import numpy as np
 
 from . import models
-from .scene import Body, Material, Model, Motion, Plate, Region, Scene
+from .scene import NU_OPEN_RANGE, Body, Material, Model, Motion, Plate, Region, Scene
+from .solvers import NU_RANGE
 
 EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending", "uniaxial")
 
@@ -151,7 +152,7 @@ class SceneSpec:
     mesh: tuple[int, int, int] = param((10, 10, 10), "cells NXxNYxNZ")
     E: float = param(1e4, "Young's modulus", "Pa", Range(0.0, lo_open=True))
     nu: float = param(0.25, "Poisson ratio (the static and implicit mass-spring solvers and moduli take "
-                      "[-0.99, 0.49999])", "", Range(-1.0, 0.5, lo_open=True, hi_open=True))
+                      f"[{NU_RANGE[0]:g}, {NU_RANGE[1]:g}])", "", Range(*NU_OPEN_RANGE, lo_open=True, hi_open=True))
     rho: float = param(1000.0, "density", "kg/m^3", Range(0.0))
     model: str = param(models.default_name, "mass-spring model", solvers=MSS_SOLVERS)
     params: tuple[tuple[str, object], ...] = ()

@@ -157,6 +157,30 @@ class Body:
 # --------------------------------------------------------------------------------------------
 # Material and model
 # --------------------------------------------------------------------------------------------
+NU_OPEN_RANGE = (-1.0, 0.5)
+"""The Poisson ratios of a stable isotropic material, an open interval: ν → −1 loses the bulk
+modulus, ν → ½ the shear modulus relative to it.  Every check of ν in the harness, its studies and
+its report uses it (:func:`admissible_nu`); the solvers' narrower float64 range is
+:data:`hybmss.solvers.NU_RANGE`."""
+
+
+def admissible_nu(nu: float) -> bool:
+    """Whether ``nu`` lies in :data:`NU_OPEN_RANGE` (end points excluded)."""
+    lo, hi = NU_OPEN_RANGE
+    return lo < nu < hi
+
+
+NEARLY_INCOMPRESSIBLE_NU = 0.45
+"""From this Poisson ratio on a material counts as nearly incompressible: a displacement-only
+element locks, so the FEM reference's ``element='auto'`` takes its mixed u–p element, and the
+studies' size and cost estimates count that element (:func:`nearly_incompressible`)."""
+
+
+def nearly_incompressible(nu: float) -> bool:
+    """Whether ``nu`` ≥ :data:`NEARLY_INCOMPRESSIBLE_NU`."""
+    return nu >= NEARLY_INCOMPRESSIBLE_NU
+
+
 @dataclass(frozen=True)
 class Material:
     """Isotropic linear-elastic constants: Young's modulus E (Pa), Poisson ratio ν, density ρ."""
@@ -171,8 +195,9 @@ class Material:
         rho = _finite("rho", self.rho)
         if E <= 0:
             raise ValueError(f"E (Young's modulus) must be > 0 Pa, got {E}")
-        if not (-1.0 < nu < 0.5):
-            raise ValueError(f"nu (Poisson ratio) must lie in the open interval (-1, 0.5), got {nu}")
+        if not admissible_nu(nu):
+            lo, hi = NU_OPEN_RANGE
+            raise ValueError(f"nu (Poisson ratio) must lie in the open interval ({lo:g}, {hi:g}), got {nu}")
         if rho < 0:
             raise ValueError(f"rho (density) must be >= 0 kg/m^3, got {rho}")
         object.__setattr__(self, "E", E)

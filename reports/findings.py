@@ -14,10 +14,6 @@ import re
 import numpy as np
 import pandas as pd
 
-BUDGETS = (0.01, 0.05, 0.10)
-"""Error budgets (relative L2 nodal error) of the speed-against-error study, when its table does
-not list them."""
-
 STATES = ("converged", "unstable", "diverged", "inverted", "missing")
 """Outcomes of a run in the stability map, in legend order."""
 

@@ -23,10 +23,11 @@ import traceback
 import warnings
 
 from hybmss.experiments import DEFAULTS, SceneSpec, field_default
-from hybmss.scene import parse_mesh
+from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, parse_mesh
 
 from . import commands
 from .executors import EXECUTORS
+from .store import strict
 from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices, \
     model_parameters
 
@@ -225,7 +226,8 @@ def add_fem_options(parser, opts: Options) -> None:
     from_spec = SOLVER_DEFAULTS
     g = parser.add_argument_group("FEM reference")
     opts.add(g, "--element", "--fem", choices=ELEMENTS, default="auto",
-             help="hex1, hex2, mixed (Hex2 x Hex1 u-p) or auto (mixed for nu >= 0.45, else hex2; default)")
+             help=f"hex1, hex2, mixed (Hex2 x Hex1 u-p) or auto (mixed for nu >= {NEARLY_INCOMPRESSIBLE_NU:g}, "
+                  "else hex2; default)")
     opts.add(g, "--law", choices=LAWS, default=None,
              help="material law (default: linear up to 5 %% / 5 degrees, neo-hookean above and for bending)")
     opts.add(g, "--refine", type=positive_int, default=None,
@@ -322,23 +324,10 @@ def build_parser() -> tuple[Parser, Options]:
 
 
 # ------------------------------------------------------------------------------- output
-def strict(obj):
-    """``obj`` with numpy scalars and arrays as Python values and every non-finite float as ``None``."""
-    if isinstance(obj, dict):
-        return {str(k): strict(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [strict(v) for v in obj]
-    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
-        return strict(obj.tolist())
-    if isinstance(obj, bool) or obj is None or isinstance(obj, (str, int)):
-        return obj
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    return str(obj)
-
-
 def dump(obj) -> str:
-    return json.dumps(strict(obj), allow_nan=False)
+    """``obj`` as one line of strict JSON (:func:`studies.store.strict`: ``null`` for a non-finite
+    number; any other object as its text)."""
+    return json.dumps(strict(obj), default=str, allow_nan=False)
 
 
 def _one_line(text: str) -> str:

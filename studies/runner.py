@@ -26,6 +26,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from hybmss.scene import nearly_incompressible
+
 from .scenes import BEAM_LENGTH, SceneSpec
 from .executors import EXECUTORS, SweepError, WorkerDied, local_executor
 from .store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
@@ -212,7 +214,7 @@ def _expected_cost(task: Task) -> float:
     s = task.solver
     if s.kind == "fem":
         per = {"linear": 3.0, "neo-hookean": 20.0, "svk": 20.0}.get(s.law, 10.0) * s.refine**3
-        if task.scene.nu >= 0.45:
+        if nearly_incompressible(task.scene.nu):
             per *= 3.0  # mixed u-p
         return cells * per
     from . import roles

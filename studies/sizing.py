@@ -21,6 +21,8 @@ import math
 import os
 from dataclasses import dataclass
 
+from hybmss.scene import nearly_incompressible
+
 BASE_BYTES = 150e6
 """Interpreter, NumPy, SciPy, Numba and scikit-fem loaded."""
 
@@ -68,7 +70,7 @@ def fem_dofs(shape, element: str = "hex2", refine: int = 1, nu: float = 0.25) ->
     hex1 = math.prod(k + 1 for k in n)
     hex2 = math.prod(2 * k + 1 for k in n)
     if element == "auto":
-        element = "mixed" if nu >= 0.45 else "hex2"
+        element = "mixed" if nearly_incompressible(nu) else "hex2"  # fem_reference's 'auto'
     if element == "hex1":
         return 3 * hex1
     return 3 * hex2 + (hex1 if element == "mixed" else 0)

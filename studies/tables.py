@@ -35,7 +35,7 @@ from hybmss import models
 from hybmss.experiments import SceneSpec
 from hybmss.lattice import Lattice
 from hybmss.moduli import measure_moduli
-from hybmss.scene import Body, Material, Model
+from hybmss.scene import Body, Material, Model, admissible_nu
 from hybmss.solvers import StaticSolveError
 
 from . import publications as publication
@@ -264,7 +264,7 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
                 m = measure_moduli(model, mat)
                 # a stationary homogeneous state exists even for a non-positive-definite material;
                 # it is stable only if -1 < nu_eff < 1/2 and G_eff > 0
-                stable = -1.0 < m["nu_eff"] < 0.5 and m["G_eff"] > 0 and m["E_eff"] > 0
+                stable = admissible_nu(m["nu_eff"]) and m["G_eff"] > 0 and m["E_eff"] > 0
                 status = "ok" if stable else "unstable material (nu_eff outside (-1, 1/2))"
             except StaticSolveError as exc:
                 m, status = {"E_eff": np.nan, "nu_eff": np.nan, "G_eff": np.nan}, f"unstable: {exc}"[:160]
