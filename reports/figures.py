@@ -75,8 +75,8 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
     df = df[df["key"].isin(set(curves["key"]))]
     if df.empty:
         return None
-    meshes = sorted(df["scene_mesh"].astype(str).unique(), key=mesh_size)
-    Es = sorted(df["scene_E"].astype(float).unique(), reverse=True)
+    meshes = sorted(df["mesh"].astype(str).unique(), key=mesh_size)
+    Es = sorted(df["E"].astype(float).unique(), reverse=True)
     methods = results.method_order(df["method"].unique())
     with palette.style() as plt:
         fig, axes = plt.subplots(len(meshes), len(Es), figsize=(3.4 * len(Es), 2.5 * len(meshes) + 0.4),
@@ -84,7 +84,7 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
         for i, mesh in enumerate(meshes):
             for j, E in enumerate(Es):
                 ax = axes[i, j]
-                sub = df[(df["scene_mesh"] == mesh) & (df["scene_E"] == E)]
+                sub = df[(df["mesh"] == mesh) & (df["E"] == E)]
                 for m in methods:
                     s = sub[sub["method"] == m]
                     c = curves[curves["key"] == s.iloc[0]["key"]] if not s.empty else curves.iloc[:0]
@@ -106,8 +106,8 @@ def beam_deflection(results: Results, path: Path) -> Figure | None:
         _save(plt, fig, path)
     r0 = df.iloc[0]
     return Figure("fig5", "Beam deflection under gravity (Fig. 5)", Path(path),
-                  f"Clamped beam 0.4 × 0.4 × 2.4 m, ν = {r0['scene_nu']:g}, ρ = {r0['scene_rho']:g} kg/m³, "
-                  f"g = {r0['scene_gravity']:g} m/s², static equilibrium; vertical displacement of the centre line "
+                  f"Clamped beam 0.4 × 0.4 × 2.4 m, ν = {r0['nu']:g}, ρ = {r0['rho']:g} kg/m³, "
+                  f"g = {r0['gravity']:g} m/s², static equilibrium; vertical displacement of the centre line "
                   f"(m) against the distance from the clamped end (m). FEM: Hex2 elements on the same grid.")
 
 
@@ -143,10 +143,10 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
     if df.empty:
         df = results.find(experiment, mesh=mesh)
     if experiment == "torsion":
-        loads = [{"angle_deg": v} for v in sorted(df["scene_angle_deg"].astype(float).unique())]
+        loads = [{"angle_deg": v} for v in sorted(df["angle_deg"].astype(float).unique())]
         axis, a, b, names = 2, 0, 1, ("x (m)", "y (m)")
     else:
-        loads = [{"deformation": v} for v in sorted(df["scene_deformation"].astype(float).unique())]
+        loads = [{"deformation": v} for v in sorted(df["deformation"].astype(float).unique())]
         axis, a, b, names = 1, 0, 2, ("x (m)", "z (m)")
     diffs = results.table("differences")
     with palette.style() as plt:
@@ -201,14 +201,14 @@ def cross_sections(results: Results, experiment: str, path: Path) -> Figure | No
              else "vertical section through the middle (y = W/2) seen along y")
     num, fid = ("10", "fig10") if experiment == "torsion" else ("8", "fig8")
     return Figure(fid, f"{experiment.capitalize()}: middle cross sections, MSS over FEM (Fig. {num})", Path(path),
-                  f"{experiment.capitalize()}, mesh {mesh}, E = {r0['scene_E']:g} Pa, static equilibrium; {where}; "
+                  f"{experiment.capitalize()}, mesh {mesh}, E = {r0['E']:g} Pa, static equilibrium; {where}; "
                   f"deformed positions (m), undeformed grid in grey. FEM: linear at ≤ 5 % / ≤ 5°, Neo-Hookean above. "
                   f"Boxes: mean |u_MSS − u_FEM| over the z = H/2 layer (mm), the metric of [G20] §6.")
 
 
 # ----------------------------------------------------------------------------- Tables 2, 3 as plots
 def _methods_in(table: pd.DataFrame) -> list[str]:
-    skip = {"mesh", "nu", "d", "deformation", "angle_deg", "E"}
+    skip = {"mesh", "nu", "deformation", "angle_deg", "E"}
     return [c for c in table.columns if c not in skip and not c.startswith("paper")]
 
 
@@ -232,8 +232,8 @@ def volume_change(results: Results, path: Path) -> Figure | None:
         if t is not None:
             mesh = results.primary_mesh(exp)
             t = t[t["mesh"] == mesh] if mesh in set(t["mesh"]) else t
-            for d in sorted(t["d"].unique()):
-                panels.append((exp, mesh, d, t[t["d"] == d].sort_values("nu")))
+            for d in sorted(t["deformation"].unique()):
+                panels.append((exp, mesh, d, t[t["deformation"] == d].sort_values("nu")))
     if not panels:
         return None
     with palette.style() as plt:
@@ -329,7 +329,7 @@ def differences(results: Results, path: Path) -> Figure | None:
             mesh = results.primary_mesh(exp)
             if mesh in set(sub["mesh"]):
                 sub = sub[sub["mesh"] == mesh]
-            loadcol = "angle_deg" if exp == "torsion" else "d"
+            loadcol = "angle_deg" if exp == "torsion" else "deformation"
             loads = sorted(sub[loadcol].unique())
             for m in sorted(sub["method"].unique()):
                 for v, ls in zip(loads, ("-", "--", ":", "-.")):
@@ -365,18 +365,18 @@ def torsion_sweep(results: Results, path: Path) -> Figure | None:
     if df.empty or "study" not in df or not (df["study"] == "torsion-sweep").any():
         return None
     sweep = df[df["study"] == "torsion-sweep"]
-    mesh = sweep["scene_mesh"].iloc[0]
-    nu = float(sweep["scene_nu"].iloc[0])
-    sub = df[(df["scene_experiment"] == "torsion") & (df["scene_mesh"] == mesh) & (df["scene_nu"] == nu)]
+    mesh = sweep["mesh"].iloc[0]
+    nu = float(sweep["nu"].iloc[0])
+    sub = df[(df["experiment"] == "torsion") & (df["mesh"] == mesh) & (df["nu"] == nu)]
     with palette.style() as plt:
         fig, ax = plt.subplots(figsize=(4.6, 3.0))
         for m in sorted(sub["method"].unique(), key=lambda m: (m.startswith("fem"), m)):
-            s = sub[sub["method"] == m].sort_values("scene_angle_deg")
+            s = sub[sub["method"] == m].sort_values("angle_deg")
             if m.startswith("fem") and m.endswith("linear"):
-                s = s[s["scene_angle_deg"] <= 10.0]  # small-strain FEM only where it is a reference
+                s = s[s["angle_deg"] <= 10.0]  # small-strain FEM only where it is a reference
             if s.empty:
                 continue
-            ax.plot(s["scene_angle_deg"], s["torque_z"], color=palette.color(m), marker=palette.marker(m),
+            ax.plot(s["angle_deg"], s["torque_z"], color=palette.color(m), marker=palette.marker(m),
                     ls=palette.linestyle(m), label=m.replace(" static", ""))
         ax.set_xlabel("rotation of the top plate θ (°)")
         ax.set_ylabel("reaction torque $T_z$ (N·m)")
@@ -384,14 +384,14 @@ def torsion_sweep(results: Results, path: Path) -> Figure | None:
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("fig_torsion_sweep", f"Torsion: torque against angle (ν = {nu:g})", Path(path),
-                  f"Torsion of the 5 m cube, mesh {mesh}, E = {sub['scene_E'].iloc[0]:g} Pa, ν = {nu:g}, static "
+                  f"Torsion of the 5 m cube, mesh {mesh}, E = {sub['E'].iloc[0]:g} Pa, ν = {nu:g}, static "
                   "equilibria: top-plate torque T_z (N·m) against the rotation θ (°). Linear FEM shown up to 10° only.")
 
 
 # ----------------------------------------------------------------------------- optional studies
 _X_PREF = ("volumes", "n_volumes", "cells", "n_cells", "particles", "n_particles", "vertices", "nu", "dt",
            "angle_deg", "steps")
-_GROUP_PREF = ("variant", "model", "method", "solver", "kernel", "scene_model")
+_GROUP_PREF = ("variant", "model", "method", "solver", "kernel", "model")
 
 
 def _numeric(df: pd.DataFrame) -> list[str]:

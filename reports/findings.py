@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 import re
 
-import numpy as np
 import pandas as pd
+
+from studies.claims import b09_frame, b09_models  # noqa: F401 - the report's [B09] tables and figures read them here
 
 STATES = ("converged", "unstable", "diverged", "inverted", "missing")
 """Outcomes of a run in the stability map, in legend order."""
@@ -189,37 +190,6 @@ def damping_sentence(damping: pd.DataFrame | None) -> str:
 # ------------------------------------------------------------------ [B09]
 EXPERIMENT_NAMES = {"lshape": "L-shape", "cantilever": "cantilever"}
 """Reader-facing names of [B09]'s experiments."""
-
-
-def b09_frame(cantilever: pd.DataFrame | None, lshape: pd.DataFrame | None, paper: pd.DataFrame | None) -> pd.DataFrame:
-    """Rows ``experiment, mesh, model, state`` with our error statistics (``err_*``: normalized by
-    the largest reference displacement; ``rel_*``: nodal relative error) and [B09]'s (``b09_*``)."""
-    parts = []
-    for exp, t in (("cantilever", cantilever), ("lshape", lshape)):
-        if t is None:
-            continue
-        t = t.copy()
-        t["experiment"] = exp
-        if "err_std_pct" in t and "err_sd_pct" not in t:  # older result folders
-            t["err_sd_pct"] = t["err_std_pct"]
-        if "status" not in t:
-            t["status"] = "ok"
-        parts.append(t)
-    if not parts:
-        return pd.DataFrame()
-    df = pd.concat(parts, ignore_index=True)
-    df["state"] = df["status"].fillna("missing").astype(str)
-    if paper is not None:  # [B09]'s figures are for its own model, named in the published table
-        p = paper.rename(columns={"mean_pct": "b09_mean_pct", "sd_pct": "b09_sd_pct", "max_pct": "b09_max_pct"})
-        df = df.merge(p, on=["experiment", "mesh", "model"], how="left")
-    return df
-
-
-def b09_models(df: pd.DataFrame) -> list[str]:
-    """The models [B09]'s figures are for (those rows of :func:`b09_frame` with published values)."""
-    if "b09_mean_pct" not in df:
-        return []
-    return list(dict.fromkeys(df.loc[df["b09_mean_pct"].notna(), "model"]))
 
 
 def b09_sentence(df: pd.DataFrame) -> str:

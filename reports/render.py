@@ -133,9 +133,9 @@ def _loads(results: Results, experiment: str, mesh: str) -> list[dict]:
     if sub.empty:
         sub = results.find(experiment, mesh=mesh)
     if experiment == "torsion":
-        vals = sorted(sub["scene_angle_deg"].astype(float).unique())
+        vals = sorted(sub["angle_deg"].astype(float).unique())
         return [{"angle_deg": v} for v in vals]
-    vals = sorted(sub["scene_deformation"].astype(float).unique())
+    vals = sorted(sub["deformation"].astype(float).unique())
     return [{"deformation": v} for v in vals]
 
 
@@ -205,7 +205,7 @@ def _caption(results, experiment, mesh, load, panels, umax) -> str:
     femtxt = f"FEM: {fem[0]['solver']} ({law})" if fem else "FEM: no reference stored"
     missing = 9 - len(panels)
     miss = f"; {missing} panel(s) empty (run missing or failed, see the failures table)" if missing else ""
-    return (f"{experiment.capitalize()}, mesh {mesh}, E = {any_row['scene_E']:g} Pa, ρ = {any_row['scene_rho']:g} kg/m³, "
+    return (f"{experiment.capitalize()}, mesh {mesh}, E = {any_row['E']:g} Pa, ρ = {any_row['rho']:g} kg/m³, "
             f"{load_label(load)}; static equilibrium (MSS: Newton), {femtxt}. Deformed shape to scale, colour = "
             f"displacement magnitude |u| (m), one colour range 0–{umax:.3g} m for all panels; grey box: undeformed "
             f"body{miss}.")

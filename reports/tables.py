@@ -15,14 +15,17 @@ import numpy as np
 import pandas as pd
 
 from studies.paper import printed
+from studies.claims import MIDDLE_LAYER_TOL, REL_PCT, middle_layer_frame
 
 from . import findings
-from .data import Results, is_fem, paper_source, paper_table
+from .data import Results, paper_source, paper_table, run_state
 
 #: |Δe| thresholds, percentage points (Tables 2, 3 against the publication and FEM)
 E_DIFF_PP = (1.0, 3.0)
 #: relative difference thresholds of reactions and deflections against the reference (%)
-REL_DIFF_PCT = (10.0, 25.0)
+REL_DIFF_PCT = (REL_PCT, 2.5 * REL_PCT)
+"""Colour grades of a relative difference (%): green within the claims' criterion
+(:data:`studies.claims.REL_PCT`), amber within 2.5 times it, as the headline grades."""
 
 
 @dataclass
@@ -69,8 +72,8 @@ def grade(value, thresholds) -> str:
     return "good" if a <= thresholds[0] else ("warn" if a <= thresholds[1] else "bad")
 
 
-def _method_cols(results: Results, t: pd.DataFrame, skip=("mesh", "nu", "d", "deformation", "angle_deg", "E")) -> list[str]:
-    cols = [c for c in t.columns if c not in skip and not c.startswith("paper") and c != "Euler-Bernoulli"]
+def _method_cols(results: Results, t: pd.DataFrame, skip=("mesh", "nu", "deformation", "angle_deg", "E")) -> list[str]:
+    cols = [c for c in t.columns if c not in skip and not c.startswith("paper") and c != "euler_bernoulli_tip"]
     return results.method_order(cols)
 
 
@@ -92,7 +95,7 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
     t = results.table(name)
     if t is None:
         return None
-    t = t.sort_values(["mesh", "d", "nu"])
+    t = t.sort_values(["mesh", "deformation", "nu"])
     methods = _method_cols(results, t)
     own = [m for m in results.published("G20")["model"] if f"paper {m}" in t]
     subject = results.published_model("proposed")
@@ -101,16 +104,16 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
     cols += [f"Δ {m} − [G20] (pp)" for m in own] + ["Δ FEM ref − [G20] FEM (pp)", f"Δ {subject} − FEM ref (pp)"]
     rows = []
     for _, r in t.iterrows():
-        law = results.reference_law(experiment, r["d"])
+        law = results.reference_law(experiment, r["deformation"])
         ref_col = next((m for m in methods if law and m.startswith("fem") and m.endswith(law)), None)
         ref = r.get(ref_col, np.nan) if ref_col else np.nan
-        row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (fmt(100 * r["d"], 3), "")]
+        row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (fmt(100 * r["deformation"], 3), "")]
         for m in methods:
             v = r[m]
             if pd.isna(v) and _not_in_design(m, law):
                 row.append(("–", ""))
             elif pd.isna(v):
-                state = run_state(results, experiment, m, mesh=r["mesh"], nu=r["nu"], deformation=r["d"])
+                state = run_state(results, experiment, m, mesh=r["mesh"], nu=r["nu"], deformation=r["deformation"])
                 row.append((state or "missing", "fail" if state.startswith("failed") else ""))
             else:
                 row.append((fmt(v), "ref" if m == ref_col else ""))
@@ -206,7 +209,7 @@ def bending_table(results: Results) -> Table | None:
         row = [(r["mesh"], ""), (fmt(r["E"] / 1e6, 3), "")]
         for m in methods:
             row.append((fmt(r[m]), "ref" if m.endswith("neo-hookean") else ""))
-        eb = r.get("Euler-Bernoulli", np.nan)
+        eb = r.get("euler_bernoulli_tip", np.nan)
         row.append((fmt(eb), "paper"))
         h = r.get(f"{subject} static", np.nan)
         fem = next((r[m] for m in methods if m.startswith("fem") and m.endswith("neo-hookean")), np.nan)
@@ -312,7 +315,7 @@ def eform_table(results: Results) -> Table | None:
         if closer.startswith("undecided ("):
             closer = "undecided (" + _short_state(closer[len("undecided ("):-1]) + ")"
         rows.append([(r["experiment"], ""), (r["model"], ""), (r["mesh"], ""), (fmt(r["nu"], 3), ""),
-                     (fmt(100 * r["d"], 3), ""), (fmt(r["paper_pct"], 3), "paper"),
+                     (fmt(100 * r["deformation"], 3), ""), (fmt(r["paper_pct"], 3), "paper"),
                      val("G_form_pct", r["G_form_state"]), val("E_form_pct", r["E_form_state"]),
                      (closer, {"E-form": "warn", "G-form": "good"}.get(closer, ""))])
     return Table("table_eform", "E-form check: which calibration the publication's columns match",
@@ -331,7 +334,7 @@ def differences_table(results: Results) -> Table | None:
         return None
     t = t.copy()
     t["load"] = np.where(t["experiment"] == "torsion", t["angle_deg"].map(lambda v: f"θ = {v:g}°"),
-                         (100 * t["d"]).map(lambda v: f"d = {v:g} %"))
+                         (100 * t["deformation"]).map(lambda v: f"d = {v:g} %"))
     t.loc[t["experiment"] == "bending", "load"] = t.loc[t["experiment"] == "bending", "E"].map(
         lambda v: f"E = {v / 1e6:g} MPa")
     t["rel_l2_pct"] = 100 * t["rel_l2"]
@@ -340,7 +343,7 @@ def differences_table(results: Results) -> Table | None:
         t[c.replace("_m", "_mm")] = 1e3 * t[c]
     order = {e: i for i, e in enumerate(("compression", "tension", "shear", "torsion", "bending"))}
     t["_exp"] = t["experiment"].map(order).fillna(99)
-    t = t.sort_values(["_exp", "mesh", "d", "angle_deg", "E", "nu", "method"])
+    t = t.sort_values(["_exp", "mesh", "deformation", "angle_deg", "E", "nu", "method"])
 
     def cls(r, c):
         if c == "rel_l2_pct":
@@ -496,7 +499,7 @@ def explicit_table(results: Results) -> Table | None:
     st = df[(df["solver"] == "mss-static") & (df["status"] == "ok")]
     rows = []
     # the static twin: the same stored scene, every parameter exact, but the dynamic solvers' damping
-    keys = [c for c in ex.columns if c.startswith("scene_") and c not in ("scene_damping", "scene_variant")]
+    keys = [c for c in results.scene_columns() if c not in ("damping", "variant")]
 
     def cell(v):
         if isinstance(v, (list, tuple, np.ndarray)):
@@ -521,7 +524,7 @@ def explicit_table(results: Results) -> Table | None:
         info = r.get("info") if isinstance(r.get("info"), dict) else {}
         dt, steps = r.get("solver_dt", np.nan), r.get("solver_steps", np.nan)
         rows.append([
-            (r["label"], ""), (fmt(dt, 3), ""), (fmt(steps), ""), (fmt(r.get("scene_damping", np.nan), 3), ""),
+            (r["label"], ""), (fmt(dt, 3), ""), (fmt(steps), ""), (fmt(r.get("damping", np.nan), 3), ""),
             (fmt(info.get("dt_crit", r.get("dt_crit", np.nan)), 3), ""),
             (r["status"], "good" if ok else "fail"),
             (fmt(100 * abs(r["volume_change"]), 4) if ok else "–", ""),
@@ -547,25 +550,6 @@ def explicit_table(results: Results) -> Table | None:
 
 
 # ------------------------------------------------------------------ the publication's numbers beside ours
-def run_state(results: Results, experiment: str, method: str, printed: bool = False, **scene) -> str:
-    """What a reader sees instead of a number: "missing" if no run of ``method`` is stored for the
-    scene, "failed (status, exception)" if every stored one failed (the message is in the failures
-    table), "" if one reached a result (``printed``: the scene's values are a publication's, as
-    for :meth:`Results.find`); a variant the studies do not compare at the scene's ν
-    (``tables/study_variants.csv``, e.g. the E-form at ν = 1/4, the G-form's constants) says so."""
-    sub = results.find(experiment, method=method, ok_only=False, printed=printed, **scene)
-    if sub.empty and scene.get("nu") is not None and not is_fem(method) and \
-            not results.in_design(method.rsplit(" ", 1)[0], scene["nu"]):
-        return "not in the study at this ν"  # e.g. the E-form at ν = 1/4: the G-form's constants
-    if sub.empty:
-        return "missing"
-    if (sub["status"] == "ok").any():
-        return ""
-    r = sub.iloc[0]
-    exc = re.match(r"^([A-Za-z_]+(?:Error|Exception))\b", str(r.get("message") or "").strip())
-    return f"failed ({r['status']}{', ' + exc.group(1) if exc else ''})"
-
-
 def _value_cell(results: Results, experiment: str, method: str, value, digits: int = 4, cls: str = "",
                 printed: bool = False, **scene) -> tuple[str, str]:
     if value is not None and not (isinstance(value, float) and math.isnan(value)) and not pd.isna(value):
@@ -626,49 +610,6 @@ def published_reaction_table(results: Results, number: int) -> Table | None:
                  f"small load, Neo-Hookean at the large one); [G20]: LS-Dyna. 'ours vs [G20]': relative difference, "
                  f"green ≤ {REL_DIFF_PCT[0]:g} %, amber ≤ {REL_DIFF_PCT[1]:g} %, red above. Publication: "
                  f"{paper_source(f'g20_table{number}_{experiment}')}", cols, rows)
-
-
-MIDDLE_LAYER_TOL = 2.0
-"""A middle-layer mean difference counts as reproduced within this factor of [G20]'s."""
-
-
-def middle_layer_frame(results: Results) -> pd.DataFrame:
-    """[G20]'s mean position differences over the middle layer (shear, torsion at 20 %) beside
-    ours for [G20]'s proposed model against the FEM reference, with the alternative definitions."""
-    paper = paper_table("g20_middle_layer")
-    diffs = results.table("differences")
-    method = f"{results.published_model('proposed')} static"
-    if paper is None:
-        return pd.DataFrame()
-    rows = []
-    for _, p in paper.iterrows():
-        exp = p["experiment"]
-        mesh = results.primary_mesh(exp)
-        rec = {"experiment": exp, "nu": float(p["nu"]), "mesh": mesh or "", "paper_m": float(p["mean_diff_m"]),
-               "load": f"θ = {p['angle_deg']:g}°" if exp == "torsion" else f"d = {100 * p['deformation']:g} %"}
-        scene = dict(mesh=mesh, nu=float(p["nu"]))
-        if exp == "torsion":
-            scene["angle_deg"] = float(p["angle_deg"])
-        else:
-            scene["deformation"] = float(p["deformation"])
-        sel = pd.DataFrame()
-        if diffs is not None and mesh is not None:
-            m = (diffs["experiment"] == exp) & (diffs["mesh"] == mesh) & printed(diffs["nu"], p["nu"]) \
-                & (diffs["method"] == method)
-            m &= printed(diffs["angle_deg"], p["angle_deg"]) if exp == "torsion" else printed(diffs["d"], p["deformation"])
-            sel = diffs[m]
-        if len(sel):
-            r = sel.iloc[0]
-            rec.update(state="ok", reference=r["reference"], ours_m=r["mid_layer_mean_m"],
-                       ours_xy_m=r.get("mid_layer_mean_xy_m", np.nan), ours_svk_m=r.get("mid_layer_mean_svk_m", np.nan),
-                       n_points=r.get("mid_layer_n", np.nan))
-        else:
-            st = run_state(results, exp, method, printed=True, **scene) if mesh else "missing"
-            if not st:
-                st = "missing (no FEM reference)" if results.reference(exp, printed=True, **scene) is None else "missing"
-            rec.update(state=st)
-        rows.append(rec)
-    return pd.DataFrame(rows)
 
 
 def middle_layer_table(results: Results) -> Table | None:

@@ -46,11 +46,11 @@ def cases() -> list[SceneSpec]:
 
 
 def _reaction(row) -> float:
-    if row["scene_experiment"] == "torsion":
+    if row["experiment"] == "torsion":
         return row["torque_z"]
-    if row["scene_experiment"] == "shear":
+    if row["experiment"] == "shear":
         return row["force_x"]
-    if row["scene_experiment"] == "bending":
+    if row["experiment"] == "bending":
         return row["tip_deflection"]
     return row["force_z"]
 

@@ -158,6 +158,7 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
                 runner=None):
     """Run (or resume) the named studies into the results folder ``out`` and write the tables.
     ``runner`` (a :class:`studies.runner.Runner`) chooses where runs are computed."""
+    from .claims import write_claims
     from .tables import write_tables
 
     import importlib
@@ -186,4 +187,5 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
             module, func = EXTRA_STUDIES[name].split(":")
             getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress,
                                                            runner=runner)
+    write_claims(store)  # the verdicts, from every table the studies just wrote
     return rows

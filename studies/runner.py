@@ -117,12 +117,14 @@ def solve(task: Task):
 
 
 def measure(spec: SceneSpec, result) -> dict:
-    """Scalar outputs of one result (SPEC §8): volume change, plate reaction, tip deflection."""
+    """Scalar outputs of one result (SPEC §8): volume change, plate reaction, tip deflection.
+    The solver's iteration count is ``solver_iterations``: ``iterations`` is a model parameter's
+    name (xpbd-nh's), and a row keeps the scene's fields under their own names."""
     row = {
         "volume_change": float(result.volume_change),
         "max_displacement": float(result.max_displacement),
         "converged": bool(result.converged),
-        "iterations": int(result.iterations),
+        "solver_iterations": int(result.iterations),
         "wall_time_s": float(result.wall_time_s),
     }
     plate = "bottom" if spec.experiment == "bending" else "top"
@@ -167,12 +169,16 @@ def tip_deflection(X: np.ndarray, u: np.ndarray) -> float:
 
 
 def base_row(task: Task, key: str | None = None) -> dict:
-    """The fields of a run's row that describe it (scene, solver, environment)."""
+    """The fields of a run's row that describe it: the scene's under the specification's own
+    names (:meth:`SceneSpec.to_dict`: the experiment's fields, the model's parameters, the variant
+    name), listed in ``scene_fields``; the solver's (``solver_*``); the environment's (``env_*``)."""
+    scene = task.scene.to_dict()
     return {
         "key": key or task.key(),
         "study": task.study,
         "solver": task.solver.label,
-        **{f"scene_{k}": v for k, v in task.scene.to_dict().items()},
+        **scene,
+        "scene_fields": " ".join(scene),
         **{f"solver_{k}": v for k, v in task.solver.relevant().items()},
         "label": task.scene.label,
         CODE_FIELD: code_version(code_side(task.solver.kind)),

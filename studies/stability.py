@@ -230,7 +230,7 @@ def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict])
             "case": _case_name(t.scene), "mesh": "x".join(map(str, t.scene.mesh)), "nu": t.scene.nu,
             "variant": t.scene.variant, "solver": t.solver.label, "status": _status(r, inv),
             "inverted_cells": inv, "volume_change": r.get("volume_change", float("nan")),
-            "load_steps": r.get("load_steps", float("nan")), "iterations": r.get("iterations", float("nan")),
+            "load_steps": r.get("load_steps", float("nan")), "iterations": r.get("solver_iterations", float("nan")),
             "wall_time_s": r.get("wall_time_s", float("nan")),
             "fem": f["solver"] if f is not None else "", "fem_status": f["status"] if f is not None else "",
             "rel_l2_vs_fem": err, "message": r.get("message", ""),

@@ -44,14 +44,14 @@ from .compare import default_law, diff_metrics
 from .paper import load as load_paper
 from .store import Store
 
-SCENE_COLS = ["scene_experiment", "scene_mesh", "scene_nu", "scene_E", "scene_deformation", "scene_angle_deg"]
+SCENE_COLS = ["experiment", "mesh", "nu", "E", "deformation", "angle_deg"]
 
 
 def runs_frame(store: Store) -> pd.DataFrame:
     rows = store.rows()
     if not rows:
         return pd.DataFrame()
-    df = pd.DataFrame([{k: v for k, v in r.items() if k not in ("info", "traceback")} for r in rows])
+    df = pd.DataFrame([{k: v for k, v in r.items() if k not in ("info", "traceback", "scene_fields")} for r in rows])
     df["variant"] = [_variant(r) for r in df.to_dict("records")]
     df["method"] = np.where(df["solver"].str.startswith("fem"), df["solver"],
                             df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
@@ -61,15 +61,15 @@ def runs_frame(store: Store) -> pd.DataFrame:
 def _variant(row: dict) -> str:
     """The stored variant name of a run; for a run stored without one, its model's name for the
     stored parameters."""
-    v = row.get("scene_variant")
+    v = row.get("variant")
     if isinstance(v, str):
         return v
     try:
-        spec = models.get(row["scene_model"])
-        given = {k: row.get(f"scene_{k}") for k in spec.parameter_names()}
+        spec = models.get(row["model"])
+        given = {k: row.get(k) for k in spec.parameter_names()}
         return spec.variant(spec.parameters(**{k: v for k, v in given.items() if v is not None and v == v}))
     except ValueError:
-        return str(row["scene_model"])
+        return str(row["model"])
 
 
 def _ok(df):
@@ -86,44 +86,41 @@ def _fem(df):
 
 def volume_table(df: pd.DataFrame, experiment: str, paper_name: str) -> pd.DataFrame:
     """e (%) per (mesh, ν, d) and method; the publication's columns alongside."""
-    sub = df[(df["scene_experiment"] == experiment) & (df["study"] == experiment)]
+    sub = df[(df["experiment"] == experiment) & (df["study"] == experiment)]
     if sub.empty:
         return pd.DataFrame()
     sub = sub.assign(e_pct=100.0 * sub["volume_change"].abs())
     sub.loc[sub["status"] != "ok", "e_pct"] = np.nan
-    wide = sub.pivot_table(index=["scene_mesh", "scene_nu", "scene_deformation"], columns="method",
+    wide = sub.pivot_table(index=["mesh", "nu", "deformation"], columns="method",
                            values="e_pct", aggfunc="first").reset_index()
     own = publication.models_of("G20")  # the publication's names of its models -> "paper <model>"
     names = {r.name: f"paper {r.model}" for r in own.itertuples() if r.model}
     paper = load_paper(paper_name).rename(columns={**names, "fem_lsdyna": "paper FEM (LS-Dyna)"})
-    wide = wide.merge(paper, left_on=["scene_nu", "scene_deformation"], right_on=["nu", "deformation"], how="left")
-    wide = wide.drop(columns=["nu", "deformation"]).rename(
-        columns={"scene_mesh": "mesh", "scene_nu": "nu", "scene_deformation": "d"})
-    return wide
+    return wide.merge(paper, on=["nu", "deformation"], how="left")
 
 
 def reaction_table(df: pd.DataFrame, experiment: str, column: str, load_col: str) -> pd.DataFrame:
-    sub = df[(df["scene_experiment"] == experiment) & (df["study"] == experiment)]
+    sub = df[(df["experiment"] == experiment) & (df["study"] == experiment)]
     if sub.empty or column not in sub:
         return pd.DataFrame()
     sub = sub.copy()
     sub.loc[sub["status"] != "ok", column] = np.nan
-    wide = sub.pivot_table(index=["scene_mesh", "scene_nu", load_col], columns="method", values=column,
+    wide = sub.pivot_table(index=["mesh", "nu", load_col], columns="method", values=column,
                            aggfunc="first").reset_index()
-    return wide.rename(columns={"scene_mesh": "mesh", "scene_nu": "nu", load_col: load_col.replace("scene_", "")})
+    return wide
 
 
 def bending_table(df: pd.DataFrame) -> pd.DataFrame:
-    sub = df[df["scene_experiment"] == "bending"]
+    sub = df[df["experiment"] == "bending"]
     if sub.empty or "tip_deflection" not in sub:
         return pd.DataFrame()
     sub = sub.copy()
     sub.loc[sub["status"] != "ok", "tip_deflection"] = np.nan
-    wide = sub.pivot_table(index=["scene_mesh", "scene_E"], columns="method", values="tip_deflection",
+    wide = sub.pivot_table(index=["mesh", "E"], columns="method", values="tip_deflection",
                            aggfunc="first").reset_index()
-    eb = sub.groupby(["scene_mesh", "scene_E"])["euler_bernoulli_tip"].first().reset_index()
-    wide = wide.merge(eb, on=["scene_mesh", "scene_E"])
-    return wide.rename(columns={"scene_mesh": "mesh", "scene_E": "E", "euler_bernoulli_tip": "Euler-Bernoulli"})
+    eb = sub.groupby(["mesh", "E"])["euler_bernoulli_tip"].first().reset_index()
+    wide = wide.merge(eb, on=["mesh", "E"])
+    return wide
 
 
 def same(column: pd.Series, value) -> pd.Series:
@@ -131,7 +128,7 @@ def same(column: pd.Series, value) -> pd.Series:
     return (column == value) | (column.isna() & pd.isna(value))
 
 
-GEOMETRY_COLS = ["scene_experiment", "scene_mesh", "scene_nu", "scene_E", "scene_deformation", "scene_angle_deg"]
+GEOMETRY_COLS = ["experiment", "mesh", "nu", "E", "deformation", "angle_deg"]
 """Stored scene parameters that make an MSS run and its FEM reference the same load case."""
 
 
@@ -151,10 +148,10 @@ def differences_table(df: pd.DataFrame, store: Store) -> pd.DataFrame:
     if fem.empty:
         return pd.DataFrame()
     for _, row in _mss(ok).iterrows():
-        if row["scene_experiment"] == "uniaxial":
+        if row["experiment"] == "uniaxial":
             continue
-        spec = SceneSpec(row["scene_experiment"], deformation=row["scene_deformation"],
-                         angle_deg=row["scene_angle_deg"])
+        spec = SceneSpec(row["experiment"], deformation=row["deformation"],
+                         angle_deg=row["angle_deg"])
         law = default_law(spec)
         ref = _reference_row(fem, row, law)
         if ref is None:
@@ -172,8 +169,8 @@ def differences_table(df: pd.DataFrame, store: Store) -> pd.DataFrame:
                 if law == "neo-hookean":  # the same layer against the St Venant–Kirchhoff reference
                     mid_svk = diff_metrics(a["X"], a["u"], uo)["mid_layer_mean"]
         out.append({
-            "experiment": row["scene_experiment"], "mesh": row["scene_mesh"], "nu": row["scene_nu"],
-            "E": row["scene_E"], "d": row["scene_deformation"], "angle_deg": row["scene_angle_deg"],
+            "experiment": row["experiment"], "mesh": row["mesh"], "nu": row["nu"],
+            "E": row["E"], "deformation": row["deformation"], "angle_deg": row["angle_deg"],
             "method": row["method"], "reference": ref["solver"],
             "mean_m": d["mean"], "max_m": d["max"], "rel_l2": d["rel_l2"], "mid_layer_mean_m": d["mid_layer_mean"],
             "mid_layer_mean_xy_m": d["mid_layer_mean_xy"], "mid_layer_rms_m": d["mid_layer_rms"],
@@ -216,17 +213,17 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
         paper = load_paper(paper_name)
         own = publication.models_of("G20")
         for name, model in [(r.name, r.model) for r in own.itertuples() if r.model and r.name in paper.columns]:
-            sub = df[(df["scene_experiment"] == exp) & (df["solver"] == "mss-static")
-                     & (df["scene_model"] == model) & (df["study"] == exp)]
-            if "scene_e_form" not in sub:  # a model without the E-form parameter: nothing to check
+            sub = df[(df["experiment"] == exp) & (df["solver"] == "mss-static")
+                     & (df["model"] == model) & (df["study"] == exp)]
+            if "e_form" not in sub:  # a model without the E-form parameter: nothing to check
                 continue
             for _, p in paper.iterrows():
-                sel = sub[printed(sub["scene_nu"], p["nu"])
-                          & printed(sub["scene_deformation"], p["deformation"])]
-                for mesh, grp in sel.groupby("scene_mesh"):
-                    eform = grp["scene_e_form"].fillna(False).astype(bool)
+                sel = sub[printed(sub["nu"], p["nu"])
+                          & printed(sub["deformation"], p["deformation"])]
+                for mesh, grp in sel.groupby("mesh"):
+                    eform = grp["e_form"].fillna(False).astype(bool)
                     gval, gstate = _run_value(grp[~eform])
-                    if not eform.any() and len(models.get(model).study_variants(float(grp["scene_nu"].iloc[0]))) == 1:
+                    if not eform.any() and len(models.get(model).study_variants(float(grp["nu"].iloc[0]))) == 1:
                         eval_, estate = gval, "identical to G-form (ν = 1/4)"
                     else:
                         eval_, estate = _run_value(grp[eform])
@@ -240,7 +237,7 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
                         dg, de = abs(gval - ref), abs(eval_ - ref)
                         closer = "E-form" if de < dg else "G-form"
                         decisive = True
-                    out.append({"experiment": exp, "model": model, "mesh": mesh, "nu": p["nu"], "d": p["deformation"],
+                    out.append({"experiment": exp, "model": model, "mesh": mesh, "nu": p["nu"], "deformation": p["deformation"],
                                 "paper_pct": ref, "G_form_pct": gval, "G_form_state": gstate,
                                 "E_form_pct": eval_, "E_form_state": estate, "closer": closer, "decisive": decisive})
     return pd.DataFrame(out)
@@ -277,7 +274,7 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
 def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:
     """The FEM law each stored scene load is compared with (:func:`studies.compare.default_law`),
     one row per (experiment, d, torsion angle): the decision the report shows, made here once."""
-    keys = df[["scene_experiment", "scene_deformation", "scene_angle_deg"]].fillna(0.0).drop_duplicates()
+    keys = df[["experiment", "deformation", "angle_deg"]].fillna(0.0).drop_duplicates()
     rows = [{"experiment": e, "deformation": float(d), "angle_deg": float(a),
              "law": default_law(SceneSpec(e, deformation=float(d), angle_deg=float(a)))}
             for e, d, a in keys.itertuples(index=False) if e != "uniaxial"]
@@ -285,14 +282,14 @@ def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def spec_of(row: dict) -> SceneSpec:
-    """The :class:`SceneSpec` a stored run recorded (its ``scene_*`` fields and model parameters)."""
-    fields = {f: row[f"scene_{f}"] for f in ("mesh", "E", "nu", "rho", "model", "deformation", "angle_deg",
-                                             "gravity", "damping", "le") if f"scene_{f}" in row}
+    """The :class:`SceneSpec` a stored run recorded (its scene fields and model parameters)."""
+    fields = {f: row[f] for f in ("mesh", "E", "nu", "rho", "model", "deformation", "angle_deg",
+                                  "gravity", "damping", "le") if f in row}
     fields = {k: v for k, v in fields.items() if not (isinstance(v, float) and v != v)}
     fields["mesh"] = tuple(int(n) for n in str(fields["mesh"]).split("x"))
     names = models.get(fields["model"]).parameter_names()
-    params = {k: row[f"scene_{k}"] for k in names if f"scene_{k}" in row and row[f"scene_{k}"] == row[f"scene_{k}"]}
-    return SceneSpec.default(row["scene_experiment"], **fields, **params)
+    params = {k: row[k] for k in names if k in row and row[k] == row[k]}
+    return SceneSpec.default(row["experiment"], **fields, **params)
 
 
 def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -300,7 +297,7 @@ def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.Dat
     clamp ([G20] Fig. 5), and the Euler–Bernoulli deflection of each (mesh, E) on 101 points."""
     from .runner import neutral_axis
 
-    sub = _ok(df[df["scene_experiment"] == "bending"])
+    sub = _ok(df[df["experiment"] == "bending"])
     curves, theory = [], []
     for r in sub.to_dict("records"):
         a = store.arrays(r["key"])
@@ -308,9 +305,9 @@ def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.Dat
             continue
         z, uy = neutral_axis(a["X"], a["u"])
         z0 = float(a["X"][:, 2].min())
-        curves += [{"key": r["key"], "method": r["method"], "mesh": r["scene_mesh"], "E": r["scene_E"],
+        curves += [{"key": r["key"], "method": r["method"], "mesh": r["mesh"], "E": r["E"],
                     "z": float(zi - z0), "u_y": float(u)} for zi, u in zip(z, uy)]
-    for (mesh, E), grp in sub.groupby(["scene_mesh", "scene_E"]):
+    for (mesh, E), grp in sub.groupby(["mesh", "E"]):
         spec = spec_of(grp.iloc[0].to_dict())
         L = spec.beam_section()[2]
         zz = np.linspace(0.0, L, 101)
@@ -323,7 +320,7 @@ def study_variants_table(df: pd.DataFrame) -> pd.DataFrame:
     """``model, variant, nu``: every parameter set each registered model is compared in at every
     Poisson ratio of the stored runs."""
     rows = []
-    for nu in sorted(float(v) for v in df["scene_nu"].dropna().unique()):
+    for nu in sorted(float(v) for v in df["nu"].dropna().unique()):
         for m in models.all_models():
             for v in m.study_variants(nu):
                 rows.append({"model": m.name, "variant": Model(m.name, **v).variant, "nu": nu})
@@ -366,8 +363,8 @@ def write_tables(store: Store, keys=None) -> dict:
         tables["runs"] = df[[c for c in keep if c in df.columns]]
         tables["table2_compression"] = volume_table(df, "compression", "g20_table2_compression")
         tables["table3_tension"] = volume_table(df, "tension", "g20_table3_tension")
-        tables["table4_shear"] = reaction_table(df, "shear", "force_x", "scene_deformation")
-        tables["table5_torsion"] = reaction_table(df, "torsion", "torque_z", "scene_angle_deg")
+        tables["table4_shear"] = reaction_table(df, "shear", "force_x", "deformation")
+        tables["table5_torsion"] = reaction_table(df, "torsion", "torque_z", "angle_deg")
         tables["bending"] = bending_table(df)
         tables["differences"] = differences_table(df, store)
         tables["eform_check"] = eform_check(df)

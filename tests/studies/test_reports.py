@@ -84,6 +84,9 @@ def results(tmp_path_factory):
         "per_step_us": [100.0, 150.0, 200.0, 800.0, 1150.0, 1700.0], "baseline": "hybmss-fd",
         "ratio_to_baseline": [1.0, 1.5, 2.0, 1.0, 1.44, 2.12], "paper_ratio_to_baseline": [np.nan, 1.4, 2.1] * 2,
         "springs_only": "hybmss-cf", "ratio_to_springs_only": [0.67, 1.0, 1.33, 0.7, 1.0, 1.48], "noise": 0.01}))
+    from studies.claims import write_claims
+
+    write_claims(store)  # as the reproduction does once every study wrote its tables
     return root
 
 
@@ -217,7 +220,7 @@ def test_vtu_files_open_with_fields(report, results):
 
 def test_summary_derives_verdicts_from_the_data(results):
     from reports.data import Results
-    from reports.summary import REPRODUCED, claims, headline
+    from studies.claims import REPRODUCED, claims, headline
 
     r = Results(results)
     h = headline(r)
@@ -417,7 +420,7 @@ def test_a_failed_run_reads_failed_with_its_reason(report):
 
 
 def _runs(rows):
-    base = {"scene_experiment": "compression", "solver": "mss-static", "study": "compression", "scene_mesh": "4x4x4",
+    base = {"experiment": "compression", "solver": "mss-static", "study": "compression", "mesh": "4x4x4",
             "message": ""}
     return pd.DataFrame([{**base, **r} for r in rows])
 
@@ -428,18 +431,18 @@ def test_eform_check_never_borrows_the_g_form_value():
     rows = []
     for model in ("hybmss", "hybmss-fd"):
         for nu, d in ((0.0, 0.20), (0.0, 0.05), (0.25, 0.05)):
-            rows.append(dict(scene_model=model, scene_nu=nu, scene_deformation=d, scene_e_form=False, status="ok",
+            rows.append(dict(model=model, nu=nu, deformation=d, e_form=False, status="ok",
                              volume_change=-0.1843))
-        rows.append(dict(scene_model=model, scene_nu=0.0, scene_deformation=0.20, scene_e_form=True,
+        rows.append(dict(model=model, nu=0.0, deformation=0.20, e_form=True,
                          status="unstable", volume_change=np.nan, message="StaticSolveError: limit point"))
     out = eform_check(_runs(rows))
     comp = out[out["experiment"] == "compression"]
-    bad = comp[np.isclose(comp["nu"], 0.0) & np.isclose(comp["d"], 0.20)]
+    bad = comp[np.isclose(comp["nu"], 0.0) & np.isclose(comp["deformation"], 0.20)]
     assert len(bad) == 2
     assert bad["E_form_pct"].isna().all() and bad["G_form_pct"].eq(18.43).all()
     assert bad["E_form_state"].str.startswith("failed (unstable").all()
     assert bad["closer"].str.startswith("undecided").all() and not bad["decisive"].any()
-    miss = comp[np.isclose(comp["nu"], 0.0) & np.isclose(comp["d"], 0.05)]
+    miss = comp[np.isclose(comp["nu"], 0.0) & np.isclose(comp["deformation"], 0.05)]
     assert (miss["E_form_state"] == "missing").all() and miss["E_form_pct"].isna().all()
     quarter = comp[np.isclose(comp["nu"], 0.25)]
     assert quarter["E_form_state"].str.startswith("identical").all() and not quarter["decisive"].any()
@@ -450,7 +453,7 @@ def _eform(closers):
 
 
 def test_eform_verdict_supported_counts_only_decisive_rows():
-    from reports.summary import SUPPORTED, eform_claim
+    from studies.claims import SUPPORTED, eform_claim
 
     c = eform_claim(_eform(["E-form", "E-form", "G-form", "undecided (E-form failed (unstable))",
                             "same (differ by ≤ 0.01 pp)"]), "Table 2", "compression")
@@ -459,7 +462,7 @@ def test_eform_verdict_supported_counts_only_decisive_rows():
 
 
 def test_eform_verdict_not_supported():
-    from reports.summary import NOT_SUPPORTED, eform_claim
+    from studies.claims import NOT_SUPPORTED, eform_claim
 
     c = eform_claim(_eform(["G-form", "G-form", "E-form", "undecided (G-form missing)", "undecided (G-form missing)",
                             "undecided (G-form missing)"]), "Table 3", "tension")
@@ -467,7 +470,7 @@ def test_eform_verdict_not_supported():
 
 
 def test_eform_verdict_not_tested_without_decisive_rows():
-    from reports.summary import UNTESTED, eform_claim
+    from studies.claims import UNTESTED, eform_claim
 
     c = eform_claim(_eform(["same (differ by ≤ 0.01 pp)", "undecided (E-form missing)"]), "Table 2", "compression")
     assert c.verdict == UNTESTED and "0 of 2 rows" in c.evidence
@@ -476,7 +479,7 @@ def test_eform_verdict_not_tested_without_decisive_rows():
 @pytest.mark.parametrize("n_ok, n, kind", [(4, 4, "reproduced"), (2, 4, "partly reproduced"),
                                            (1, 4, "not reproduced"), (0, 0, "not tested")])
 def test_count_verdicts(n_ok, n, kind):
-    from reports.summary import count_verdict
+    from studies.claims import count_verdict
 
     assert count_verdict(n_ok, n) == kind
 
@@ -484,7 +487,7 @@ def test_count_verdicts(n_ok, n, kind):
 def test_published_claims_follow_their_criteria(results):
     """The Table 4 claim, recomputed here from the stored runs and the published CSV."""
     from reports.data import Results
-    from reports.summary import REL_PCT, count_verdict, published_claims
+    from studies.claims import REL_PCT, count_verdict, published_claims
     from studies.paper import load
 
     r = Results(results)
@@ -495,8 +498,8 @@ def test_published_claims_follow_their_criteria(results):
     n_ok = 0
     for _, p in paper.iterrows():
         for model in ("hybmss", "hybmss-fd"):
-            m = rows[(rows["scene_experiment"] == "shear") & (rows["method"] == f"{model} static")
-                     & np.isclose(rows["scene_nu"], p["nu"]) & np.isclose(rows["scene_deformation"], p["deformation"])
+            m = rows[(rows["experiment"] == "shear") & (rows["method"] == f"{model} static")
+                     & np.isclose(rows["nu"], p["nu"]) & np.isclose(rows["deformation"], p["deformation"])
                      & (rows["status"] == "ok")]
             n_ok += len(m) > 0 and abs(float(m["force_x"].iloc[0]) / p[model] - 1) <= REL_PCT / 100
     assert t4.verdict == count_verdict(n_ok, 4)
@@ -511,8 +514,8 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
     each ratio within ±50 %."""
     from reports.data import Results
     from reports.findings import performance_sentence
-    from reports.summary import REPRODUCED, claims, headline
     from reports.tables import performance_short
+    from studies.claims import REPRODUCED, claims, headline
 
     r = Results(results)
     perf = [c for c in claims(r, headline(r)) if c.statement.startswith("Per step")]
@@ -562,8 +565,8 @@ def test_beam_figure_skips_beams_without_stored_centre_lines(tmp_path):
                            "u_y": -0.01 * z ** 2})
     theory = pd.DataFrame({"mesh": "4x4x24", "E": 1e7, "z": z, "u_y": -0.011 * z ** 2})
     rows = pd.DataFrame({"key": ["a" * 24, "b" * 24], "method": ["hybmss static", "hybmss static"],
-                         "scene_mesh": ["4x4x24", "1x1x6"], "scene_E": [1e7, 1e7], "scene_nu": 0.25,
-                         "scene_rho": 1000.0, "scene_gravity": 10.0, "study": ["bending", "pareto"]})
+                         "mesh": ["4x4x24", "1x1x6"], "E": [1e7, 1e7], "nu": 0.25,
+                         "rho": 1000.0, "gravity": 10.0, "study": ["bending", "pareto"]})
 
     class _Results:
         def find(self, experiment):
@@ -593,3 +596,23 @@ def test_exports_are_made_here_when_the_forked_process_fails(results, tmp_path, 
     assert res.warnings == []
     assert res.vtu == len(list((tmp_path / "vtu").glob("*.vtu"))) > 0
     assert any(p.name.startswith("render_") for p in (tmp_path / "figures").glob("*.png"))
+
+
+def test_the_report_prints_the_claims_the_studies_judged(report, results):
+    """``tables/claims.csv`` is what the studies judge from the stored results (recomputed here
+    from the same folder) and the summary page prints its rows, verdicts included, as stored:
+    the report formats, it does not decide."""
+    from studies.claims import CLAIMS_COLUMNS, claims, headline
+    from studies.results import Results
+
+    res, _ = report
+    r = Results(results)
+    stored = r.table("claims")
+    assert list(stored.columns) == CLAIMS_COLUMNS
+    again = [c.row() for c in claims(r, headline(r))]
+    assert [(c["claim"], c["verdict"], c["evidence"]) for c in again] == \
+        list(zip(stored["claim"], stored["verdict"], stored["evidence"].fillna("")))
+    counted = stored.dropna(subset=["rows_counted"])
+    assert (counted["rows_within"] <= counted["rows_counted"]).all() and len(counted) >= len(stored) - 3
+    printed = [row for tid, t in sorted(res.tables.items()) if tid.startswith("table_claims") for row in t.rows]
+    assert sorted((row[0][0], row[2][0]) for row in printed) == sorted(zip(stored["claim"], stored["verdict"]))

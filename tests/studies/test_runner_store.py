@@ -135,7 +135,7 @@ def test_rows_are_strict_json_and_keep_their_nan(tmp_path):
     store = Store(tmp_path)
     key = "a" * 24
     row = {"status": "ok", "x": float("nan"), "y": float("inf"), "z": -np.inf, "w": np.float64(2.5),
-           "info": {"r": float("nan"), "s": "text"}, "scene_A": None}
+           "info": {"r": float("nan"), "s": "text"}, "A": None}
     store.save(key, row, {"u": np.arange(3.0)})
     text = (store.runs / f"{key}.json").read_text()
     loads(text)  # strict: NaN and Infinity are rejected by the parser
@@ -143,7 +143,7 @@ def test_rows_are_strict_json_and_keep_their_nan(tmp_path):
     assert stored["x"] is None and stored["y"] is None and stored["info"]["r"] is None
     back = store.row(key)
     assert np.isnan(back["x"]) and back["y"] == np.inf and back["z"] == -np.inf
-    assert np.isnan(back["info"]["r"]) and back["scene_A"] is None and back["w"] == 2.5
+    assert np.isnan(back["info"]["r"]) and back["A"] is None and back["w"] == 2.5
     with pytest.raises(ValueError):
         loads('{"a": NaN}')
     assert "NaN" not in dumps({"a": float("nan")})
@@ -280,3 +280,24 @@ def test_sweep_starts_with_its_longest_runs():
     long = [k for k in by_time if MEASURED_S[k] >= 30.0]
     assert set(by_cost[:len(long)]) == set(long)
     assert by_time[0] in by_cost[:2] and by_time[1] in by_cost[:3]
+
+
+def test_a_row_keeps_its_scene_under_the_specifications_own_names(base):
+    """A stored run records its scene as :meth:`SceneSpec.to_dict` names it (no ``scene_``
+    prefix), lists those fields, and the scene it records rebuilds the very scene that was run
+    (same digest); the tables name the same quantities the same way."""
+    from studies.tables import spec_of
+
+    root, tabs = base
+    store = Store(root)
+    for task in tiny_tasks():
+        row = store.row(task.key())
+        scene = task.scene.to_dict()
+        assert {k: row[k] for k in scene} == scene
+        assert row["scene_fields"].split() == list(scene)
+        assert not [k for k in row if k.startswith("scene_") and k != "scene_fields"]
+        assert spec_of(row).build().digest() == task.scene.build().digest()
+        assert row["solver_iterations"] >= 1 and "iterations" not in row or "iterations" in scene
+    assert set(Results(root).scene_columns()) == {k for t in tiny_tasks() for k in t.scene.to_dict()}
+    assert {"mesh", "nu", "deformation"} <= set(tabs["volume"].columns)
+    assert {"experiment", "mesh", "nu", "E", "deformation", "angle_deg"} <= set(tabs["differences"].columns)

@@ -1,6 +1,7 @@
 """Each decision of the harness is written once: the Poisson-ratio range, the nearly
-incompressible threshold that picks the mixed FEM element, the speed-against-error budgets and the
-strict-JSON walker.  Each check below looks for a second copy in the packages' code (docstrings aside) and
+incompressible threshold that picks the mixed FEM element, the speed-against-error budgets, the
+strict-JSON walker, and the criteria of the publication's claims (in the studies, not the
+report).  Each check below looks for a second copy in the packages' code (docstrings aside) and
 then checks that the users of the one home agree with it."""
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ def _hits(pattern: str, root: Path = ROOT) -> list[str]:
      ["hybmss/scene.py"]),
     ("the error budgets", r"^\s*BUDGETS\s*=", ["studies/pareto.py"]),
     ("the strict-JSON walker", r"^def strict\(", ["studies/store.py"]),
+    ("the claims' criteria", r"^(E_MODULI_TOL|E_FEM_PP|INCOMPRESSIBLE_E_PCT|PAPER_PP|REL_PCT|MIDDLE_LAYER_TOL)\s*=",
+     ["studies/claims.py"]),
 ])
 def test_a_decision_has_one_home(what, pattern, home):
     assert sorted({h.split(":")[0] for h in _hits(pattern)}) == home, what
