@@ -7,11 +7,12 @@ ARTIFACTS ?= artifacts
 export MPLBACKEND := Agg
 export PYVISTA_OFF_SCREEN := true
 
-.PHONY: help venv test bench reproduce-paper studies report clean
+.PHONY: help venv test test-fast bench reproduce-paper studies report clean
 
 help:
 	@echo "make reproduce-paper  create .venv, run the publication's studies, write artifacts/report"
 	@echo "make test             create .venv if needed and run the test suite"
+	@echo "make test-fast        the suite without the tests marked slow (day-to-day work)"
 	@echo "make bench            speed benchmarks (explicit kernels, static solver, FEM references; asv suite)"
 	@echo "make report           rebuild the report from stored results only"
 
@@ -25,6 +26,9 @@ venv: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q --durations=15
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow" --durations=10
 
 # hybmss bench: f64 and f32 per-10k-step times of every model on 10³ and 30³, one and two threads,
 # with the load average and the ratios of one run; then the asv suite once on the 10³ cube

@@ -118,7 +118,8 @@ def test_kinetic_energy_of_a_rigid_translation(model, kernel):
 
 def test_implicit_kinetic_energy_of_a_prescribed_translation():
     """Every particle of a 2×1×1 bar lies on one of two plates translating by s(t) d: after step n
-    the body moves rigidly at (s(t_n) − s(t_{n−1})) d/dt, kinetic energy ½ M that²; no strain."""
+    the body moves rigidly at (s(t_n) − s(t_{n−1})) d/dt, kinetic energy ½ M that²; no strain, no
+    change of volume."""
     d = np.array([0.02, -0.01, 0.03])
     T, dt, n = 1.0, 0.1, 3
     motion = Motion("translate", tuple(d))
@@ -133,6 +134,7 @@ def test_implicit_kinetic_energy_of_a_prescribed_translation():
     M = 1000.0 * sc.body.volume
     assert r.energy["kinetic"] == pytest.approx(0.5 * M * v @ v, rel=1e-12)
     assert abs(r.energy["springs"]) <= 1e-20
+    assert r.volume == pytest.approx(sc.body.volume, rel=1e-12) and abs(r.volume_change) <= 1e-12
 
 
 # ------------------------------------------------------------------------------ stored energy
