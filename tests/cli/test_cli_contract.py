@@ -232,6 +232,7 @@ def test_refused_before_work(i, refused_runs):
     assert list(cwd.iterdir()) == []  # nothing written: refused before any work
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("i", SCRIPT_SUBSET, ids=[" ".join(REFUSED[i][0]) or "(none)" for i in SCRIPT_SUBSET])
 def test_refused_by_the_real_command(i, scripted_runs, refused_runs):
     proc, cwd = scripted_runs[i]
@@ -267,7 +268,8 @@ DIGEST_CASES = {
 }
 
 
-@pytest.mark.parametrize("experiment", list(DIGEST_CASES))
+@pytest.mark.parametrize("experiment", [e if e == "compression" else pytest.param(e, marks=pytest.mark.slow)
+                                        for e in DIGEST_CASES])
 def test_fem_and_compare_solve_the_same_scene(experiment):
     args = DIGEST_CASES[experiment]
     fem = check(hybmss("fem", "--scene", experiment, *args, "--json"), 0)
@@ -285,6 +287,7 @@ def test_fem_and_compare_solve_the_same_scene(experiment):
         assert u == pytest.approx(0.03 * 5.0)
 
 
+@pytest.mark.slow
 def test_scene_json_solves_the_stored_scene(tmp_path):
     from studies.scenes import SceneSpec
 
@@ -295,6 +298,7 @@ def test_scene_json_solves_the_stored_scene(tmp_path):
     assert out["scene_digest"] == scene.digest() and out["solver"] == "fem-hex1-linear"
 
 
+@pytest.mark.slow
 def test_fem_convergence_and_text_output():
     out = check(hybmss("fem", "--scene", "tension", "--mesh", "1x1x2", "--element", "hex1",
                        "--convergence", "1,2", "--json"), 0)
@@ -314,6 +318,7 @@ def test_info_counts_without_building_arrays():
     assert out["springs"]["inner_diagonal"] == 4 * n**3
 
 
+@pytest.mark.slow
 def test_moduli_of_the_default_model():
     out = check(hybmss("moduli", "--nu", "0.3", "--json"), 0)
     # the calibration reproduces the input moduli exactly for every nu (README "Models")
@@ -328,12 +333,14 @@ def test_failed_simulation_exits_3():
     assert "diverged" in out["message"]
 
 
+@pytest.mark.slow
 def test_bench_quick():
     out = check(hybmss("bench", "--quick", "--steps", "10", "--json"), 0)
     assert {r["kernel"] for r in out["explicit"]} == {"numba", "numpy"} and out["static"]
     assert {r["mesh"] for r in out["explicit"] + out["static"]} == {"3x3x3"}  # a smoke run: the small cube
 
 
+@pytest.mark.slow
 def test_run_a_quick_study(tmp_path):
     out = check(hybmss("run", "--study", "bending", "--quick", "--jobs", "2", "--no-progress",
                        "--out", str(tmp_path / "res"), "--json"), 0)

@@ -69,6 +69,7 @@ def test_plugin_moduli_match_the_closed_form(plugin):
     assert _project_state() == before
 
 
+@pytest.mark.slow
 def test_plugin_in_compare_and_in_a_report(plugin, tmp_path):
     before = _project_state()
     out = json.loads(_hybmss(plugin, "compare", "compression", "--mesh", "2x2x2", "--model", "shear-springs",

@@ -34,7 +34,8 @@ def _terminal_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-@pytest.mark.parametrize("executor, signals", [("local", 2), ("dask", 1), ("local", "SIGTERM")])
+@pytest.mark.parametrize("executor, signals", [("local", 2), pytest.param("dask", 1, marks=pytest.mark.slow),
+                                               pytest.param("local", "SIGTERM", marks=pytest.mark.slow)])
 def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_path):
     """Ctrl-C (SIGINT to the process group, once or twice), or SIGTERM to the command alone (as
     `timeout` or a job scheduler sends it): the workers are stopped, finished runs kept."""
@@ -81,6 +82,7 @@ sys.exit(main(sys.argv[3:]))
 """The ``hybmss`` command (:func:`studies.cli.main`), started once the file ``argv[2]`` exists."""
 
 
+@pytest.mark.slow
 def test_two_run_processes_compute_each_run_once(tmp_path):
     """Both processes start their sweeps together (each waits, after its imports, for a go): the
     second cannot find every run computed by the first, however the machine schedules their

@@ -2,10 +2,12 @@
 baseline (studies/data/regression_baseline.csv) beyond its per-metric tolerances."""
 
 import pandas as pd
+import pytest
 
 from studies.regression import load_baseline, load_tolerances, measure, regressions, unbaselined
 
 
+@pytest.mark.slow
 def test_errors_do_not_regress():
     now = measure(jobs=1)
     problems = regressions(now, load_baseline(), load_tolerances())

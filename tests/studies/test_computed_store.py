@@ -143,6 +143,7 @@ def sleeper(item):
     return item
 
 
+@pytest.mark.slow
 def test_a_failure_in_the_pool_kills_the_other_workers_at_once():
     t0 = time.monotonic()
     with pytest.raises(ValueError, match="failed at once"):

@@ -143,6 +143,7 @@ def _pdf_pages(data: bytes) -> int:
     return n
 
 
+@pytest.mark.slow
 def test_html_parses_and_images_are_embedded_and_not_blank(report):
     from PIL import Image
 
@@ -160,6 +161,7 @@ def test_html_parses_and_images_are_embedded_and_not_blank(report):
     assert not any(src.startswith(("http", "file:", "/")) for src in page.imgs)
 
 
+@pytest.mark.slow
 def test_every_table_has_its_rows(report, results):
     res, _ = report
     page = _parse(res.html)
@@ -186,6 +188,7 @@ def test_every_table_has_its_rows(report, results):
     assert "table_pareto" not in page.tables and "table_stability" not in page.tables
 
 
+@pytest.mark.slow
 def test_pdf_pages_and_text(report):
     res, out = report
     data = (out / "report.pdf").read_bytes()
@@ -205,6 +208,7 @@ def test_pdf_pages_and_text(report):
     assert "runs" not in anchors
 
 
+@pytest.mark.slow
 def test_vtu_files_open_with_fields(report, results):
     import meshio
 
@@ -218,6 +222,7 @@ def test_vtu_files_open_with_fields(report, results):
     assert np.all(np.isfinite(dv)) and np.abs(dv).max() < 0.5
 
 
+@pytest.mark.slow
 def test_summary_derives_verdicts_from_the_data(results):
     from reports.data import Results
     from studies.claims import REPRODUCED, claims, headline
@@ -233,6 +238,7 @@ def test_summary_derives_verdicts_from_the_data(results):
     assert comp["paper_mss"] == pytest.approx(3.17) and comp["fem"] > 0
 
 
+@pytest.mark.slow
 def test_rebuild_reuses_cached_figures(report, results, monkeypatch):
     """A rebuild from unchanged results and drawing code copies the cached figures: drawing them
     again would fail here."""
@@ -292,6 +298,7 @@ def test_unknown_model_is_not_coloured_as_another():
     assert palette.family("hybmss static") == palette.OTHER  # outside the block: no stored styles
 
 
+@pytest.mark.slow
 def test_the_command_reads_results_only(report, results):
     """``python -m reports build`` in a fresh interpreter: no solver module is imported."""
     import subprocess
@@ -330,6 +337,7 @@ def _visible_text(html: str) -> str:
     return " ".join(p.parts)
 
 
+@pytest.mark.slow
 def test_new_tables_have_their_rows_and_published_columns(report):
     from studies.paper import load
 
@@ -368,6 +376,7 @@ def test_new_tables_have_their_rows_and_published_columns(report):
     assert all(float(r[ours][0]) > 0 for r in b.rows if r[ours][0] not in ("–",) and not r[ours][0].startswith("failed"))
 
 
+@pytest.mark.slow
 def test_no_nan_reaches_a_reader(report):
     res, _ = report
     text = _visible_text(res.html.read_text(encoding="utf-8"))
@@ -375,6 +384,7 @@ def test_no_nan_reaches_a_reader(report):
     assert not re.search(r"\bnan\b", " ".join(res.page_text), re.I)
 
 
+@pytest.mark.slow
 def test_no_study_section_prints_a_stored_table(report):
     from reports.build import STUDY_SECTIONS
 
@@ -388,6 +398,7 @@ def test_no_study_section_prints_a_stored_table(report):
     assert "study_performance" in printed and "table_b09" in printed  # the sections and their short tables are
 
 
+@pytest.mark.slow
 def test_every_printed_table_fits_one_page(report):
     res, _ = report
     norm = [" ".join(t.split()) for t in res.page_text]
@@ -411,6 +422,7 @@ def test_printed_rows_are_capped():
     assert f"first {PRINT_ROWS} of these {PRINT_ROWS + 7} rows" in t.caption
 
 
+@pytest.mark.slow
 def test_a_failed_run_reads_failed_with_its_reason(report):
     res, _ = report
     t = res.tables["table_explicit"]
@@ -484,6 +496,7 @@ def test_count_verdicts(n_ok, n, kind):
     assert count_verdict(n_ok, n) == kind
 
 
+@pytest.mark.slow
 def test_published_claims_follow_their_criteria(results):
     """The Table 4 claim, recomputed here from the stored runs and the published CSV."""
     from reports.data import Results
@@ -508,6 +521,7 @@ def test_published_claims_follow_their_criteria(results):
     assert b09.evidence.startswith(("0 of 2", "1 of 2", "2 of 2"))
 
 
+@pytest.mark.slow
 def test_performance_claim_and_short_table_come_from_the_stored_summary(results):
     """The [G20] time-ratio claim reads the ratios the performance study joined with the
     publication's (cf / fd 1.4 and hybmss / fd 2.1), names the baseline as stored, and judges
@@ -586,6 +600,7 @@ def test_beam_figure_skips_beams_without_stored_centre_lines(tmp_path):
     assert h < w  # one row of panels (4x4x24), not a second for the 1x1x6 beam without curves
 
 
+@pytest.mark.slow
 def test_exports_are_made_here_when_the_forked_process_fails(results, tmp_path, monkeypatch):
     """The VTU files and renders come from a forked process; one that dies without a result
     leaves them to the building process: the same files, no warning."""

@@ -51,6 +51,7 @@ def cluster():
     c.close()
 
 
+@pytest.mark.slow
 def test_dask_and_local_store_the_same_runs(cluster, tmp_path):
     c, _ = cluster
     tasks = small_tasks()
@@ -87,6 +88,7 @@ def worker_running(client, task: Task):
     return next((w for w, keys in client.processing().items() if key in keys), None)
 
 
+@pytest.mark.slow
 def test_a_killed_worker_loses_nothing(cluster, tmp_path):
     """One worker is killed (SIGKILL) while it computes a run: the scheduler resubmits the run,
     the sweep finishes, every run is computed and stored once and every file is intact.  The run

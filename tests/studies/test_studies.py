@@ -35,7 +35,7 @@ PAPER_MESH = {
 }
 
 
-@pytest.mark.parametrize("experiment", list(PAPER_MESH))
+@pytest.mark.parametrize("experiment", [e if e == "tension" else pytest.param(e, marks=pytest.mark.slow) for e in PAPER_MESH])
 def test_hybmss_matches_fem_at_quarter_on_publication_meshes(experiment):
     """At 5 % (torsion 1°) and ν = 1/4: volume change within 0.2 percentage points of the linear
     Hex2 FEM and plate reaction (force or torque) within 3 %."""
@@ -47,6 +47,7 @@ def test_hybmss_matches_fem_at_quarter_on_publication_meshes(experiment):
     assert mss[column] == pytest.approx(fem[column], rel=0.03)
 
 
+@pytest.mark.slow
 def test_bending_tip_converges_toward_fem():
     ref_spec = SceneSpec.default("bending", mesh=(2, 2, 12), E=1e7, nu=0.25, gravity=10.0)
     ref = measure(ref_spec, solve(Task(ref_spec, SolverSpec("fem", element="hex2", law="neo-hookean"))))
@@ -75,6 +76,7 @@ def test_runner_resumes_and_reports_failures(tmp_path):
     assert not list(store.runs.glob("*.tmp"))
 
 
+@pytest.mark.slow
 def test_quick_study_writes_tables(tmp_path):
     run_studies(tmp_path, names=["shear"], quick=True, jobs=1, progress=False)
     tables = {p.stem for p in (tmp_path / "tables").glob("*.csv")}
@@ -82,6 +84,7 @@ def test_quick_study_writes_tables(tmp_path):
     assert len(tasks_for(["shear"], quick=True)) == len(list((tmp_path / "runs").glob("*.json")))
 
 
+@pytest.mark.slow
 def test_tables_do_not_change_with_other_runs_in_the_folder(tmp_path):
     """The study tables are built from the studies' own runs: a run of another study stored in
     the same folder (here a shear scene on another mesh, as the speed-against-error study stores)

@@ -51,6 +51,7 @@ def test_divergence_is_a_row_not_an_exception(tmp_path):
     assert "dt_crit" in row["message"] and "exceeds" in row["message"]
 
 
+@pytest.mark.slow
 def test_pareto_table_covers_every_experiment(tmp_path):
     tables = pareto.run(Store(tmp_path), quick=True, jobs=2, progress=False)
     df = tables["pareto"]
@@ -112,6 +113,7 @@ def test_irregular_scenes_build():
         assert S.n > 0 and (~S.fixed).any(), name
 
 
+@pytest.mark.slow
 def test_performance_quick_table():
     df, bw = performance.run_performance(quick=True, steps=20, repeats=1, threads=(1,), min_span=0.0,
                                          bandwidth_MB=16)

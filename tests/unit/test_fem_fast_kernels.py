@@ -66,7 +66,7 @@ def test_shared_kinematics_same_bits(law, tangent):
 
 
 @pytest.mark.parametrize("law", LAWS)
-@pytest.mark.parametrize("element,nu", [("hex2", 0.25), ("mixed", 0.49)])
+@pytest.mark.parametrize("element,nu", [("hex2", 0.25), pytest.param("mixed", 0.49, marks=pytest.mark.slow)])
 def test_adaptive_newton_same_answer(law, element, nu):
     """Hex2: AMG with inexact solves; mixed: direct with chord steps.  The reference is the
     plain scheme (equal increments, linearized predictor, exact direct solves)."""
@@ -90,6 +90,7 @@ def test_adaptive_newton_same_answer(law, element, nu):
         assert np.abs(new.p - ref.p).max() <= 1e-8 * np.abs(ref.p).max()
 
 
+@pytest.mark.slow
 def test_energy_line_search_cantilever_same_answer():
     """A soft cantilever under its weight (large rotations, where the line search takes the
     potential energy as its merit): the adaptive scheme reaches the equilibrium of ten equal
@@ -106,6 +107,7 @@ def test_energy_line_search_cantilever_same_answer():
     assert np.abs(new.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
 
 
+@pytest.mark.slow
 def test_whole_load_step_kept_while_converging_fast(monkeypatch):
     """[G20]'s bending beam (1×1×6 cells, E = 10 MPa, Hex2): the whole-load Newton step runs out
     of its OPTIMISTIC_MAXITER iterations with the residual falling ~6,000-fold per iteration.  It

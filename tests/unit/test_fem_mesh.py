@@ -64,7 +64,7 @@ def test_vector_dof_layout_matches_skfem(element):
         assert np.allclose(vb.doflocs[:, c::3].T, space.points)
 
 
-@pytest.mark.parametrize("element,order", [("hex1", 3), ("hex2", 5)])
+@pytest.mark.parametrize("element,order", [("hex1", 3), pytest.param("hex2", 5, marks=pytest.mark.slow)])
 def test_assembly_equals_skfem_forms(element, order):
     """K_λ, K_μ and a tangent with the linear-elastic A equal scikit-fem BilinearForms."""
     fm = build_mesh(l_shape(), 1)

@@ -94,7 +94,7 @@ CASES = {
 }
 
 
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("case", [c if c == "compression" else pytest.param(c, marks=pytest.mark.slow) for c in CASES])
 def test_reused_factorizations_same_equilibrium(case):
     body, element, nu, motion, g, E = CASES[case]
     sc = _box_scene(body, nu, motion, g, E)

@@ -109,12 +109,13 @@ def _assert_same(r_nb, r_np):
     assert abs(r_nb.energy["kinetic"] - r_np.energy["kinetic"]) <= 1e-9 * ke
 
 
-@pytest.mark.parametrize("name", list(CASES))
+@pytest.mark.parametrize("name", [c if c == "hybmss" else pytest.param(c, marks=pytest.mark.slow) for c in CASES])
 def test_numba_and_numpy_give_the_same_trajectory(name):
     r_nb, r_np = _run_both(CASES[name])
     _assert_same(r_nb, r_np)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["gravity-rotate", "l-shape", "baudet2009"])
 def test_two_threads_give_the_same_trajectory(name):
     """Each thread recomputes the halo below its node range: the arithmetic per node is the same
@@ -167,6 +168,7 @@ def test_warm_up_steps_do_not_change_the_run(threads):
         simulate_explicit(scene, warm_up=-1.0, **kw)
 
 
+@pytest.mark.slow
 def test_float32_displacements_follow_float64():
     """The 10³ compression cube at ν = 0.499 (volume term on), 10,000 steps of 1 ms: the float32
     kernel (displacements u = x − X) stays within 1e-5 of the largest displacement of float64."""
@@ -183,7 +185,7 @@ def test_float32_displacements_follow_float64():
     assert r32.info["precision"] == "f32"
 
 
-@pytest.mark.parametrize("precision, threads", [("f64", 1), ("f32", 2)])
+@pytest.mark.parametrize("precision, threads", [("f64", 1), pytest.param("f32", 2, marks=pytest.mark.slow)])
 def test_generated_kernel_vectorizes_sqrt_and_division(precision, threads):
     """Load-independent evidence of speed: the function that runs the steps (``run`` on one
     thread, ``thread`` on several: a step body per buffer parity) has every square root and
@@ -234,6 +236,7 @@ def test_numba_kernel_refuses_unknown_forces():
     assert np.all(np.isfinite(r.u))
 
 
+@pytest.mark.slow
 def test_bench_rows_and_table():
     from hybmss.bench import format_bench, run_bench, static_cases
 
@@ -280,6 +283,7 @@ def test_bench_fits_the_steps_to_the_time_and_says_what_a_model_refuses():
     assert "not run: corot-hex8 3x3x3 f64 2 thr" in format_bench(d)
 
 
+@pytest.mark.slow
 def test_bench_times_one_configuration_from_the_command_line():
     import json
     import subprocess
@@ -293,6 +297,7 @@ def test_bench_times_one_configuration_from_the_command_line():
     assert (row["model"], row["mesh"], row["precision"], row["threads"], row["steps"]) == ("hybmss-cf", "3x3x3", "f32", 1, 10)
 
 
+@pytest.mark.slow
 def test_two_threads_in_float32_equal_one_thread_bit_for_bit():
     scene = _scene("hybmss", 0.45, body=Body.box(4, 3, 5, 0.5), plates="rotate", E=1e6, gravity=(0, 0, -10))
     system = build(scene)
@@ -305,6 +310,7 @@ def test_two_threads_in_float32_equal_one_thread_bit_for_bit():
     assert np.abs(r1.u).max() > 0 and np.array_equal(r1.u, r2.u)
 
 
+@pytest.mark.slow
 def test_threads_that_cannot_run_at_once_give_up_and_restore_the_state():
     """A thread whose partner never comes gives up at the barrier after its spin limit, the state
     is restored and the run goes on one parallel region per step, to the same positions."""
@@ -323,6 +329,7 @@ def test_threads_that_cannot_run_at_once_give_up_and_restore_the_state():
     assert np.array_equal(st.state()[0], one.state()[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("threads", [1, 2])
 def test_shared_helpers_compile_once_for_every_lattice(threads, tmp_path, monkeypatch):
     """The generated kernels pass their lattice's constants to the shared helpers (plates,

@@ -26,7 +26,7 @@ def _random_state(S, amplitude=0.01, seed=0):
     return S.X + amplitude * rng.standard_normal(S.X.shape)
 
 
-@pytest.mark.parametrize("nu", [0.0, 0.3, 0.49])
+@pytest.mark.parametrize("nu", [pytest.param(0.0, marks=pytest.mark.slow), 0.3, pytest.param(0.49, marks=pytest.mark.slow)])
 def test_numba_twin_agrees_with_numpy(nu):
     S = _voxel_system(nu)
     x = _random_state(S)
@@ -167,6 +167,7 @@ def test_equilibrium_never_accepts_an_inverted_lattice():
     assert 0.0 < abs(r.volume_change) < 0.3
 
 
+@pytest.mark.slow
 def test_study_driver_writes_its_tables(tmp_path):
     from studies.baudet import run
     from studies.store import Store

@@ -230,6 +230,7 @@ def _f32_against_f64(model: str):
     return float(np.abs(a.u - b.u).max() / np.abs(a.u).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["corot-hex8", "xpbd-nh"])
 def test_float32_state_stays_within_1e_5_of_float64_after_10000_steps(model):
     """The float32 mode stores displacements (the MSS's float32 layout): its only error is the

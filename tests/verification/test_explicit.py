@@ -119,7 +119,7 @@ def _l_shape_scene():
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
-@pytest.mark.parametrize("shape", ["cube", "l-shape"])
+@pytest.mark.parametrize("shape", ["cube", pytest.param("l-shape", marks=pytest.mark.slow)])
 def test_run_beyond_the_stability_limit_raises_naming_step_and_particle(kernel, shape):
     scene = _clamped_cube(3, 0.3) if shape == "cube" else _l_shape_scene()
     system = build(scene)
@@ -195,6 +195,7 @@ def _final_velocity(scene, system, r, dt, steps, kernel, x0, v0, dc):
 
 
 # ------------------------------------------------------------------------- damping, plates
+@pytest.mark.slow
 def test_damped_run_settles_to_the_static_equilibrium():
     """6×6×6 cube, bottom clamped, top pushed down 20 %.  With mass-proportional damping c every
     mode decays at least as exp(−min(c/2, ω²/c)·t); c = 2 ω_min gives the rate ω_min for all modes,
@@ -232,6 +233,7 @@ def test_damped_run_settles_to_the_static_equilibrium():
     assert r.reactions["top"].force[2] < 0 < r.reactions["bottom"].force[2]
 
 
+@pytest.mark.slow
 def test_ramp_law_and_result_fields():
     assert ramp(0.0, 2.0) == 0.0 and ramp(1.0, 2.0) == pytest.approx(0.5) and ramp(2.0, 2.0) == 1.0
     assert ramp(0.3, 0.0) == 1.0

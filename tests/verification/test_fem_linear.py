@@ -110,6 +110,7 @@ def timoshenko_tip(E, nu, rho, g):
     return q * BEAM_L**4 / (8 * E * I) + q * BEAM_L**2 / (2 * kappa * G * A)
 
 
+@pytest.mark.slow
 def test_cantilever_hex2_converges_to_timoshenko():
     """Hex2 tip deflection converges monotonically, at an order set by the clamp's edge
     singularity (≈ 2α with α ∈ (0.6, 1): between 1.2 and 2.2, below the smooth-case 3 or 4),

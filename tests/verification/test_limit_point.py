@@ -38,6 +38,7 @@ def _lambda_min(scene, r):
     return float(np.linalg.eigvalsh(H)[0])
 
 
+@pytest.mark.slow
 def test_lost_equilibrium_is_bracketed_to_the_stated_resolution():
     p = _failure(_scene(D))
     s_lo, s_hi = p["s_last"], p["s_fail"]

@@ -87,6 +87,7 @@ def test_implicit_euler_settles_to_static_equilibrium():
     assert np.abs(r.u - ref.u).max() <= 1e-6 * 1.5
 
 
+@pytest.mark.slow
 def test_damped_explicit_dynamics_settles_to_the_static_equilibrium():
     """20 % compression of a 6×6×6 cube: damped symplectic Euler from rest ends at the Newton
     equilibrium within 1e-4 of the side."""
@@ -196,6 +197,7 @@ def test_nearly_incompressible_large_compression_reaches_the_continuation_equili
     assert np.abs(r.u - ref.u).max() <= 1e-6 * np.abs(ref.u).max()
 
 
+@pytest.mark.slow
 def test_smallest_eigenvalue_of_a_saddle_deep_in_the_spectrum():
     """hybmss-fd's symmetric 5 % compression of a 7³ cube is a saddle whose negative eigenvalues
     (−206, −199 N/m) lie far below the shift-invert's first shift, nearer to a positive one

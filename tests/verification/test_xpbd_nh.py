@@ -68,7 +68,7 @@ def test_lame_map_gives_the_material_at_small_strain(nu):
     assert (mu, lam) == pytest.approx((mat.G, mat.lam + mat.G)) and gamma == pytest.approx(1 + mu / lam)
 
 
-@pytest.mark.parametrize("coupled", [True, False])
+@pytest.mark.parametrize("coupled", [True, pytest.param(False, marks=pytest.mark.slow)])
 def test_numba_kernel_matches_numpy_twin_over_100_substeps(coupled):
     H = 1.0
     scene = Scene(Body.box(2, 2, 2, 0.5), Material(E, 0.3, 1000.0), HOST,
