@@ -613,6 +613,7 @@ def test_exports_are_made_here_when_the_forked_process_fails(results, tmp_path, 
     assert any(p.name.startswith("render_") for p in (tmp_path / "figures").glob("*.png"))
 
 
+@pytest.mark.slow
 def test_the_report_prints_the_claims_the_studies_judged(report, results):
     """``tables/claims.csv`` is what the studies judge from the stored results (recomputed here
     from the same folder) and the summary page prints its rows, verdicts included, as stored:
