@@ -50,7 +50,7 @@ def _run(kind: str, model: str, **params):
 
 
 @pytest.mark.parametrize("kind", ["static", "explicit"])
-@pytest.mark.parametrize("model", ["corot-hex8", "corot-hex8-sri", "xpbd-nh", "hybmss"])
+@pytest.mark.parametrize("model", ["corot-hex8", "corot-hex8-sri", "xpbd-nh", "hybmss", "baudet2009"])
 def test_the_clamp_carries_the_whole_weight_at_rest(model, kind):
     """Σ of the clamp's reaction = ρ g V (the clamped particles' own weight included: without it the
     reaction is short by a quarter here), and its torque about the clamp's centroid c balances the
