@@ -545,3 +545,136 @@ def parse_mesh(text: str) -> tuple[int, int, int]:
     if len(dims) != 3 or min(dims) < 1:
         raise ValueError(f"mesh must be three positive integers NXxNYxNZ, got {text!r}")
     return dims  # type: ignore[return-value]
+
+
+# --------------------------------------------------------------------------------------------
+# Checking a scene read from a file
+# --------------------------------------------------------------------------------------------
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _numbers(n: int | None, integer: bool = False):
+    def ok(v):
+        return (isinstance(v, list) and (n is None or len(v) == n) and (n is not None or len(v) > 0)
+                and all(_number(x) and (not integer or float(x) == int(x)) for x in v))
+    what = f"a list of {n if n is not None else 'one or more'} {'integers' if integer else 'numbers'}"
+    return ok, what
+
+
+_NUMBER = (_number, "a number")
+_TEXT = (lambda v: isinstance(v, str), "a string")
+_VEC3 = _numbers(3)
+_REGION = {"face": (lambda v: v is None or isinstance(v, str), "a face name (x-, ..., z+) or null"),
+           "lo": (lambda v: v is None or _VEC3[0](v), "3 numbers or null"),
+           "hi": (lambda v: v is None or _VEC3[0](v), "3 numbers or null")}
+_SCENE_SCHEMA = {
+    "body": ({"shape": _numbers(3, integer=True), "le": _NUMBER, "origin": _VEC3, "mask_hex": _TEXT},
+             ("shape", "le")),
+    "material": ({"E": _NUMBER, "nu": _NUMBER, "rho": _NUMBER}, ("E", "nu")),
+    "model": None,  # its name and the model's own parameters (plain values)
+    "plates": ([{"name": _TEXT, "region": (_REGION, ()),
+                 "motion": ({"kind": _TEXT, "displacement": _VEC3, "angle": _NUMBER, "axis": _VEC3,
+                             "center": (lambda v: v is None or _VEC3[0](v), "3 numbers or null"),
+                             "components": _numbers(None, integer=True),
+                             "gradient": (lambda v: v is None or _numbers(9)[0](v), "9 numbers or null")}, ())},
+                ("name", "region", "motion")], ()),
+    "gravity": _VEC3,
+    "damping": _NUMBER,
+    "name": _TEXT,
+    "loads": ([{"region": (_REGION, ()), "traction": _VEC3}, ("region", "traction")], ()),
+}
+
+
+def scene_dict_error(d) -> str | None:
+    """Why ``d`` is not the JSON form of a scene (:meth:`Scene.to_dict`): the first unknown or
+    missing field or value of the wrong type, with its path (``plates[0].motion.angle``); ``None``
+    if every field has its type.  A value nested deeper than a scene's fields is a wrong type, so
+    the check never recurses further than the schema (a scene's values are checked by the
+    constructors)."""
+    def walk(value, schema, path):
+        if isinstance(schema, tuple) and len(schema) == 2 and isinstance(schema[0], dict):
+            fields, required = schema
+            if not isinstance(value, dict):
+                return f"{path or 'the file'}: expected an object, got {_kind(value)}"
+            for k in value:
+                if k not in fields:
+                    return f"{path + '.' if path else ''}{k}: not a field (allowed: {', '.join(fields)})"
+            for k in required:
+                if k not in value:
+                    return f"{path + '.' if path else ''}{k}: missing"
+            for k, v in value.items():
+                if fields[k] is None:
+                    continue
+                err = walk(v, fields[k], f"{path + '.' if path else ''}{k}")
+                if err:
+                    return err
+            return None
+        if isinstance(schema, tuple) and len(schema) == 2 and isinstance(schema[0], list):
+            (item, required), _ = schema[0], schema[1]
+            if not isinstance(value, list):
+                return f"{path}: expected a list, got {_kind(value)}"
+            for i, v in enumerate(value):
+                err = walk(v, (item, required), f"{path}[{i}]")
+                if err:
+                    return err
+            return None
+        ok, what = schema
+        return None if ok(value) else f"{path}: expected {what}, got {_kind(value)}"
+
+    err = walk(d, (_SCENE_SCHEMA, ("body", "material", "model")), "")
+    if err:
+        return err
+    model = d["model"]
+    if not isinstance(model, dict) or not isinstance(model.get("name"), str):
+        return "model: expected an object with a model name, got " + _kind(model)
+    for k, v in model.items():
+        if not (v is None or isinstance(v, (str, bool)) or _number(v)):
+            return f"model.{k}: expected a number, true/false, a string or null, got {_kind(v)}"
+    return None
+
+
+def _kind(v) -> str:
+    if isinstance(v, (dict, list)):
+        return f"a JSON {'object' if isinstance(v, dict) else 'list'}"
+    return f"{json.dumps(v)[:40]}"
+
+
+PLATE_PATH_SAMPLES = 65
+"""Load factors at which :func:`plates_cross` compares the plates' positions (0 to 1)."""
+
+
+def plates_cross(scene: Scene) -> str | None:
+    """Why the plates of ``scene`` would pass through each other (``None`` if they do not): two
+    plates prescribing the same component whose particles lie, at rest, wholly on either side of a
+    coordinate plane, and whose prescribed motions bring the first to or past the second at a load
+    factor s in [0, 1] (a top plate pushed below a clamped floor: a body compressed through itself,
+    which no material law can answer)."""
+    body = scene.body
+    m = body.mask
+    corners = np.zeros(tuple(n + 1 for n in body.shape), dtype=bool)
+    for di in (0, 1):
+        for dj in (0, 1):
+            for dk in (0, 1):
+                corners[di:di + m.shape[0], dj:dj + m.shape[1], dk:dk + m.shape[2]] |= m
+    X = np.asarray(body.origin) + np.argwhere(corners) * body.le
+    held = [(p, X[p.region.select(X, body)]) for p in scene.plates]
+    held = [(p, Xp) for p, Xp in held if len(Xp)]
+    tol = 1e-9 * body.le
+    for a, Xa in held:
+        for b, Xb in held:
+            if a is b:
+                continue
+            for k in range(3):
+                if not (a.motion.constrained[k] and b.motion.constrained[k]):
+                    continue
+                if Xa[:, k].min() <= Xb[:, k].max() + tol:  # not wholly above b along k
+                    continue
+                for s in np.linspace(0.0, 1.0, PLATE_PATH_SAMPLES)[1:]:
+                    top = (Xa + a.motion.displacement_at(Xa, s))[:, k].min()
+                    floor = (Xb + b.motion.displacement_at(Xb, s))[:, k].max()
+                    if top <= floor + tol:
+                        return (f"plate {a.name!r} reaches plate {b.name!r} along {'xyz'[k]} at load factor "
+                                f"{s:.3g} (gap {top - floor + 0:.3g} m of {Xa[:, k].min() - Xb[:, k].max():.3g} "
+                                "m at rest): the body would be pressed through itself")
+    return None

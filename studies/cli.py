@@ -14,6 +14,7 @@ defaults from :class:`studies.runner.SolverSpec`.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
@@ -25,7 +26,7 @@ import warnings
 from hybmss.experiments import DEFAULTS, SceneSpec, field_default
 from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, parse_mesh
 
-from . import commands
+from . import commands, sizing
 from .executors import EXECUTORS
 from .store import strict
 from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices, \
@@ -41,9 +42,9 @@ exit status and output:
   0  a result; with --json exactly one JSON object on stdout (strict JSON: null, never NaN
      or Infinity).
   2  the input is not allowed: one line on stderr naming the parameter, its value and the
-     allowed range, checked before any work starts (a size guard refuses meshes and
-     refinements whose estimated memory does not fit this machine and says how much
-     they would need).
+     allowed range, checked before any work starts (a size and time guard refuses what
+     would not fit this machine's memory or would run over an hour, says how much it
+     would need, and lets --no-guard insist).
   3  the input was valid but the simulation failed (diverged, lost equilibrium, Newton did
      not converge, inverted cells): one line on stderr with the cause and a likely remedy;
      with --json also one JSON object with "status" and "message" on stdout.
@@ -263,6 +264,11 @@ def build_parser() -> tuple[Parser, Options]:
         q.set_defaults(func=func)
         return q
 
+    def no_guard(q):
+        opts.add(q, "--no-guard", action="store_true",
+                 help="run even when the estimated memory does not fit this machine or the estimated time "
+                      f"is over {sizing.duration(sizing.TIME_LIMIT_S)} (studies/sizing.py)")
+
     q = command("info", "lattice counts of a scene's body (SPEC Table 6)", commands.info)
     opts.add(q, "--scene", choices=SCENES, default="compression", help="scene whose body is counted "
              "(default compression)")
@@ -273,6 +279,7 @@ def build_parser() -> tuple[Parser, Options]:
     add_model_options(q, opts)
     opts.add(q, "--strain", type=number, default=DEFAULTS["uniaxial"]["deformation"],
              help=f"test strain (allowed [1e-06, 0.01]; default {DEFAULTS['uniaxial']['deformation']:g})")
+    no_guard(q)
 
     q = command("bench", "speed of the explicit kernels and the static solver", commands.bench)
     opts.add(q, "--steps", type=positive_int, default=None,
@@ -283,6 +290,7 @@ def build_parser() -> tuple[Parser, Options]:
              help="threads of one timed configuration (integer >= 1; default 1)")
     opts.add(q, "--precision", choices=("f64", "f32"), default=None,
              help="precision of one timed configuration (default f64)")
+    no_guard(q)
 
     q = command("fem", "FEM reference (scikit-fem) of one scene", commands.fem)
     opts.add(q, "--scene", choices=SCENES, default=None, help="experiment (default compression)")
@@ -297,6 +305,7 @@ def build_parser() -> tuple[Parser, Options]:
              help="linear solver (default auto: direct below a size or separator, AMG-CG above)")
     opts.add(q, "--convergence", type=refinements, default=None, metavar="R1,R2[,R3]",
              help="solve on these refinements; report observed order and Richardson errors")
+    no_guard(q)
 
     q = command("compare", "one scene on the mass-spring system and the FEM reference, side by side",
                 commands.compare)
@@ -305,6 +314,7 @@ def build_parser() -> tuple[Parser, Options]:
     add_model_options(q, opts)
     add_mss_options(q, opts)
     add_fem_options(q, opts)
+    no_guard(q)
 
     q = command("run", "run the publication's studies and store their results", commands.run)
     opts.add(q, "--study", action="append", default=None, choices=commands.study_names(),
@@ -335,6 +345,32 @@ def _one_line(text: str) -> str:
 
 
 # ------------------------------------------------------------------------------- main
+@contextlib.contextmanager
+def stdout_to_stderr(out):
+    """While a command runs, what it prints (progress lines, notices) goes to stderr, so that stdout
+    holds its result alone.  When ``out`` is the process's own stdout, its file descriptor is
+    pointed at stderr too, so the worker processes a command starts print there as well."""
+    fd = saved = None
+    if out is sys.__stdout__:
+        try:
+            fd, err_fd = out.fileno(), sys.stderr.fileno()
+            out.flush()
+            saved = os.dup(fd)
+            os.dup2(err_fd, fd)
+        except (OSError, ValueError, AttributeError):  # no file descriptors (an embedding host)
+            fd = saved = None
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        if saved is not None:
+            try:
+                sys.stderr.flush()
+            finally:
+                os.dup2(saved, fd)
+                os.close(saved)
+
+
 def _flag_in(argv, name: str) -> bool:
     head = argv[:argv.index("--")] if "--" in argv else argv
     return name in head
@@ -358,12 +394,13 @@ def main(argv=None) -> int:
     try:
         parser, opts = build_parser()
         args = parser.parse_args(opts.join_values(argv))
-        if debug:
-            obj, text = args.func(args)
-        else:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("default")
+        with stdout_to_stderr(out):
+            if debug:
                 obj, text = args.func(args)
+            else:
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("default")
+                    obj, text = args.func(args)
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
     except (InputError, ValueError) as exc:

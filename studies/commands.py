@@ -18,7 +18,7 @@ import time
 
 from hybmss import models
 from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
-from hybmss.scene import Material, Model, Scene
+from hybmss.scene import Material, Model, Scene, plates_cross, scene_dict_error
 
 from . import roles, sizing
 from .compare import default_law, diff_metrics
@@ -101,10 +101,26 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = T
         raise InputError(f"model {given.get('model') or models.default_name()}: {exc}") from None
 
 
-def guard(est: sizing.Estimate, what: str, estimate=None) -> None:
-    """Refuse a run whose estimated memory does not fit this machine."""
+def guard(est: sizing.Estimate, what: str, estimate=None, args=None) -> None:
+    """Refuse a run whose estimated memory does not fit this machine or whose estimated time is
+    over :data:`studies.sizing.TIME_LIMIT_S`, unless ``args.no_guard``."""
+    if getattr(args, "no_guard", False):
+        return
     if not sizing.fits(est):
         raise InputError(f"{what} is too large: {sizing.refusal(est, estimate)}")
+    if not sizing.in_time(est):
+        raise InputError(f"{what} is too long: {sizing.refusal(est)}")
+
+
+def _work_flags(args) -> str:
+    """The given model options that set a run's work (:func:`_work`), as flags."""
+    return "".join(f" {flag(n)} {show(getattr(args, n))}" for n in ("iterations", "substeps")
+                   if getattr(args, n, None) is not None)
+
+
+def _work(args, solver: str) -> float:
+    """:func:`studies.sizing.model_work` of the model parameters given on the command line."""
+    return sizing.model_work({n: getattr(args, n, None) for n in ("iterations", "substeps")}, solver)
 
 
 def _settings(spec: SceneSpec | None, shape, refine=None) -> str:
@@ -163,7 +179,7 @@ def info(args):
 
 # ------------------------------------------------------------------------------- moduli
 def moduli(args):
-    from hybmss.moduli import measure_moduli
+    from hybmss.moduli import MeasurementError, measure_moduli
 
     given = given_scene_options(args)
     base = SceneSpec("uniaxial")
@@ -174,10 +190,13 @@ def moduli(args):
         mat = Material(**mat_p)
     except TypeError as exc:
         raise InputError(f"model {name}: {exc}") from None
-    m = measure_moduli(model, mat, strain=args.strain)
-    bad = [k for k, v in m.items() if isinstance(v, float) and not math.isfinite(v)]
-    if bad:
-        raise SolveFailure(f"the moduli tests gave non-finite {', '.join(bad)}; try a smaller --strain")
+    # two uniaxial tests of a 2³ cube and a shear test of a 3³ one
+    guard(sizing.total("moduli tests", [sizing.mss((3, 3, 3), "static", work=_work(args, "static"))] * 3),
+          f"--model {name}{_work_flags(args)}", args=args)
+    try:
+        m = measure_moduli(model, mat, strain=args.strain, judge=True)
+    except MeasurementError as exc:
+        raise SolveFailure(str(exc)) from None
     G = mat.G
     extra = "".join(f", {k} = {v}" for k, v in model.to_dict().items() if k != "name")
     table = "\n".join([
@@ -191,13 +210,26 @@ def moduli(args):
 
 # ------------------------------------------------------------------------------- bench
 def bench(args):
-    from hybmss.bench import MESH, NU, format_bench, run_bench, time_config
+    from hybmss.bench import MAX_STEPS, MESH, MESHES, NU, QUICK_MESH, default_variants, format_bench, run_bench, \
+        time_config
 
     one = {k: getattr(args, k, None) for k in ("model", "nu", "mesh", "threads", "precision")}
+    steps = args.steps or MAX_STEPS  # without --steps a configuration runs what fits in 0.5 s
+    repeats = 1 if args.quick else 3
+    if any(v is not None for v in one.values()):
+        mesh = one["mesh"] or MESH
+        est = sizing.total("timed configuration", [sizing.mss(mesh, "explicit", steps)] * repeats)
+        guard(est, _settings(None, mesh) + (f" --steps {args.steps}" if args.steps else ""),
+              lambda shape: sizing.mss(shape, "explicit", steps), args)
+    else:  # every variant, four configurations a mesh
+        meshes = (QUICK_MESH,) if args.quick else MESHES
+        n = len(default_variants()) * (1 if args.quick else 4) * repeats
+        guard(sizing.total("benchmark", [sizing.mss(m, "explicit", steps) for m in meshes for _ in range(n)]),
+              f"--steps {steps}", args=args)
     if any(v is not None for v in one.values()):  # time one configuration
         row = time_config(model=one["model"], nu=NU if one["nu"] is None else one["nu"],
                           mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
-                          precision=one["precision"] or "f64", steps=args.steps, repeats=1 if args.quick else 3)
+                          precision=one["precision"] or "f64", steps=args.steps, repeats=repeats)
         d = {"explicit": [row], "static": []}
     else:
         d = run_bench(steps=args.steps, quick=args.quick, static_models=roles.in_role("performance"))
@@ -206,25 +238,37 @@ def bench(args):
 
 # ------------------------------------------------------------------------------- fem
 def load_scene(path: str) -> Scene:
-    """The Scene stored in the JSON file ``path``."""
+    """The Scene stored in the JSON file ``path``, checked as thoroughly as the command-line options:
+    strict JSON, every field known and of its type (:func:`hybmss.scene.scene_dict_error`), every
+    value in its range (the constructors)."""
+    def refuse(why: str):
+        return InputError(f"--scene-json = {path} is not allowed: {' '.join(str(why).split())}; allowed: a "
+                          "Scene JSON object (Scene.to_dict)")
+
     try:
-        with open(path) as fh:
-            data = json.load(fh)
+        with open(path, "rb") as fh:
+            data = json.loads(fh.read().decode("utf-8"), parse_constant=_not_strict)
     except OSError as exc:
         raise InputError(f"--scene-json = {path} is not allowed: cannot read it ({exc.strerror}); "
                          "allowed: a readable Scene JSON file") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"--scene-json = {path} is not allowed: not JSON ({exc}); allowed: a Scene JSON "
-                         "object (Scene.to_dict)") from None
+    except RecursionError:
+        raise refuse("nested too deeply to be a scene") from None
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError and NaN/Infinity are ValueErrors
+        raise refuse(f"not strict JSON ({exc})") from None
     if not isinstance(data, dict):
-        raise InputError(f"--scene-json = {path} is not allowed: it holds a JSON {type(data).__name__}; "
-                         "allowed: a Scene JSON object (Scene.to_dict)")
+        raise refuse(f"it holds a JSON {type(data).__name__}")
+    why = scene_dict_error(data)
+    if why:
+        raise refuse(f"not a scene ({why})")
     try:
         return Scene.from_dict(data)
-    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+    except (KeyError, TypeError, AttributeError, ValueError, RecursionError) as exc:
         what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
-        raise InputError(f"--scene-json = {path} is not allowed: not a scene ({what}); allowed: a Scene "
-                         "JSON object (Scene.to_dict)") from None
+        raise refuse(f"not a scene ({what})") from None
+
+
+def _not_strict(name):
+    raise ValueError(f"{name} is not a number in strict JSON")
 
 
 def format_fem(res) -> str:
@@ -260,7 +304,12 @@ def fem(args):
     nu = scene.material.nu
     for r in args.convergence or (refine,):
         guard(sizing.fem(scene.body.shape, args.element, r, law, nu), _settings(spec, scene.body.shape, r),
-              lambda shape, r=r: sizing.fem(shape, args.element, r, law, nu))
+              lambda shape, r=r: sizing.fem(shape, args.element, r, law, nu), args)
+    if args.scene_json:
+        why = plates_cross(scene)
+        if why:
+            raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}; allowed: plates that "
+                             "do not cross")
 
     from fem_reference.solve import solve as fem_solve
 
@@ -322,10 +371,12 @@ def compare(args):
     refine = SOLVER_DEFAULTS["refine"] if args.refine is None else args.refine
     mss_solver = SolverSpec(kind=args.solver, **dyn)
     fem_solver = SolverSpec(kind="fem", element=args.element, law=law, refine=refine)
-    guard(sizing.mss(spec.mesh, args.solver, dyn["steps"]), _settings(spec, spec.mesh),
-          lambda shape: sizing.mss(shape, args.solver, dyn["steps"]))
+    work = _work(args, args.solver)
+    steps = f" --steps {dyn['steps']}" if args.solver != "static" else ""
+    guard(sizing.mss(spec.mesh, args.solver, dyn["steps"], work), _settings(spec, spec.mesh) + steps + _work_flags(args),
+          lambda shape: sizing.mss(shape, args.solver, dyn["steps"], work), args)
     guard(sizing.fem(spec.mesh, args.element, refine, law, spec.nu), _settings(spec, spec.mesh, refine),
-          lambda shape: sizing.fem(shape, args.element, refine, law, spec.nu))
+          lambda shape: sizing.fem(shape, args.element, refine, law, spec.nu), args)
     scene = spec.build()
     t0 = time.perf_counter()
     mss = solve(Task(spec, mss_solver))

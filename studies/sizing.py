@@ -1,7 +1,8 @@
 """Memory and time a solve would need, estimated from the mesh before it starts.
 
 The command line refuses a run whose estimated peak memory exceeds :data:`MEMORY_FRACTION` of
-this machine's physical memory, and says how much it would need.  The estimates are fits to
+this machine's physical memory or whose estimated time exceeds :data:`TIME_LIMIT_S` (an hour),
+and says how much it would need (``--no-guard`` runs it anyway).  The estimates are fits to
 measured peak resident sizes and wall times of 5 % compressions of a cube (2 cores, load ≈ 2):
 
 - mass-spring static solve (Newton, sparse LU of the Hessian): 15³ particles 0.34 GB, 3.3 s;
@@ -29,6 +30,9 @@ BASE_BYTES = 150e6
 MEMORY_FRACTION = 0.8
 """Share of the physical memory a single run may plan to use."""
 
+TIME_LIMIT_S = 3600.0
+"""Estimated wall time above which a command refuses to start (an hour)."""
+
 
 def machine_memory() -> int:
     """Physical memory of this machine, bytes."""
@@ -52,14 +56,15 @@ def particles(shape) -> int:
     return (nx + 1) * (ny + 1) * (nz + 1)
 
 
-def mss(shape, solver: str = "static", steps: int = 10_000) -> Estimate:
-    """A mass-spring solve of a box of ``shape`` cells (an upper bound for a voxel body in it)."""
+def mss(shape, solver: str = "static", steps: int = 10_000, work: float = 1.0) -> Estimate:
+    """A mass-spring solve of a box of ``shape`` cells (an upper bound for a voxel body in it);
+    ``work`` multiplies the time (a model's sweeps per step: :func:`model_work`)."""
     P = float(particles(shape))
     if solver == "explicit":
-        return Estimate("mass-spring explicit run", BASE_BYTES + 2e3 * P, 13.0 * P * steps * 5e-9)
+        return Estimate("mass-spring explicit run", BASE_BYTES + 2e3 * P, 13.0 * P * steps * 5e-9 * work)
     ref = P / 9261.0
     bytes_ = BASE_BYTES + 120e3 * P * math.sqrt(ref)
-    seconds = 20.0 * ref**1.8
+    seconds = 20.0 * ref**1.8 * work
     if solver == "implicit":
         return Estimate("mass-spring implicit run", bytes_, seconds / 5.0 * steps)
     return Estimate("mass-spring static solve", bytes_, seconds)
@@ -84,12 +89,35 @@ def fem(shape, element: str = "hex2", refine: int = 1, law: str = "linear", nu: 
     return Estimate(f"FEM solve ({int(D):,} dofs)", BASE_BYTES + per_dof * D, seconds)
 
 
+def model_work(params: dict, solver: str = "static") -> float:
+    """How many times its default work per step a model's parameters ask for: the projection
+    sweeps per substep (``iterations``) and, in an explicit run, the substeps per frame over the
+    default 10 (``substeps``; 0 is the automatic choice).  1 for a model without them."""
+    work = max(1.0, float(params.get("iterations") or 1))
+    if solver == "explicit":
+        work *= max(1.0, float(params.get("substeps") or 0) / 10.0)
+    return work
+
+
+def total(what: str, estimates) -> Estimate:
+    """Runs one after the other: the largest memory, the sum of the times."""
+    estimates = list(estimates)
+    return Estimate(what, max((e.bytes for e in estimates), default=BASE_BYTES),
+                    sum(e.seconds for e in estimates))
+
+
 def limit() -> float:
     return MEMORY_FRACTION * machine_memory()
 
 
 def fits(est: Estimate) -> bool:
+    """True if the estimated memory fits this machine (:data:`MEMORY_FRACTION`)."""
     return est.bytes <= limit()
+
+
+def in_time(est: Estimate) -> bool:
+    """True if the estimated time is within :data:`TIME_LIMIT_S`."""
+    return est.seconds <= TIME_LIMIT_S
 
 
 def size(b: float) -> str:
@@ -122,9 +150,12 @@ def largest_cube(estimate) -> int:
 def refusal(est: Estimate, estimate=None) -> str:
     """The one-line reason a run of this estimate is refused."""
     cube = ""
+    if fits(est) and not in_time(est):
+        return (f"the {est.what} would take about {duration(est.seconds)} (and about {size(est.bytes)} of "
+                f"memory); allowed: up to {duration(TIME_LIMIT_S)} (--no-guard runs it anyway)")
     if estimate is not None:
         n = largest_cube(estimate)
         cube = f" (a cube of at most {n}^3 cells at these settings)" if n else " (no mesh fits at these settings)"
     return (f"the {est.what} would need about {size(est.bytes)} of memory and about {duration(est.seconds)}; "
             f"allowed: up to {size(limit())} ({MEMORY_FRACTION:.0%} of this machine's {size(machine_memory())})"
-            f"{cube}")
+            f"{cube} (--no-guard runs it anyway)")
