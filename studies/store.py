@@ -6,9 +6,11 @@ and a change to a solver invalidates exactly the runs it could change.  Files ar
 temporary name in the same folder and renamed (``os.replace`` is atomic on POSIX).
 
 Rows are strict JSON (a non-finite number is stored as ``null``).  A row names its key and
-carries the SHA-256 of its arrays (:func:`arrays_digest`), so a truncated or empty row, a row
-without its key, a truncated NPZ or an NPZ of another run is detected (:meth:`Store.check`);
-the runner moves such a run aside (``damaged/``) and computes it again.  The same holds for the
+carries the SHA-256 of its arrays (:func:`arrays_digest`) and of itself (:func:`row_digest`), so a
+truncated, empty, unparseable or too deeply nested row, a row without its key, a row with a value
+of the wrong type or edited by hand (its code version included), a truncated NPZ or an NPZ of
+another run is detected (:meth:`Store.check`); the runner moves such a run aside (``damaged/``,
+with the reason) and computes it again, and the report leaves it out and says so.  The same holds for the
 results a study computes outside runs (a bisection, a table of its own): ``computed/<name>/<key>.json``,
 keyed by the job and the code version, with the SHA-256 of the result beside it
 (:meth:`Store.save_computed`, :func:`studies.executors.map_stored`).  A process claims a run
@@ -228,6 +230,29 @@ class Claim:
 
 ARRAYS_FIELD = "arrays_sha256"
 NONFINITE_FIELD = "nonfinite"
+ROW_FIELD = "row_sha256"
+"""Field of a row holding the SHA-256 of the rest of it (:func:`row_digest`)."""
+NONFINITE_VALUES = ("nan", "inf", "-inf")
+
+
+def row_digest(row: dict) -> str:
+    """SHA-256 of a stored row's strict-JSON values without its :data:`ROW_FIELD`: keys sorted,
+    no spaces (independent of the file's indentation)."""
+    body = {k: v for k, v in row.items() if k != ROW_FIELD}
+    return _sha256(json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False))
+
+
+def row_problem(row: dict) -> str | None:
+    """Why a parsed row (checksum verified) cannot be read as a run record: a field of the
+    wrong type; ``None`` if it can."""
+    for field, kinds in (("key", str), ("status", str), (ARRAYS_FIELD, (str, type(None))),
+                         ("info", (dict, type(None))), (NONFINITE_FIELD, (dict, type(None)))):
+        if field in row and not isinstance(row[field], kinds):
+            return f"{field!r} holds a {type(row[field]).__name__}"
+    for path, text in (row.get(NONFINITE_FIELD) or {}).items():
+        if text not in NONFINITE_VALUES:
+            return f"{NONFINITE_FIELD!r} maps {path!r} to {text!r}, not one of {', '.join(NONFINITE_VALUES)}"
+    return None
 
 
 def _nonfinite(row: dict) -> dict:
@@ -329,7 +354,9 @@ class Store:
             self.runs.mkdir(parents=True, exist_ok=True)
             (self.runs / f"{key}.npz").unlink(missing_ok=True)
         # the JSON row is written last: its presence means the run is complete
-        text = dumps(row)
+        plain = loads(dumps(row))
+        plain[ROW_FIELD] = row_digest(plain)
+        text = dumps(plain)
         atomic_write_text(self.runs / f"{key}.json", text)
         return _restore_nonfinite(loads(text))
 
@@ -347,14 +374,27 @@ class Store:
         try:
             row = loads(text)
         except ValueError as exc:  # json.JSONDecodeError is a ValueError
-            raise DamagedRun(key, path, f"not valid JSON ({exc})") from None
+            raise DamagedRun(key, path, f"not valid JSON ({' '.join(str(exc).split())[:200]})") from None
+        except RecursionError:
+            raise DamagedRun(key, path, "nested too deeply to be a run record") from None
         if not isinstance(row, dict) or not row:
             raise DamagedRun(key, path, "not a run record (empty or not an object)")
         if row.get("key") != key:
-            raise DamagedRun(key, path, f"names key {row.get('key')!r}, not its own")
+            raise DamagedRun(key, path, f"names key {str(row.get('key'))[:80]!r}, not its own")
         for field in ("status", ARRAYS_FIELD):
             if field not in row:
                 raise DamagedRun(key, path, f"no {field!r} field (incomplete or an older store format)")
+        if ROW_FIELD not in row and is_current(row):
+            raise DamagedRun(key, path, f"no {ROW_FIELD!r} field (incomplete or an older store format)")
+        try:  # a row of older code, stored before rows had checksums, has none
+            same = ROW_FIELD not in row or row_digest(row) == row[ROW_FIELD]
+        except (ValueError, TypeError, RecursionError):
+            same = False
+        if not same:
+            raise DamagedRun(key, path, "the row does not match its checksum (edited or altered)")
+        why = row_problem(row)
+        if why:
+            raise DamagedRun(key, path, f"not a run record ({why})")
         return _restore_nonfinite(row)
 
     def _load_arrays(self, key: str, row: dict) -> dict:
@@ -374,9 +414,15 @@ class Store:
         return arrays
 
     def check(self, key: str) -> dict | None:
-        """The verified row of a stored run, ``None`` if not stored; raises :class:`DamagedRun`."""
+        """The verified row of a stored run of the current code (the runner's keys are made with
+        it), ``None`` if not stored; raises :class:`DamagedRun` (a row recording another code
+        version at such a key is one: it would be left out of every table and never recomputed)."""
         row = self._load_row(key)
         if row is not None:
+            if not is_current(row):
+                raise DamagedRun(key, self.runs / f"{key}.json",
+                                 f"records code version {str(row.get(CODE_FIELD))[:40]!r}, not the current one "
+                                 "its key was made with")
             self._load_arrays(key, row)
         return row
 
@@ -461,12 +507,21 @@ class Store:
         try:
             doc = loads(text)
         except ValueError as exc:
-            raise DamagedRun(key, path, f"not valid JSON ({exc})") from None
+            raise DamagedRun(key, path, f"not valid JSON ({' '.join(str(exc).split())[:200]})") from None
+        except RecursionError:
+            raise DamagedRun(key, path, "nested too deeply to be a stored result") from None
         if not isinstance(doc, dict) or doc.get("key") != key or doc.get("name") != name or "result" not in doc:
             raise DamagedRun(key, path, "not the result of this job (key, name or result missing)")
-        if _sha256(_ordered_json(doc["result"])) != doc.get("sha256"):
+        try:
+            same = _sha256(_ordered_json(doc["result"])) == doc.get("sha256")
+        except (ValueError, TypeError, RecursionError):
+            same = False
+        if not same:
             raise DamagedRun(key, path, "the result does not match its checksum (altered)")
-        return True, decode(doc["result"])
+        try:
+            return True, decode(doc["result"])
+        except (ValueError, TypeError, KeyError, AttributeError, RecursionError) as exc:
+            raise DamagedRun(key, path, f"not a stored result ({type(exc).__name__})") from None
 
     # ----------------------------------------------------------------- healing
     def quarantine(self, damaged: DamagedRun) -> Path:
