@@ -12,7 +12,9 @@ import base64
 import datetime as _dt
 import hashlib
 import json
+import os
 import shutil
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -173,8 +175,26 @@ class _Exports:
         return self.make()
 
 
+def check_out(out_dir) -> None:
+    """Raise ``NotADirectoryError``/``PermissionError`` (naming the folder) unless ``out_dir`` is,
+    or can be created as, a writable folder with writable ``figures/`` and ``.cache/``: checked
+    before any work."""
+    p = Path(out_dir).absolute()
+    for sub in (p, p / "figures", p / ".cache", p / "vtu"):
+        if sub.exists() and not sub.is_dir():
+            raise NotADirectoryError(f"--out {out_dir}: {sub} is a file; allowed: a writable folder")
+    probe = p
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    if not probe.is_dir():
+        raise NotADirectoryError(f"--out {out_dir}: {probe} is not a folder; allowed: a writable folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise PermissionError(f"--out {out_dir}: {probe} is not writable; allowed: a writable folder")
+
+
 def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> BuildResult:
     t0 = time.perf_counter()
+    check_out(out_dir)
     results = Results(results_dir)
     out = Path(out_dir)
     fig_dir = out / "figures"
@@ -203,7 +223,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     log(f"{len(vtu_files)} VTU files")
     log(f"{len(renders)} renders")
     for w in warnings:
-        print(f"warning: {w}", flush=True)
+        print(f"warning: {w}", file=sys.stderr, flush=True)
 
     ov = summary.overview(results)
     head = summary.headline(results)

@@ -97,6 +97,12 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = T
     except ParameterError as exc:
         raise InputError(f"{flag(exc.name)} = {show(exc.value)} is not allowed: "
                          f"{str(exc).split(': ', 1)[1]}") from None
+    except ValueError as exc:  # a model parameter the model does not have: "model X has no parameter 'A' ..."
+        text = str(exc)
+        if "has no parameter '" not in text:
+            raise
+        name = text.split("has no parameter '", 1)[1].split("'", 1)[0]
+        raise InputError(f"{flag(name)} = {show(given.get(name))} is not allowed: {text}") from None
     except TypeError as exc:  # a model parameter of the wrong kind
         raise InputError(f"model {given.get('model') or models.default_name()}: {exc}") from None
 
@@ -187,9 +193,13 @@ def moduli(args):
     mat_p = {k: given.pop(k, getattr(base, k)) for k in ("E", "nu", "rho")}
     try:
         model = Model(name, **given)  # a parameter the model does not have: exit 2
-        mat = Material(**mat_p)
     except TypeError as exc:
         raise InputError(f"model {name}: {exc}") from None
+    try:
+        mat = Material(**mat_p)
+    except ValueError as exc:  # "nu (Poisson ratio) must lie in ..."
+        field = str(exc).split(" ", 1)[0]
+        raise InputError(f"{flag(field)} = {show(mat_p.get(field))} is not allowed: {exc}") from None
     # two uniaxial tests of a 2³ cube and a shear test of a 3³ one
     guard(sizing.total("moduli tests", [sizing.mss((3, 3, 3), "static", work=_work(args, "static"))] * 3),
           f"--model {name}{_work_flags(args)}", args=args)
@@ -214,6 +224,11 @@ def bench(args):
         time_config
 
     one = {k: getattr(args, k, None) for k in ("model", "nu", "mesh", "threads", "precision")}
+    if one["nu"] is not None:
+        try:
+            Material(1e4, one["nu"])
+        except ValueError as exc:
+            raise InputError(f"--nu = {show(one['nu'])} is not allowed: {exc}") from None
     steps = args.steps or MAX_STEPS  # without --steps a configuration runs what fits in 0.5 s
     repeats = 1 if args.quick else 3
     if any(v is not None for v in one.values()):
@@ -425,6 +440,11 @@ def run(args):
                          "--all runs every study; give one or the other")
     if not str(args.out).strip():
         raise InputError("--out '' is not allowed: a results folder path is required")
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs = {args.jobs} is not allowed: an integer >= 1 (parallel runs), or none for all cores")
+    if args.scheduler is not None and args.executor != "dask":
+        raise InputError(f"--scheduler = {args.scheduler} is not allowed with --executor {args.executor}: a "
+                         "scheduler address needs --executor dask")
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
     main = threading.current_thread() is threading.main_thread()

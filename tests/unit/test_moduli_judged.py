@@ -1,0 +1,57 @@
+"""``measure_moduli(judge=True)`` (``hybmss moduli``) reports only measurements: states near an
+equilibrium and moduli a stable isotropic solid can have (E > 0, G > 0, −1 < ν < ½); anything
+else is a :class:`MeasurementError` with its cause (exit 3 on the command line)."""
+
+import pytest
+
+from hybmss.experiments import uniaxial_scene
+from hybmss.moduli import EQUILIBRIUM_TOL, MeasurementError, check_moduli, equilibrium_error, measure_moduli
+from hybmss.scene import Material, Model
+from hybmss.solvers import solve_static
+
+
+@pytest.mark.parametrize("m, bad", [
+    ({"E_eff": 700.0, "nu_eff": 1.09, "G_eff": 4e3}, "nu_eff"),   # the xpbd-nh --sequential answer
+    ({"E_eff": -1.0, "nu_eff": 0.3, "G_eff": 4e3}, "E_eff"),
+    ({"E_eff": 1e4, "nu_eff": 0.3, "G_eff": 0.0}, "G_eff"),
+    ({"E_eff": 1e4, "nu_eff": 0.5, "G_eff": 4e3}, "nu_eff"),
+    ({"E_eff": 1e4, "nu_eff": -1.0, "G_eff": 4e3}, "nu_eff"),
+    ({"E_eff": float("nan"), "nu_eff": 0.3, "G_eff": 4e3}, "E_eff"),
+])
+def test_moduli_outside_the_thermodynamic_bounds_are_refused(m, bad):
+    with pytest.raises(MeasurementError, match=bad):
+        check_moduli(m, "model")
+    ok = {"E_eff": 1e4, "nu_eff": 0.499, "G_eff": 3.3e3}
+    assert check_moduli(ok, "model") is ok
+
+
+def test_a_newton_equilibrium_has_no_net_force_on_free_particles():
+    """The criterion's zero: Newton's state of the uniaxial test balances to round-off (the free
+    particles' net force is ~1e-12 of the plate forces), far below the tolerance."""
+    scene = uniaxial_scene(Model("hybmss"), Material(1e4, 0.3), 1e-4, 2, 1.0)
+    assert equilibrium_error(scene, solve_static(scene)) < 1e-8 < EQUILIBRIUM_TOL
+
+
+def test_the_e_form_at_negative_nu_is_not_a_material():
+    """[G20] eq. 5.12's E-form at ν = −0.5 gives ν_eff ≈ 0.79 (> ½): measured, then refused;
+    unjudged (the studies' table, which marks it unstable) the same numbers come back."""
+    model, mat = Model("hybmss", e_form=True), Material(1e4, -0.5)
+    m = measure_moduli(model, mat)
+    assert m["nu_eff"] > 0.5
+    with pytest.raises(MeasurementError, match="nu_eff = 0.78"):
+        measure_moduli(model, mat, judge=True)
+    good = measure_moduli(Model("hybmss"), Material(1e4, 0.3), judge=True)
+    assert good["nu_eff"] == pytest.approx(0.3, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_a_relaxation_that_never_moved_is_not_a_measurement():
+    """xpbd-nh with 1e12 substeps: a substep of 1e-13 s projects nothing, the free particles
+    stay where the relaxation started (net force 100 % of the plate forces), and the unjudged
+    measurement is the starting guess (ν_eff ≈ 2e-5 for ν = 0.25)."""
+    model, mat = Model("xpbd-nh", substeps=10**12), Material(1e4, 0.25)
+    assert abs(measure_moduli(model, mat)["nu_eff"]) < 1e-3
+    with pytest.raises(MeasurementError, match="where it started"):
+        measure_moduli(model, mat, judge=True)
+    good = measure_moduli(Model("xpbd-nh"), mat, judge=True)
+    assert good["nu_eff"] == pytest.approx(0.25, abs=2e-3)
