@@ -602,7 +602,7 @@ def scene_dict_error(d) -> str | None:
                     return f"{path + '.' if path else ''}{k}: not a field (allowed: {', '.join(fields)})"
             for k in required:
                 if k not in value:
-                    return f"{path + '.' if path else ''}{k}: missing"
+                    return f"missing key {(path + '.' if path else '') + k!r}"
             for k, v in value.items():
                 if fields[k] is None:
                     continue

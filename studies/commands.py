@@ -269,7 +269,7 @@ def load_scene(path: str) -> Scene:
     except RecursionError:
         raise refuse("nested too deeply to be a scene") from None
     except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError and NaN/Infinity are ValueErrors
-        raise refuse(f"not strict JSON ({exc})") from None
+        raise refuse(f"not JSON ({exc})") from None
     if not isinstance(data, dict):
         raise refuse(f"it holds a JSON {type(data).__name__}")
     why = scene_dict_error(data)
@@ -441,10 +441,10 @@ def run(args):
     if not str(args.out).strip():
         raise InputError("--out '' is not allowed: a results folder path is required")
     if args.jobs is not None and args.jobs < 1:
-        raise InputError(f"--jobs = {args.jobs} is not allowed: an integer >= 1 (parallel runs), or none for all cores")
+        raise InputError(f"--jobs {args.jobs} is not allowed: an integer >= 1 (parallel runs), or none for all cores")
     if args.scheduler is not None and args.executor != "dask":
-        raise InputError(f"--scheduler = {args.scheduler} is not allowed with --executor {args.executor}: a "
-                         "scheduler address needs --executor dask")
+        raise InputError(f"--scheduler {args.scheduler!r} is given with --executor {args.executor}; a scheduler "
+                         "address needs executor dask")
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
     main = threading.current_thread() is threading.main_thread()

@@ -358,7 +358,8 @@ class Store:
         plain[ROW_FIELD] = row_digest(plain)
         text = dumps(plain)
         atomic_write_text(self.runs / f"{key}.json", text)
-        return _restore_nonfinite(loads(text))
+        del plain[ROW_FIELD]
+        return _restore_nonfinite(loads(dumps(plain)))
 
     # ----------------------------------------------------------------- reading
     def _load_row(self, key: str) -> dict | None:
@@ -395,6 +396,7 @@ class Store:
         why = row_problem(row)
         if why:
             raise DamagedRun(key, path, f"not a run record ({why})")
+        row.pop(ROW_FIELD, None)  # verified: a detail of the file, not a field of the run
         return _restore_nonfinite(row)
 
     def _load_arrays(self, key: str, row: dict) -> dict:
