@@ -396,6 +396,14 @@ def compare(args):
     t0 = time.perf_counter()
     mss = solve(Task(spec, mss_solver))
     check_result(mss, f"mass-spring {args.solver} solve")
+    if args.solver == "static" and not scene.has_gravity and not scene.loads:
+        from hybmss.moduli import EQUILIBRIUM_TOL, equilibrium_error
+
+        err = equilibrium_error(scene, mss)  # a relaxation that stopped where it started is no answer
+        if not err <= EQUILIBRIUM_TOL:
+            raise SolveFailure(f"the mass-spring static solve ({mss.solver}) stopped away from equilibrium: net "
+                               f"forces on free particles {100 * err:.3g} % of the plate forces (allowed <= "
+                               f"{100 * EQUILIBRIUM_TOL:g} %); check the model's parameters (substeps, iterations)")
     fem_res = solve(Task(spec, fem_solver))
     check_result(fem_res, "FEM solve")
     d = diff_metrics(mss.X, mss.u, fem_res.u)

@@ -55,3 +55,15 @@ def test_a_relaxation_that_never_moved_is_not_a_measurement():
         measure_moduli(model, mat, judge=True)
     good = measure_moduli(Model("xpbd-nh"), mat, judge=True)
     assert good["nu_eff"] == pytest.approx(0.25, abs=2e-3)
+
+
+@pytest.mark.slow
+def test_compare_refuses_a_static_answer_that_never_moved():
+    """The same criterion in ``hybmss compare``: xpbd-nh's relaxation with 1e12 substeps ends
+    where it started (exit 3); with its default substeps it is an answer (exit 0)."""
+    from conftest import run_cli
+
+    args = ("compare", "compression", "--mesh", "2x2x2", "--element", "hex1", "--model", "xpbd-nh")
+    bad = run_cli(*args, "--substeps", "1000000000000")
+    assert bad.returncode == 3 and "stopped away from equilibrium" in bad.stderr
+    assert run_cli(*args).returncode == 0
