@@ -220,8 +220,18 @@ def moduli(args):
 
 # ------------------------------------------------------------------------------- bench
 def bench(args):
-    from hybmss.bench import MAX_STEPS, MESH, MESHES, NU, QUICK_MESH, default_variants, format_bench, run_bench, \
-        time_config
+    from hybmss.bench import MAX_STEPS, MESH, MESHES, MIN_STEPS, NU, PROBE_STEPS, QUICK_MESH, QUICK_TARGET_S, \
+        TARGET_S, default_variants, format_bench, run_bench, time_config
+
+    def timed(mesh) -> sizing.Estimate:
+        """One timed run: ``--steps``, or the steps that fit the target time (at least MIN_STEPS)
+        after a probe, as :mod:`hybmss.bench` chooses them."""
+        if args.steps:
+            return sizing.mss(mesh, "explicit", args.steps)
+        per_step = sizing.mss(mesh, "explicit", 1).seconds
+        target = QUICK_TARGET_S if args.quick else TARGET_S
+        n = min(MAX_STEPS, max(MIN_STEPS, int(target / per_step))) + PROBE_STEPS
+        return sizing.mss(mesh, "explicit", n)
 
     one = {k: getattr(args, k, None) for k in ("model", "nu", "mesh", "threads", "precision")}
     if one["nu"] is not None:
@@ -229,18 +239,16 @@ def bench(args):
             Material(1e4, one["nu"])
         except ValueError as exc:
             raise InputError(f"--nu = {show(one['nu'])} is not allowed: {exc}") from None
-    steps = args.steps or MAX_STEPS  # without --steps a configuration runs what fits in 0.5 s
     repeats = 1 if args.quick else 3
     if any(v is not None for v in one.values()):
         mesh = one["mesh"] or MESH
-        est = sizing.total("timed configuration", [sizing.mss(mesh, "explicit", steps)] * repeats)
-        guard(est, _settings(None, mesh) + (f" --steps {args.steps}" if args.steps else ""),
-              lambda shape: sizing.mss(shape, "explicit", steps), args)
+        est = sizing.total("timed configuration", [timed(mesh)] * repeats)
+        guard(est, _settings(None, mesh) + (f" --steps {args.steps}" if args.steps else ""), timed, args)
     else:  # every variant, four configurations a mesh
         meshes = (QUICK_MESH,) if args.quick else MESHES
         n = len(default_variants()) * (1 if args.quick else 4) * repeats
-        guard(sizing.total("benchmark", [sizing.mss(m, "explicit", steps) for m in meshes for _ in range(n)]),
-              f"--steps {steps}", args=args)
+        guard(sizing.total("benchmark", [timed(m) for m in meshes for _ in range(n)]),
+              f"--steps {args.steps}" if args.steps else "bench", args=args)
     if any(v is not None for v in one.values()):  # time one configuration
         row = time_config(model=one["model"], nu=NU if one["nu"] is None else one["nu"],
                           mesh=one["mesh"] or MESH, threads=one["threads"] or 1,

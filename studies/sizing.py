@@ -10,7 +10,10 @@ measured peak resident sizes and wall times of 5 % compressions of a cube (2 cor
 - FEM Hex2, linear law: 14,739 dofs 0.43 GB, 3.1 s; 46,875 dofs 0.93 GB, 12.6 s (by refinement
   or by mesh alike) — about 22 kB per dof, time as dofs^1.3; finite-strain laws repeat the solve
   over load steps and Newton iterations;
-- explicit dynamics: arrays only, about 2 kB per particle, ≈ 5 ns per spring and step.
+- explicit dynamics: ≈ 5 ns per spring and step; peak memory of a timed run of the stencil kernel
+  (``hybmss bench``, 20 steps) 0.85, 4.9 and 16.0 GB on 30³, 60³ and 90³ cells: about 21 kB per
+  particle (2 kB, the arrays alone, was assumed before: a 200³ run it let through was killed for
+  want of memory at 22.7 GB).
 
 They are meant to tell a run that fits from one that is off by orders of magnitude, not to
 predict to the percent.
@@ -61,7 +64,7 @@ def mss(shape, solver: str = "static", steps: int = 10_000, work: float = 1.0) -
     ``work`` multiplies the time (a model's sweeps per step: :func:`model_work`)."""
     P = float(particles(shape))
     if solver == "explicit":
-        return Estimate("mass-spring explicit run", BASE_BYTES + 2e3 * P, 13.0 * P * steps * 5e-9 * work)
+        return Estimate("mass-spring explicit run", BASE_BYTES + 21e3 * P, 13.0 * P * steps * 5e-9 * work)
     ref = P / 9261.0
     bytes_ = BASE_BYTES + 120e3 * P * math.sqrt(ref)
     seconds = 20.0 * ref**1.8 * work

@@ -70,6 +70,7 @@ CASES = [
     # ---------------------------------------------------------------- bench
     ("bench --mesh 400x400x400", INVALID, "--mesh"),  # 120 GiB
     ("bench --mesh 400x400x400 --steps 10", INVALID, "--mesh"),
+    ("bench --mesh 200x200x200", INVALID, "--mesh"),  # ~160 GiB: 21 kB a particle, measured
     ("bench --steps 1000000000", INVALID, "--steps"),  # days
     ("bench --mesh 10x10x10 --steps 1000000000", INVALID, "--steps"),
     ("bench --steps 0", INVALID, "--steps"),
