@@ -32,7 +32,7 @@ import numpy as np
 
 from .experiments import shear_scene, uniaxial_scene
 from .forces import internal_forces
-from .scene import Material, Model, Scene
+from .scene import NU_OPEN_RANGE, Material, Model, Scene, admissible_nu
 from .solvers import check_nu, solve_static
 from .system import build
 
@@ -91,8 +91,10 @@ def check_moduli(m: dict, variant: str) -> dict:
         why.append(f"E_eff = {m['E_eff']:.6g} Pa (a stable solid has E > 0)")
     if not m["G_eff"] > 0.0:
         why.append(f"G_eff = {m['G_eff']:.6g} Pa (a stable solid has G > 0)")
-    if not -1.0 < m["nu_eff"] < 0.5:
-        why.append(f"nu_eff = {m['nu_eff']:.6g} (a stable isotropic solid has -1 < nu < 1/2)")
+    if not admissible_nu(m["nu_eff"]):
+        lo, hi = NU_OPEN_RANGE
+        why.append(f"nu_eff = {m['nu_eff']:.6g} (a stable isotropic solid has nu in the open interval "
+                   f"({lo:g}, {hi:g}))")
     if why:
         raise MeasurementError(f"{variant} measured {'; '.join(why)}: not a material, the model's "
                                "answer is wrong at these parameters")
