@@ -11,7 +11,9 @@
   free.  For a homogeneous state the stored energy is ``W = ½ G γ² V`` (det F = 1 exactly), so
   ``G_eff = 2 W / (γ² V)``.  A non-conservative model (``baudet2009``'s corrections) has no
   energy: its G_eff is the mean shear stress from the plate reactions over γ
-  (:func:`shear_stress_from_reactions`).
+  (:func:`shear_stress_from_reactions`); a model that brings its own static answer on nodes other
+  than the lattice particles (MuJoCo's 27-node cells) reports that mean stress itself
+  (``info['mean_stress']``).
 
 For ``hybmss`` and ``hybmss-fd`` these equal E, ν and E/(2(1+ν)) for every ν in (−1, ½)
 (SPEC §8); ``hybmss-cf`` gives ν_eff = 1/4; the E-form of [G20] eq. 5.12 does not.
@@ -143,7 +145,10 @@ def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: in
     nu_eff = -(4.0 * lat1 - lat2) / (2.0 * strain)
     shear = shear_scene(model, material, strain, 3, le)
     sh = _judged(shear, solve_static(shear), "shear", judge)
-    if not model.conservative:  # no energy: G from the plate reactions
+    if sh.info.get("mean_stress") is not None:  # a model whose nodes are not all lattice particles
+        sig = sh.info["mean_stress"]  # (its own average-stress readout, as below, over its held nodes)
+        G_eff = 0.5 * (sig[0][2] + sig[2][0]) / strain
+    elif not model.conservative:  # no energy: G from the plate reactions
         G_eff = shear_stress_from_reactions(shear, sh) / strain
     else:
         W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)

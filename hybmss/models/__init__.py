@@ -3,8 +3,9 @@
 Every model the harness knows is one object on the protocol of :mod:`hybmss.models.base`.  The
 registry holds
 
-- the in-tree models: every module of this package whose name does not start with ``_`` (and is
-  not ``base``) defines ``MODEL``;
+- the in-tree models: every module (or package) of this package whose name does not start with
+  ``_`` (and is not ``base``) defines ``MODEL``, or ``MODELS``, a tuple of models (one per variant
+  of an engine; empty when the engine is not installed);
 - the models of other packages, declared in the entry-point group :data:`ENTRY_POINT_GROUP`
   (``importlib.metadata``); an entry point names a model object or a class to instantiate;
 - models added at run time with :func:`register` (and removed with :func:`unregister`).
@@ -61,7 +62,9 @@ class Registry:
         for info in sorted(pkgutil.iter_modules(self._path), key=lambda m: m.name):
             if info.name.startswith("_") or info.name == "base":
                 continue
-            self.register(importlib.import_module(f"{self._package}.{info.name}").MODEL)
+            mod = importlib.import_module(f"{self._package}.{info.name}")
+            for model in (mod.MODELS if hasattr(mod, "MODELS") else (mod.MODEL,)):
+                self.register(model)
         for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
             try:
                 obj = ep.load()
