@@ -140,3 +140,53 @@ def test_explicit_run_reaches_rest():
     assert r.converged, r.info["rest"]
     assert r.reactions["top"].force[2] == pytest.approx(st.reactions["top"].force[2], rel=1e-3)
     assert r.info["step_time_s"] > 0 and r.info["device"] == "cpu"
+
+
+@pytest.mark.parametrize("name, law", [("mujoco-tet", "svk"), ("mujoco-trilinear", "corotational"),
+                                       ("mujoco-quadratic", "corotational")])
+def test_law_of_the_element(name, law):
+    """MuJoCo's own forces on one cell under a uniaxial strain ε = 1e-2 (lateral faces held):
+    the nominal stress is (λ + 2μ) ε (1 + ε)(1 + ε/2) for St Venant–Kirchhoff (Green strain),
+    (λ + 2μ) ε for the corotational linear cells (no rotation in this state); and a rigid
+    rotation of 0.3 rad gives no force."""
+    from hybmss.models.mujoco.engine import MujocoBody
+    from hybmss.scene import rotation_matrix
+
+    nu, eps = 0.3, 1e-2
+    sc = Scene(body=Body.box(1, 1, 1, le=1.0), material=Material(E=E, nu=nu, rho=1000.0), model=Model(name),
+               plates=(Plate("bottom", Region("z-")),))
+    body = MujocoBody(build(sc), name.split("-")[1], 1e-3, 1.0)
+    X = body.nodes.X
+    lam, mu = sc.material.lam, sc.material.G
+    x = X.copy()
+    x[:, 2] *= 1.0 + eps
+    f = body.internal_forces(x)
+    top = np.isclose(X[:, 2], 1.0)
+    stress = -f[top, 2].sum()
+    expect = (lam + 2 * mu) * eps * ((1 + eps) * (1 + eps / 2) if law == "svk" else 1.0)
+    assert stress == pytest.approx(expect, rel=1e-9)
+    R = rotation_matrix((1.0, 2.0, 0.5), 0.3)
+    assert np.abs(body.internal_forces(X @ R.T)).max() <= 1e-9 * E
+
+
+def test_missing_engine_leaves_its_models_out():
+    """Without the mujoco package the registry lists no mujoco-* model, says so in one warning
+    line, and a command naming one is refused (exit 2), never a traceback."""
+    import subprocess
+    import sys
+
+    block = ("import sys\n"
+             "class Block:\n"
+             "    def find_spec(self, name, path=None, target=None):\n"
+             "        if name == 'mujoco' or name.startswith('mujoco.'):\n"
+             "            raise ModuleNotFoundError(name)\n"
+             "sys.meta_path.insert(0, Block())\n")
+    code = block + "import hybmss.models as m; print(','.join(m.names()))"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert "mujoco" not in p.stdout and "xpbd-nh" in p.stdout
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "mujoco" in lines[0], p.stderr
+    code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'mujoco-tet']))"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr

@@ -4,20 +4,26 @@
 The engine runs its own code from its own package (``mujoco`` ≥ 4.0, imported only when one of
 these models runs: :mod:`hybmss.models.mujoco.engine`, which also says how a scene becomes an MJCF).
 
-Material law, from the engine's documentation shipped in the wheel (``mujoco/doc/XMLreference.rst``,
-``flex/elasticity``; ``doc/modeling.rst``, "Parametrization types"; the wheel holds no C source)
-and measured here (tests/verification/test_engine_mujoco.py):
+Material law, from the engine's source (github.com/google-deepmind/mujoco, ``src/engine``) and
+its documentation shipped in the wheel (``mujoco/doc/XMLreference.rst``, ``flex/elasticity``;
+``doc/modeling.rst``, "Parametrization types"), measured here (tests/verification/test_engine_mujoco.py):
 
-- ``mujoco-tet`` (``dof="full"``, linear tetrahedra): Saint Venant–Kirchhoff, energy density
-  ``μ tr(ε²) + λ/2 tr(ε)²`` of the Green strain ε with the textbook Lamé parameters
-  ``μ = E/(2(1+ν))``, ``λ = Eν/((1+ν)(1−2ν))``: at small strain exactly linear elasticity in E, ν.
-  Measured: the forces of a homogeneous stretch ε are those of (λ + 2μ) ε to O(ε) (the Green
-  strain's quadratic term).
+- ``mujoco-tet`` (``dof="full"``, linear tetrahedra): Saint Venant–Kirchhoff.
+  ``engine_elasticity.h``: ``mj_stretchElongation`` takes each of the tetrahedron's 6 edges'
+  ``l² − l0²`` (the Green strain in edge coordinates), ``mj_stretchTension`` contracts it with the
+  element's precomputed metric (``mjModel.flex_stiffness``, 21 numbers of a symmetric 6×6 plus 3
+  for a stable Neo-Hookean variant, zero here: checked), ``mj_stretchForce`` scatters
+  ``−tension · (x_i − x_j)`` to the vertices; ``engine_passive.c`` adds it to ``qfrc_spring``.
+  The metric is the documented energy density ``μ tr(ε²) + λ/2 tr(ε)²`` with
+  ``μ = E/(2(1+ν))``, ``λ = Eν/((1+ν)(1−2ν))``: at small strain linear elasticity in E, ν, no
+  Lamé shift.  Measured: a homogeneous uniaxial strain ε gives the nominal stress
+  (λ + 2μ) ε (1 + 3ε/2 + O(ε²)), the SVK law's ``(1 + ε)(λ + 2μ)(ε + ε²/2)``.
 - ``mujoco-trilinear`` / ``mujoco-quadratic`` (``dof="trilinear"``/``"quadratic"``, 8-/27-node
-  cells of an interpolation grid equal to the voxels): a linear stiffness per cell
-  (``mjModel.flex_stiffness``, 24² / 81² numbers per cell) applied in a rotated frame
-  (corotational): measured, a rigid rotation of 0.3 rad gives forces below 1e-12 N and a stretch's
-  forces are linear in it to round-off; at small strain the linear Hex8 / Hex27 element in E, ν.
+  cells of an interpolation grid equal to the voxels): ``engine_passive.c`` (the ``flex_interp``
+  branch) applies the cell's constant stiffness (``flex_stiffness``, 24² / 81² numbers per cell)
+  in the cell's rotated frame (``K_rot``): corotational linear.  Measured: a rigid rotation of
+  0.3 rad gives forces below 1e-12 N, a stretch's forces are linear in it to round-off; at small
+  strain the linear Hex8 / Hex27 element in E, ν.
 - ν: the documented range is [0, ½); a negative ν is refused (``ValueError`` naming ``nu``).
 
 What the models refuse (before any work): surface loads (``Scene.loads``: MuJoCo has no surface
@@ -44,8 +50,11 @@ CFL = 0.9
 
 
 def available() -> bool:
-    """Whether the ``mujoco`` package is installed."""
-    return importlib.util.find_spec("mujoco") is not None
+    """Whether the ``mujoco`` package is installed (found, not imported)."""
+    try:
+        return importlib.util.find_spec("mujoco") is not None
+    except (ImportError, ValueError):
+        return False
 
 
 def _engine():
@@ -207,6 +216,8 @@ class MujocoQuadratic(MujocoModel):
 if available():
     MODELS = (MujocoTet(), MujocoTrilinear(), MujocoQuadratic())
 else:
-    warnings.warn("the mujoco package is not installed: the mujoco-* models are left out "
-                  "(pip install 'mujoco>=4.0')", RuntimeWarning, stacklevel=2)
+    # one line (no source line under it): the models are left out, nothing else changes
+    warnings.warn_explicit("the mujoco package is not installed: the mujoco-* models are left out "
+                           "(pip install 'mujoco>=4.0')", RuntimeWarning, "hybmss.models.mujoco", 0,
+                           module=__name__)
     MODELS = ()
