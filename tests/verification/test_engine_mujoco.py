@@ -46,7 +46,8 @@ def tet_p1_reaction(scene: Scene) -> np.ndarray:
     from skfem import Basis, ElementTetP1, ElementVector, MeshTet, asm
     from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-    from hybmss.models.mujoco.engine import cell_tets, tet_volumes
+    from hybmss.models._engine_body import tet_volumes
+    from hybmss.models.mujoco.engine import cell_tets
 
     S = build(scene)
     tets = cell_tets(S.lattice.cells)

@@ -47,17 +47,14 @@ that of the deformed tetrahedra of the flex.
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import time
 
 import numpy as np
 
 import mujoco
 
-from ...explicit import BLOWUP_FACTOR, ramp, rest_report
-from ...result import Result, reaction_from_nodal
-from ...system import PlateSet, System
+from ...system import System
+from .._engine_body import EngineBody, Nodes
 
 ENGINE = "mujoco"
 VERSION = mujoco.__version__
@@ -73,60 +70,6 @@ ORDER = {"tet": 1, "trilinear": 1, "quadratic": 2}
 def cell_tets(cells: np.ndarray) -> np.ndarray:
     """(6 m, 4) vertex indices of MuJoCo's tetrahedra of the cells (m, 8)."""
     return np.asarray(cells, dtype=np.int64)[:, np.array(SPLIT)].reshape(-1, 4)
-
-
-def tet_volumes(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    """Signed volumes of the tetrahedra ``tets`` at positions ``x``."""
-    p = x[tets]
-    return np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) / 6.0
-
-
-def is_box(system: System) -> bool:
-    """Whether the body fills its bounding box (every voxel active)."""
-    return bool(np.all(system.scene.body.mask))
-
-
-@dataclasses.dataclass
-class Nodes:
-    """The engine's nodes: reference positions (N, 3), masses (N,), the vertex of each lattice
-    particle (tet: itself), prescribed components (N, 3) and each plate's nodes."""
-
-    X: np.ndarray
-    mass: np.ndarray
-    fixed: np.ndarray
-    plates: tuple[PlateSet, ...]
-    centers: tuple  # rotation centre of each plate (lattice centroid), None for other motions
-
-
-def engine_nodes(system: System, kind: str, density: float) -> Nodes:
-    """The nodes of ``kind`` for the system's lattice, with masses of density ``density``."""
-    lat = system.lattice
-    le = float(system.scene.body.le)
-    if kind == "tet" or kind == "trilinear":
-        X = system.X.copy()
-        mass = density * lat.masses_per_density
-    else:
-        p = ORDER[kind]
-        lo = np.asarray(system.scene.body.bounds[0], dtype=float)
-        q = np.asarray(system.scene.body.shape) * p + 1
-        g = np.stack(np.meshgrid(*(np.arange(k) for k in q), indexing="ij"), axis=-1).reshape(-1, 3)
-        X = lo + g * (le / p)
-        mass = np.zeros(len(X))
-        idx = lambda a: (a[..., 0] * q[1] + a[..., 1]) * q[2] + a[..., 2]
-        corners = np.array([[(c >> 0) & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
-        sub = np.stack(np.meshgrid(*(np.arange(k - 1) for k in q), indexing="ij"), axis=-1).reshape(-1, 3)
-        for c in corners:
-            np.add.at(mass, idx(sub + c), density * le**3 / 64.0)
-    fixed = np.zeros((len(X), 3), dtype=bool)
-    plates, centers = [], []
-    for plate, ps in zip(system.scene.plates, system.plates):
-        sel = np.flatnonzero(plate.region.select(X, system.scene.body))
-        cons = plate.motion.constrained
-        fixed[np.ix_(sel, np.flatnonzero(cons))] = True
-        plates.append(PlateSet(plate.name, sel, cons))
-        rot = plate.motion.kind == "rotate" and plate.motion.center is None
-        centers.append(tuple(system.X[ps.particles].mean(axis=0)) if rot else None)
-    return Nodes(X, mass, fixed, tuple(plates), tuple(centers))
 
 
 def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity) -> str:
@@ -159,7 +102,7 @@ def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity) -> str:
             f'<contact contype="0" conaffinity="0" selfcollide="none"/></flex></deformable></mujoco>')
 
 
-class MujocoBody:
+class MujocoBody(EngineBody):
     """A scene's body stepped by MuJoCo: the stepper protocol of the explicit loop
     (``load``, ``advance``, ``state``, ``internal_forces``, ``energy``) on the engine's nodes.
 
@@ -170,14 +113,9 @@ class MujocoBody:
                  density: float | None = None, gravity="scene"):
         if kind not in ORDER:
             raise ValueError(f"element kind must be one of {', '.join(ORDER)}; got {kind!r}")
-        self.system, self.kind = system, kind
-        self.dt, self.ramp_time = float(dt), float(ramp_time)
-        rho = system.scene.material.rho if density is None else float(density)
-        self.gravity = system.gravity if isinstance(gravity, str) else gravity
-        self.damping = float(system.scene.damping if damping is None else damping)
-        self.nodes = engine_nodes(system, kind, rho)
+        self.kind = kind
+        self.setup(system, 2 if kind == "quadratic" else 1, dt, ramp_time, damping, density, gravity)
         self.tets = cell_tets(system.lattice.cells)
-        self.warnings: list[str] = []
         t0 = time.perf_counter()
         xml = mjcf(system, kind, self.nodes, self.dt, self.gravity)
         old = mujoco.get_mju_user_warning()
@@ -189,31 +127,19 @@ class MujocoBody:
         self.data = mujoco.MjData(self.model)
         self.probe = mujoco.MjData(self.model)
         self.compile_time_s = time.perf_counter() - t0
-        self.step_time_s = 0.0
         n = len(self.nodes.X)
         if self.model.nv != 3 * n:
             raise RuntimeError(f"the MuJoCo model has {self.model.nv} degrees of freedom, expected {3 * n}")
-        self.fixed_dofs = np.flatnonzero(self.nodes.fixed.ravel())
-        self.step = 0
 
-    # ------------------------------------------------------------------ prescribed motion
-    def prescribed(self, s: float) -> np.ndarray:
-        """Target node positions (N, 3) at load factor ``s`` (free components at reference)."""
-        X = self.nodes.X
-        x = X.copy()
-        for plate, ps, c in zip(self.system.scene.plates, self.nodes.plates, self.nodes.centers):
-            motion = plate.motion if c is None else dataclasses.replace(plate.motion, center=c)
-            u = motion.displacement_at(X[ps.particles], s)
-            for d in np.flatnonzero(ps.constrained):
-                x[ps.particles, d] = X[ps.particles, d] + u[:, d]
-        return x
+    def describe(self) -> dict:
+        return {"engine": ENGINE, "engine_version": VERSION, "element": self.kind, "device": "cpu", "threads": 1,
+                "integrator": "Euler", "precision": "f64",
+                "tet_split": "MuJoCo's grid split: 6 tetrahedra around the diagonal (0,1,1)-(1,0,0) of each cell"}
 
     def _set_plates(self, step: int) -> None:
-        t = step * self.dt
-        now = (self.prescribed(ramp(t, self.ramp_time)) - self.nodes.X).ravel()
-        before = (self.prescribed(ramp(t - self.dt, self.ramp_time)) - self.nodes.X).ravel()
-        self.data.qpos[self.fixed_dofs] = now[self.fixed_dofs]
-        self.data.qvel[self.fixed_dofs] = (now[self.fixed_dofs] - before[self.fixed_dofs]) / self.dt
+        u, v = self.plate_targets(step)
+        self.data.qpos[self.fixed_dofs] = u
+        self.data.qvel[self.fixed_dofs] = v
 
     # ------------------------------------------------------------------ stepper protocol
     def load(self, x: np.ndarray, v: np.ndarray, step0: int = 0) -> None:
@@ -244,16 +170,6 @@ class MujocoBody:
         self.step = step0 + n
         return n, self.bad_node()
 
-    def bad_node(self) -> int:
-        u = self.data.qpos.reshape(-1, 3)
-        u2 = np.einsum("ij,ij->i", u, u)
-        bad = np.flatnonzero(~np.isfinite(u2))
-        if len(bad):
-            return int(bad[0])
-        limit = BLOWUP_FACTOR * max(self.system.scene.body.size)
-        i = int(np.argmax(u2))
-        return i if u2[i] > limit * limit else -1
-
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Node positions and velocities (N, 3)."""
         return self.nodes.X + self.data.qpos.reshape(-1, 3), self.data.qvel.reshape(-1, 3).copy()
@@ -267,10 +183,6 @@ class MujocoBody:
         mujoco.mj_forward(self.model, p)
         return p.qfrc_spring.reshape(-1, 3).copy()
 
-    def energy(self, x: np.ndarray, v: np.ndarray) -> dict:
-        """Kinetic energy of the nodes (MuJoCo exposes no flex strain energy)."""
-        return {"kinetic": float(0.5 * np.sum(self.nodes.mass[:, None] * np.asarray(v) ** 2))}
-
     def vertices(self, x: np.ndarray | None = None) -> np.ndarray:
         """Positions (n, 3) of the flex vertices (the lattice particles) at node positions ``x``
         (default: the current state), as MuJoCo places them."""
@@ -282,85 +194,3 @@ class MujocoBody:
             mujoco.mj_flex(self.model, d)
         return np.asarray(d.flexvert_xpos, dtype=float).copy()
 
-    # ------------------------------------------------------------------ frequencies
-    def omega_max(self, iterations: int = 60) -> float:
-        """Highest frequency (rad/s) of ``M⁻¹K`` at rest on the free components, K from MuJoCo's
-        own forces (finite differences of ``qfrc_spring`` about the reference), by power
-        iteration (Rayleigh quotient of the last iterate, a lower bound converging from below)."""
-        free = ~self.nodes.fixed.ravel()
-        minv = np.repeat(1.0 / self.nodes.mass, 3)
-        X = self.nodes.X
-        f0 = self.internal_forces(X).ravel()
-        rng = np.random.default_rng(0)
-        v = rng.standard_normal(3 * len(X)) * free
-        lam = 0.0
-        eps = 1e-7 * float(self.system.scene.body.le)
-        for _ in range(iterations):
-            v /= np.abs(v).max()
-            Kv = (f0 - self.internal_forces(X + eps * v.reshape(-1, 3)).ravel()) / eps
-            w = minv * Kv * free
-            lam = float(np.dot(v, Kv) / np.dot(v, v / minv)) if np.any(v) else 0.0
-            v = w
-        return math.sqrt(max(lam, 0.0))
-
-    # ------------------------------------------------------------------ readouts
-    def node_system(self) -> System:
-        """The system seen on the engine's nodes (masses, prescribed components, plates): what
-        :func:`hybmss.explicit.rest_report` needs."""
-        return dataclasses.replace(self.system, X=self.nodes.X, mass=self.nodes.mass, fixed=self.nodes.fixed,
-                                   plates=self.nodes.plates, gravity=self.gravity, terms=())
-
-    def reactions(self, x: np.ndarray, f: np.ndarray) -> dict:
-        """Plate reactions ``−Σ (f + m g)`` over each plate's nodes, prescribed components only."""
-        out = {}
-        for ps in self.nodes.plates:
-            r = -f[ps.particles]
-            if self.gravity is not None:
-                r = r - self.nodes.mass[ps.particles, None] * np.asarray(self.gravity)[None, :]
-            out[ps.name] = reaction_from_nodal(x[ps.particles], r * ps.constrained[None, :])
-        return out
-
-    def mean_stress(self, x: np.ndarray, f: np.ndarray) -> list:
-        """Mean stress (3×3, Pa) from the forces on the held nodes (average-stress theorem for a
-        body in equilibrium, ``σ̄ = (1/V) Σ_a R_a ⊗ x_a``, R = −f on the nodes with a prescribed
-        component), for bodies without weight."""
-        held = self.nodes.fixed.any(axis=1)
-        sig = np.einsum("ai,aj->ij", -f[held], x[held]) / self.system.scene.body.volume
-        return sig.tolist()
-
-    def result(self, solver: str, steps: int, rest_rtol: float, info: dict) -> Result:
-        """The :class:`~hybmss.result.Result` of the current state: displacements at the lattice
-        particles, the engine's reactions, the flex's deformed volume, the rest report and the
-        balance of the plate reactions against the weight."""
-        x, v = self.state()
-        f = self.internal_forces(x)
-        xv = self.vertices()
-        S = self.node_system()
-        energy = self.energy(x, v)
-        load = ramp(self.step * self.dt, self.ramp_time)
-        rest = rest_report(S, f, energy, load, rest_rtol)
-        reactions = self.reactions(x, f)
-        total = sum(np.asarray(r.force) for r in reactions.values())
-        weight = (self.nodes.mass.sum() * np.asarray(self.gravity)) if self.gravity is not None else np.zeros(3)
-        imbalance = float(np.linalg.norm(total + weight))
-        lat = self.system.lattice
-        vol = tet_volumes(xv, self.tets)
-        info = dict(info)
-        info.update({
-            "engine": ENGINE, "engine_version": VERSION, "element": self.kind, "device": "cpu", "threads": 1,
-            "integrator": "Euler", "precision": "f64", "nodes": int(len(self.nodes.X)),
-            "tet_split": "MuJoCo's grid split: 6 tetrahedra around the diagonal (0,1,1)-(1,0,0) of each cell",
-            "compile_time_s": self.compile_time_s, "step_time_s": self.step_time_s,
-            "rest": rest, "converged_criterion": "hybmss.explicit.rest_report",
-            "reaction_balance": {"imbalance_N": imbalance, "force_scale_N": rest["force_scale_N"],
-                                 "relative": imbalance / rest["force_scale_N"]},
-            "mean_stress": self.mean_stress(x, f) if self.gravity is None else None,
-            "inverted_tets": int(np.count_nonzero(vol <= 0.0)),
-            "max_speed": float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0,
-            "engine_warnings": list(self.warnings),
-        })
-        X = self.system.X
-        return Result(solver=solver, scene_digest=self.system.scene.digest(), X=X.copy(), u=xv - X,
-                      volume=float(vol.sum()), volume0=float(tet_volumes(X, self.tets).sum()), reactions=reactions,
-                      energy=energy, iterations=int(steps), wall_time_s=float(self.step_time_s),
-                      converged=bool(rest["at_rest"]), cell_volumes=lat.cell_volumes(xv), info=info)

@@ -1,0 +1,149 @@
+"""What the engine models share (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`): the
+explicit run and the static answer (the rest state of the engine's damped run) on the protocol of
+:mod:`hybmss.models.base`, the refusals common to every engine, and the engine imported only when
+a run needs it (:meth:`EngineModel.make_body`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from .base import ModelBase, NoParameters
+
+
+class EngineModel(ModelBase):
+    """A model whose body another engine steps (subclass: ``engine``, ``make_body``, ``check_scene``)."""
+
+    engine: str = "engine"
+    precisions: tuple[str, ...] = ("f64",)
+    """The ``precision`` values the engine computes in (the harness's option, refused otherwise)."""
+    static_rest_rtol: float = 1e-7
+    """Rest tolerance of the static answer (:func:`hybmss.explicit.rest_report`'s ``rtol``)."""
+    cfl: float = 0.9
+    """Step of the static run as a fraction of the stability limit ``2/ω_max``."""
+
+    Parameters = NoParameters
+    conservative = False  # its static answer is the rest state of the engine's damped run
+    solvers = ("static", "explicit")
+    kernels = ("numba",)
+    """The harness's default kernel name only: the engine runs its own compiled step
+    (``info['engine']``)."""
+    studies = ()
+    """No study role yet: the studies' sweeps and tables are unchanged by installing the engine."""
+
+    def make_body(self, system, dt: float, ramp_time: float, **kw):
+        """The engine's body of ``system`` (an :class:`hybmss.models._engine_body.EngineBody`)."""
+        raise NotImplementedError
+
+    def check_scene(self, scene) -> None:
+        """Raise :class:`ValueError` naming what of ``scene`` the engine cannot represent."""
+
+    def _check(self, scene, threads: int = 1, precision: str | None = None) -> None:
+        self.check_scene(scene)
+        if scene.loads:
+            raise ValueError(f"loads: {self.name} cannot represent surface tractions ({self.engine} has no surface "
+                             "load on its body); use plates or gravity")
+        if int(threads) != 1:
+            raise ValueError(f"threads must be 1 for {self.name} (the engine steps on one thread), got {threads}")
+        if precision is not None and precision not in self.precisions:
+            raise ValueError(f"precision must be {' or '.join(self.precisions)} for {self.name} ({self.engine} "
+                             f"computes in it), got {precision!r}")
+
+    def simulate_explicit(self, scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba",
+                          ramp_time: float = 1.0, threads: int = 1, record_every: int = 0, system=None, *,
+                          x0=None, v0=None, dt_crit_value=None, compute_dt_crit: bool = True, check_every: int = 10,
+                          precision: str = "f64", rest_rtol: float | None = None):
+        """``steps`` engine steps of ``dt`` with the scene's plates, ramp, damping and gravity;
+        ``converged`` by :func:`hybmss.explicit.rest_report`."""
+        from ..explicit import REST_RTOL
+        from ..system import build
+        from ._voxel_explicit import divergence
+        self._check(scene, threads, precision)
+        if record_every:
+            raise ValueError(f"record_every must be 0 for {self.name} (no trajectory recording)")
+        if scene.material.rho <= 0:
+            raise ValueError(f"rho must be > 0 for an explicit {self.name} run (the engine's nodes need mass), "
+                             f"got {scene.material.rho:g}")
+        dt, steps, check_every = float(dt), int(steps), max(1, int(check_every))
+        S = system if system is not None else build(scene)
+        body = self.make_body(S, dt, ramp_time)
+        X = body.nodes.X
+        if (x0 is not None or v0 is not None) and len(X) != S.n:
+            raise ValueError(f"x0, v0: {self.name} has nodes that are not lattice particles; start from rest")
+        x = X if x0 is None else x0
+        v = 0.0 * X if v0 is None else v0
+        body.load(x, v)
+        dt_c = None
+        if dt_crit_value is not None:
+            dt_c = float(dt_crit_value)
+        elif compute_dt_crit:
+            w = body.omega_max()
+            dt_c = 2.0 / w if w > 0 else math.inf
+        done = 0
+        while done < steps:
+            k = min(check_every, steps - done)
+            _, bad = body.advance(done, k)
+            done += k
+            if bad >= 0:
+                xs, _ = body.state()
+                raise divergence(S, body.vertices(), min(bad, S.n - 1), done, dt, dt_c, check_every, self.name)
+        r = body.result(f"{self.name}-explicit", done, REST_RTOL if rest_rtol is None else rest_rtol,
+                        {"dt": dt, "steps": done, "dt_crit": dt_c, "damping": float(scene.damping),
+                         "ramp_time": float(ramp_time), "kernel": "mujoco", "until_rest": False})
+        return r
+
+    def solve_static(self, scene, options=None, system=None):
+        """The rest state of the engine's damped run (defaults from the body's frequencies: step
+        :attr:`cfl` × 2/ω_max with ω_max of the engine's own forces, damping 2 ω₁, ramp 2π/ω₁,
+        ω₁ of the linear Hex8 stiffness of the same grid), stopped when
+        :func:`hybmss.explicit.rest_report` finds it at rest with ``rtol`` :attr:`static_rest_rtol`,
+        checked every 1/ω₁; :class:`hybmss.solvers.StaticSolveError` if it is not within
+        ``T + 60/ω₁``.  A massless body (ρ = 0) runs with unit density and no weight (the rest
+        state does not depend on a uniform density)."""
+        from ..solvers import StaticSolveError
+        from ..system import build
+        from .corot_hex8 import CorotHex8, frequency_range
+        self._check(scene)
+        S = system if system is not None else build(scene)
+        massless = scene.material.rho <= 0
+        S1 = S if not massless else dataclasses.replace(S, mass=S.lattice.masses_per_density * 1.0,
+                                                                     gravity=None)
+        w1, _ = frequency_range(S1, CorotHex8(S1.lattice, scene.material))
+        if w1 <= 0:
+            raise ValueError("the body has a zero-energy mode (not held by its plates): no rest state to reach")
+        density = 1.0 if massless else None
+        probe = self.make_body(S1, 1.0, 1.0, damping=0.0, density=density, gravity=S1.gravity)
+        wmax = probe.omega_max()
+        dt = self.cfl * 2.0 / wmax
+        T = 2.0 * math.pi / w1
+        c = 2.0 * w1
+        body = self.make_body(S1, dt, T, damping=c, density=density, gravity=S1.gravity)
+        body.compile_time_s += probe.compile_time_s
+        body.load(body.nodes.X, 0.0 * body.nodes.X)
+        check = max(1, int(round(1.0 / (w1 * dt))))
+        n_max = int(math.ceil((T + 60.0 / w1) / dt))
+        done, rest = 0, None
+        from ..explicit import rest_report, ramp
+        while done < n_max:
+            _, bad = body.advance(done, check)
+            done += check
+            if bad >= 0:
+                raise StaticSolveError(f"{self.name} scene {scene.name or '(unnamed)'}: the damped run diverged "
+                                       f"(node {bad}); the step {dt:.3g} s is too long for this scene")
+            if done * dt >= T:
+                x, v = body.state()
+                rest = rest_report(body.node_system(), body.internal_forces(x), body.energy(x, v),
+                                   ramp(done * dt, T), self.static_rest_rtol)
+                if rest["at_rest"]:
+                    break
+        r = body.result(f"{self.name}-rest", done, self.static_rest_rtol,
+                        {"dt": dt, "omega_1": w1, "omega_max": wmax, "damping": c, "ramp_time": T,
+                         "t_end": done * dt, "kernel": "mujoco", "until_rest": True,
+                         "static_from": f"rest state of {self.engine}'s damped run (rest_report)"})
+        if not r.converged:
+            raise StaticSolveError(
+                f"{self.name} scene {scene.name or '(unnamed)'}: the damped run did not come to rest within "
+                f"{done * dt:.4g} s ({r.info['rest']['not_at_rest_because']}); raise the damping or the time budget")
+        return r
+
+
