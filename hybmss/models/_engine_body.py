@@ -79,6 +79,10 @@ class EngineBody:
 
     fd_step = 1e-7
     """Finite-difference step of :meth:`omega_max`, in cell edges."""
+    resolution_N = 0.0
+    """Force resolution of the engine's state (N): the change of the free nodes' force norm under
+    position changes of one unit in the last place (0: a float64 engine, negligible).  A rest
+    state cannot have a smaller residual, so :meth:`rest` accepts one within it."""
 
     def setup(self, system: System, order: int, dt: float, ramp_time: float, damping: float | None,
               density: float | None, gravity) -> None:
@@ -175,6 +179,19 @@ class EngineBody:
         sig = np.einsum("ai,aj->ij", -f[held], x[held]) / self.system.scene.body.volume
         return sig.tolist()
 
+    def rest(self, x: np.ndarray, v: np.ndarray, f: np.ndarray, rtol: float) -> dict:
+        """:func:`hybmss.explicit.rest_report` of the state on the engine's nodes; for an engine
+        with a force resolution (:attr:`resolution_N`) the tolerance is at least that resolution
+        over the force scale (``resolution_N`` in the report)."""
+        S = self.node_system()
+        energy = self.energy(x, v)
+        load = ramp(self.step * self.dt, self.ramp_time)
+        rest = rest_report(S, f, energy, load, rtol)
+        if self.resolution_N > 0.0:
+            rest = rest_report(S, f, energy, load, max(rtol, self.resolution_N / rest["force_scale_N"]))
+            rest["resolution_N"] = self.resolution_N
+        return rest
+
     def result(self, solver: str, steps: int, rest_rtol: float, info: dict) -> Result:
         """The :class:`~hybmss.result.Result` of the current state: displacements at the lattice
         particles, the engine's reactions, the flex's deformed volume, the rest report and the
@@ -182,10 +199,8 @@ class EngineBody:
         x, v = self.state()
         f = self.internal_forces(x)
         xv = self.vertices()
-        S = self.node_system()
         energy = self.energy(x, v)
-        load = ramp(self.step * self.dt, self.ramp_time)
-        rest = rest_report(S, f, energy, load, rest_rtol)
+        rest = self.rest(x, v, f, rest_rtol)
         reactions = self.reactions(x, f)
         total = sum(np.asarray(r.force) for r in reactions.values())
         weight = (self.nodes.mass.sum() * np.asarray(self.gravity)) if self.gravity is not None else np.zeros(3)

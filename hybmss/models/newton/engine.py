@@ -1,0 +1,174 @@
+"""A scene as a Newton model (``newton`` ≥ 1.8 on ``warp-lang``), stepped by Newton's
+``SolverSemiImplicit`` on Warp's ``cpu`` device.
+
+Imported only when a ``newton-*`` model runs (importing Warp and Newton takes ~10 s, the first
+use of its kernels compiles them into Warp's kernel cache, ~8 s per module, reported apart as
+``compile_time_s``).
+
+Scene translation
+-----------------
+- **Nodes**: one Newton particle per lattice particle (``ModelBuilder.add_particle``), mass the
+  lumped ``ρ Vc/8`` per cell corner (set per particle), radius 0, no contact (no particle grid, no
+  shapes).
+- **Mesh**: Newton's own split of a grid cell, the one ``ModelBuilder.add_soft_grid`` makes
+  (:data:`SPLIT_ODD` / :data:`SPLIT_EVEN`: 5 tetrahedra, the central one alternating with the
+  parity of the cell's index so that neighbouring cells' faces match), each
+  ``ModelBuilder.add_tetrahedron`` with its rest pose from the reference positions.
+- **Plates**: after every ``solver.step`` the prescribed components are set to their targets at the
+  new time and their velocities to the target's change over the step (the integrator is explicit
+  and per particle, so this is the harness's scheme with its plates).
+- **Damping**: the scene's mass-proportional c applied to Newton's step as the harness applies it
+  (``v ← v'/(1 + c h)``, the position with it); the element damping ``k_damp`` is 0.  Gravity is
+  Newton's (``ModelBuilder(gravity=...)``).
+- **Precision**: Warp's particle state is float32: a position carries ~6e-8 of its size, and the
+  forces change by :meth:`NewtonBody.force_resolution` (measured: 5e-3 N on a 1 m cube of
+  E = 1e4 Pa in 0.5 m cells, 0.5 N at E = 1e6 Pa) when every position moves by one unit in the
+  last place.  No state has a smaller free-force residual, so the rest criterion takes at least
+  that resolution (:meth:`hybmss.models._engine_body.EngineBody.rest`), and a reaction carries
+  an error of that order: 4e-3 of the reaction at strain 1e-4 on that cube, 5e-4 at 1e-3.
+
+Readouts: the elastic force on a node is Newton's own tetrahedron kernel
+(``newton/_src/solvers/semi_implicit/kernels_particle.py``, ``eval_tetrahedra_forces``, the
+launch ``SolverSemiImplicit.step`` makes) into a cleared ``particle_f``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+import warp as wp
+
+wp.config.quiet = True
+
+import newton  # noqa: E402
+from newton._src.solvers.semi_implicit.kernels_particle import eval_tetrahedra_forces  # noqa: E402
+
+from ...system import System  # noqa: E402
+from .._engine_body import EngineBody  # noqa: E402
+
+ENGINE = "newton"
+VERSION = f"newton {newton.__version__}, warp {wp.__version__}"
+
+_V = (0, 1, 5, 4, 2, 3, 7, 6)
+"""Newton's corner ``v0 … v7`` of a grid cell (``add_soft_grid``) in the harness's corner index
+``c = di + 2 dj + 4 dk``."""
+SPLIT_ODD = tuple(tuple(_V[a] for a in t) for t in ((0, 1, 4, 3), (2, 3, 6, 1), (5, 4, 1, 6), (7, 6, 3, 4),
+                                                  (4, 1, 6, 3)))
+SPLIT_EVEN = tuple(tuple(_V[a] for a in t) for t in ((1, 2, 5, 0), (3, 0, 7, 2), (4, 7, 0, 5), (6, 5, 2, 7),
+                                                   (5, 2, 7, 0)))
+"""Newton's 5-tetrahedron splits of a cell of odd / even ``i ^ j ^ k`` (harness corners)."""
+
+
+def cell_tets(cells: np.ndarray, cell_ijk: np.ndarray) -> np.ndarray:
+    """(5 m, 4) vertex indices of Newton's tetrahedra of the cells (m, 8) at grid indices (m, 3)."""
+    cells = np.asarray(cells)
+    odd = ((cell_ijk[:, 0] & 1) ^ (cell_ijk[:, 1] & 1) ^ (cell_ijk[:, 2] & 1)).astype(bool)
+    loc = np.where(odd[:, None, None], np.array(SPLIT_ODD)[None], np.array(SPLIT_EVEN)[None])  # (m, 5, 4)
+    return cells[np.arange(len(cells))[:, None, None], loc].reshape(-1, 4)
+
+
+def lame(material) -> tuple[float, float]:
+    """``(k_mu, k_lambda)`` of Newton's tetrahedron law for the material's (λ₀, μ₀): its energy
+    ``μ/2 (I_C − 3) − μ/2 log(I_C + 1) + λ/2 (J − α)²``, α = 1 + 3μ/(4λ), has the small-strain
+    Lamé parameters ``μ_lin = 3μ/4`` and ``λ_lin = λ − 5μ/8`` (Smith et al. 2018), so
+    ``k_mu = 4μ₀/3`` and ``k_lambda = λ₀ + 5μ₀/6``."""
+    mu0, lam0 = float(material.G), float(material.lam)
+    return 4.0 * mu0 / 3.0, lam0 + 5.0 * mu0 / 6.0
+
+
+class NewtonBody(EngineBody):
+    """A scene's body stepped by Newton's ``SolverSemiImplicit`` (module docstring); the stepper
+    protocol of :class:`hybmss.models._engine_body.EngineBody`."""
+
+    fd_step = 1e-4
+    """Finite-difference step of :meth:`omega_max` (of the cell edge): float32 positions resolve
+    ~1e-7 of it."""
+
+    def __init__(self, system: System, solver: str, dt: float, ramp_time: float, *, damping: float | None = None,
+                 density: float | None = None, gravity="scene"):
+        if solver != "semi":
+            raise ValueError(f"solver must be semi, got {solver!r}")
+        self.solver_name = solver
+        self.setup(system, 1, dt, ramp_time, damping, density, gravity)
+        lat = system.lattice
+        self.tets = cell_tets(lat.cells, lat.cell_ijk)
+        k_mu, k_lambda = lame(system.scene.material)
+        t0 = time.perf_counter()
+        g = (0.0, 0.0, 0.0) if self.gravity is None else tuple(float(v) for v in self.gravity)
+        b = newton.ModelBuilder(gravity=g)
+        for x, m in zip(self.nodes.X, self.nodes.mass):
+            b.add_particle(wp.vec3(*map(float, x)), wp.vec3(0.0, 0.0, 0.0), mass=float(m), radius=0.0)
+        for t in self.tets:
+            b.add_tetrahedron(*map(int, t), k_mu=k_mu, k_lambda=k_lambda, k_damp=0.0)
+        self.model = b.finalize(device="cpu")
+        self.model.particle_grid = None
+        self.solver = newton.solvers.SolverSemiImplicit(self.model)
+        self.control = self.model.control()
+        self.s0, self.s1, self.probe = self.model.state(), self.model.state(), self.model.state()
+        self.internal_forces(self.nodes.X)  # compiles the force kernel
+        self.solver.step(self.probe, self.model.state(), self.control, None, float(dt))  # and the step's
+        self.compile_time_s = time.perf_counter() - t0
+        self.k_mu, self.k_lambda = k_mu, k_lambda
+        self.resolution_N = self.force_resolution()
+
+    def force_resolution(self, samples: int = 4) -> float:
+        """The largest change of the free nodes' force norm when every reference position moves by
+        −1, 0 or +1 unit in the last place of float32 (seeded): what a float32 state resolves."""
+        X = self.nodes.X
+        free = ~self.nodes.fixed
+        ulp = float(np.spacing(np.float32(np.abs(X).max())))
+        f0 = self.internal_forces(X)
+        rng = np.random.default_rng(0)
+        return max(float(np.linalg.norm((self.internal_forces(X + ulp * rng.integers(-1, 2, X.shape)) - f0)[free]))
+                   for _ in range(samples))
+
+    def describe(self) -> dict:
+        return {"engine": ENGINE, "engine_version": VERSION, "element": "tet", "device": "cpu", "threads": 1,
+                "integrator": "SolverSemiImplicit", "precision": "f32",
+                "k_mu": self.k_mu, "k_lambda": self.k_lambda,
+                "tet_split": "Newton's add_soft_grid split: 5 tetrahedra, alternating with the cell's parity"}
+
+    def load(self, x: np.ndarray, v: np.ndarray, step0: int = 0) -> None:
+        self.step = int(step0)
+        self.s0.particle_q.assign(np.asarray(x, dtype=np.float32))
+        self.s0.particle_qd.assign(np.asarray(v, dtype=np.float32))
+
+    def advance(self, step0: int, n: int) -> tuple[int, int]:
+        damp = 1.0 / (1.0 + self.damping * self.dt)
+        spent = 0.0
+        fx = self.fixed_dofs
+        for k in range(step0, step0 + n):
+            t0 = time.perf_counter()
+            self.s0.clear_forces()
+            self.solver.step(self.s0, self.s1, self.control, None, self.dt)
+            spent += time.perf_counter() - t0
+            self.s0, self.s1 = self.s1, self.s0
+            q = self.s0.particle_q.numpy().reshape(-1)  # views of the CPU arrays
+            qd = self.s0.particle_qd.numpy().reshape(-1)
+            if damp != 1.0:
+                v1 = qd * np.float32(damp)
+                q -= np.float32(self.dt) * (qd - v1)
+                qd[:] = v1
+            u, v = self.plate_targets(k + 1)
+            q[fx] = (self.nodes.X.ravel()[fx] + u).astype(np.float32)
+            qd[fx] = v.astype(np.float32)
+        self.step_time_s += spent
+        self.step = step0 + n
+        return n, self.bad_node()
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return (self.s0.particle_q.numpy().astype(np.float64).reshape(-1, 3),
+                self.s0.particle_qd.numpy().astype(np.float64).reshape(-1, 3))
+
+    def internal_forces(self, x: np.ndarray) -> np.ndarray:
+        p = self.probe
+        p.particle_q.assign(np.asarray(x, dtype=np.float32))
+        p.particle_qd.zero_()
+        p.clear_forces()
+        eval_tetrahedra_forces(self.model, p, self.control, p.particle_f)
+        return p.particle_f.numpy().astype(np.float64).reshape(-1, 3)
+
+    def vertices(self, x: np.ndarray | None = None) -> np.ndarray:
+        return self.state()[0] if x is None else np.asarray(x, dtype=float).copy()
