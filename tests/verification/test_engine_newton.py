@@ -141,3 +141,41 @@ def test_explicit_run_reaches_rest():
     assert r.converged, r.info["rest"]
     assert r.reactions["top"].force[2] == pytest.approx(st.reactions["top"].force[2], rel=1e-3)
     assert r.info["device"] == "cpu" and r.info["precision"] == "f32" and r.info["compile_time_s"] > 0
+
+
+def test_cli_json_is_one_object_on_stdout():
+    """``hybmss moduli --model newton-semi --json``: Warp's greeting and module-load lines stay off
+    stdout, which holds the one strict-JSON object."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-m", "studies.cli", "moduli", "--model", NAME, "--strain", str(STRAIN),
+                        "--nu", "0.25", "--json"], capture_output=True, text=True, timeout=600, env=dict(os.environ))
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout)
+    assert out["status"] == "ok" and out["G_eff"] == pytest.approx(E / 2.5, rel=1e-3)
+
+
+def test_missing_engine_leaves_its_models_out():
+    """Without newton the registry lists no newton-* model, says so in one warning line, and a
+    command naming one is refused (exit 2), never a traceback."""
+    import subprocess
+    import sys
+
+    block = ("import sys\n"
+             "class Block:\n"
+             "    def find_spec(self, name, path=None, target=None):\n"
+             "        if name.split('.')[0] == 'newton':\n"
+             "            raise ModuleNotFoundError(name)\n"
+             "sys.meta_path.insert(0, Block())\n")
+    p = subprocess.run([sys.executable, "-c", block + "import hybmss.models as m; print(','.join(m.names()))"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert "newton" not in p.stdout and "mujoco-tet" in p.stdout
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "newton" in lines[0], p.stderr
+    code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'newton-semi']))"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr

@@ -40,7 +40,7 @@ import numpy as np
 
 import warp as wp
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # no greeting nor module-load lines on stdout (a --json command's)
 
 import newton  # noqa: E402
 from newton._src.solvers.semi_implicit.kernels_particle import eval_tetrahedra_forces  # noqa: E402
