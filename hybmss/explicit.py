@@ -50,7 +50,9 @@ from .system import System, build
 from .terms import DeadLoad
 
 SOLVER = "mss-explicit"
-KERNELS = ("numba", "numpy")
+KERNELS = ("numba", "numpy", "engine")
+"""Explicit kernels: the Numba stencil kernel, its NumPy twin, and ``engine``: the own compiled step
+of an engine a model wraps (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`)."""
 RAMP_LAW = "s(t) = 0.5 (1 - cos(pi t / T)) for t < T, then 1"
 REST_RTOL = 1e-3
 """Default tolerance of the rest criterion of an explicit run (:func:`rest_report`)."""

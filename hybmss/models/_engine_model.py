@@ -29,9 +29,8 @@ class EngineModel(ModelBase):
     Parameters = NoParameters
     conservative = False  # its static answer is the rest state of the engine's damped run
     solvers = ("static", "explicit")
-    kernels = ("numba",)
-    """The harness's default kernel name only: the engine runs its own compiled step
-    (``info['engine']``)."""
+    kernels = ("engine",)
+    """The engine's own compiled step (``info['engine']``): the harness's kernels do not run it."""
     studies = ()
     """No study role yet: the studies' sweeps and tables are unchanged by installing the engine."""
 
@@ -53,7 +52,7 @@ class EngineModel(ModelBase):
             raise ValueError(f"precision must be {' or '.join(self.precisions)} for {self.name} ({self.engine} "
                              f"computes in it), got {precision!r}")
 
-    def simulate_explicit(self, scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba",
+    def simulate_explicit(self, scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "engine",
                           ramp_time: float = 1.0, threads: int = 1, record_every: int = 0, system=None, *,
                           x0=None, v0=None, dt_crit_value=None, compute_dt_crit: bool = True, check_every: int = 10,
                           precision: str = "f64", rest_rtol: float | None = None):
@@ -93,7 +92,8 @@ class EngineModel(ModelBase):
                 raise divergence(S, body.vertices(), min(bad, S.n - 1), done, dt, dt_c, check_every, self.name)
         r = body.result(f"{self.name}-explicit", done, REST_RTOL if rest_rtol is None else rest_rtol,
                         {"dt": dt, "steps": done, "dt_crit": dt_c, "damping": float(scene.damping),
-                         "ramp_time": float(ramp_time), "kernel": self.engine.lower(), "until_rest": False})
+                         "ramp_time": float(ramp_time), "kernel": "engine", "engine_name": self.engine,
+                         "until_rest": False})
         return r
 
     def solve_static(self, scene, options=None, system=None):
@@ -144,7 +144,7 @@ class EngineModel(ModelBase):
                     break
         r = body.result(f"{self.name}-rest", done, self.static_rest_rtol,
                         {"dt": dt, "omega_1": w1, "omega_max": wmax, "damping": c, "ramp_time": T,
-                         "t_end": done * dt, "kernel": self.engine.lower(), "until_rest": True,
+                         "t_end": done * dt, "kernel": "engine", "engine_name": self.engine, "until_rest": True,
                          "static_from": f"rest state of {self.engine}'s damped run (rest_report)"})
         if not r.converged:
             raise StaticSolveError(

@@ -81,8 +81,9 @@ from ..terms import ForceTerm
 SOLVER_KINDS = ("static", "explicit", "implicit")
 """Solver kinds of the harness: static equilibrium, explicit dynamics, implicit Euler."""
 
-KERNELS = ("numba", "numpy")
-"""Explicit kernels: the Numba stencil kernel and its NumPy twin."""
+KERNELS = ("numba", "numpy", "engine")
+"""Explicit kernels: the Numba stencil kernel, its NumPy twin, and ``engine``: the own compiled step
+of an engine a model wraps (MuJoCo, Newton), the only kernel of such a model."""
 
 NO_SPRINGS = Constants(ke=0.0, kf=0.0, kc=0.0, kappa=0.0, G_springs=0.0)
 """Constants of a model that is not a spring lattice: no springs, no volume term."""

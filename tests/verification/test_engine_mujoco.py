@@ -118,7 +118,7 @@ def test_refuses_what_it_cannot_represent(name):
     with pytest.raises(ValueError, match="loads"):
         solve_static(cube(name, 0.3, MOTIONS["stretch"], loads=(Load(Region("z+"), (0.0, 0.0, -1.0)),)))
     with pytest.raises(ValueError, match="threads"):
-        simulate_explicit(cube(name, 0.3, MOTIONS["stretch"]), dt=1e-4, steps=10, threads=2)
+        simulate_explicit(cube(name, 0.3, MOTIONS["stretch"]), dt=1e-4, steps=10, threads=2, kernel="engine")
     if name != "mujoco-tet":
         mask = np.ones((2, 2, 2), dtype=bool)
         mask[1, 1, 1] = False
@@ -137,7 +137,8 @@ def test_explicit_run_reaches_rest():
     st = solve_static(sc)
     i = st.info  # the static run's step, damping (2 ω₁) and ramp; run 30/ω₁ past the ramp
     steps = int((i["ramp_time"] + 30.0 / i["omega_1"]) / i["dt"])
-    r = simulate_explicit(sc, dt=i["dt"], steps=steps, ramp_time=i["ramp_time"], damping=i["damping"])
+    r = simulate_explicit(sc, dt=i["dt"], steps=steps, ramp_time=i["ramp_time"], damping=i["damping"],
+                          kernel="engine")
     assert r.converged, r.info["rest"]
     assert r.reactions["top"].force[2] == pytest.approx(st.reactions["top"].force[2], rel=1e-3)
     assert r.info["step_time_s"] > 0 and r.info["device"] == "cpu"

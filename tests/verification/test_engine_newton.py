@@ -122,9 +122,10 @@ def test_refuses_what_it_cannot_represent():
     with pytest.raises(ValueError, match="loads"):
         solve_static(cube(0.3, motion("stretch", STRAIN), loads=(Load(Region("z+"), (0.0, 0.0, -1.0)),)))
     with pytest.raises(ValueError, match="threads"):
-        simulate_explicit(cube(0.3, motion("stretch", STRAIN)), dt=1e-4, steps=10, threads=2, precision="f32")
+        simulate_explicit(cube(0.3, motion("stretch", STRAIN)), dt=1e-4, steps=10, threads=2, precision="f32",
+                          kernel="engine")
     with pytest.raises(ValueError, match="precision"):
-        simulate_explicit(cube(0.3, motion("stretch", STRAIN)), dt=1e-4, steps=10)
+        simulate_explicit(cube(0.3, motion("stretch", STRAIN)), dt=1e-4, steps=10, kernel="engine")
 
 
 def test_explicit_run_reaches_rest():
@@ -137,7 +138,7 @@ def test_explicit_run_reaches_rest():
     i = st.info
     steps = int((i["ramp_time"] + 30.0 / i["omega_1"]) / i["dt"])
     r = simulate_explicit(sc, dt=i["dt"], steps=steps, ramp_time=i["ramp_time"], damping=i["damping"],
-                          precision="f32")
+                          precision="f32", kernel="engine")
     assert r.converged, r.info["rest"]
     assert r.reactions["top"].force[2] == pytest.approx(st.reactions["top"].force[2], rel=1e-3)
     assert r.info["device"] == "cpu" and r.info["precision"] == "f32" and r.info["compile_time_s"] > 0
