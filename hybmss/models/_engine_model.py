@@ -8,7 +8,14 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from ..solvers import StaticSolveError
 from .base import ModelBase, NoParameters
+
+class SceneNotRepresentable(ValueError, StaticSolveError):
+    """What an engine cannot represent, refused before any work: a :class:`ValueError` naming the
+    parameter (exit 2 of a command), and a :class:`hybmss.solvers.StaticSolveError` for a sweep
+    that records a failed solve as a row (the studies' moduli table runs every model at ν < 0)."""
+
 
 SETTLE = 20.0
 """Time after the ramp, in 1/ω₁, before a float32 engine's state within its force resolution
@@ -39,13 +46,13 @@ class EngineModel(ModelBase):
         raise NotImplementedError
 
     def check_scene(self, scene) -> None:
-        """Raise :class:`ValueError` naming what of ``scene`` the engine cannot represent."""
+        """Raise :class:`SceneNotRepresentable` naming what of ``scene`` the engine cannot represent."""
 
     def _check(self, scene, threads: int = 1, precision: str | None = None) -> None:
         self.check_scene(scene)
         if scene.loads:
-            raise ValueError(f"loads: {self.name} cannot represent surface tractions ({self.engine} has no surface "
-                             "load on its body); use plates or gravity")
+            raise SceneNotRepresentable(f"loads: {self.name} cannot represent surface tractions ({self.engine} has "
+                                        "no surface load on its body); use plates or gravity")
         if int(threads) != 1:
             raise ValueError(f"threads must be 1 for {self.name} (the engine steps on one thread), got {threads}")
         if precision is not None and precision not in self.precisions:
@@ -105,7 +112,6 @@ class EngineModel(ModelBase):
         checked every 1/ω₁; :class:`hybmss.solvers.StaticSolveError` if it is not within
         ``T + 60/ω₁``.  A massless body (ρ = 0) runs with unit density and no weight (the rest
         state does not depend on a uniform density)."""
-        from ..solvers import StaticSolveError
         from ..system import build
         from .corot_hex8 import CorotHex8, frequency_range
         self._check(scene)

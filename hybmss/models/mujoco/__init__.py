@@ -37,7 +37,7 @@ from __future__ import annotations
 import importlib.util
 import warnings
 
-from .._engine_model import EngineModel
+from .._engine_model import EngineModel, SceneNotRepresentable
 from ..base import Style
 
 KINDS = ("tet", "trilinear", "quadratic")
@@ -76,11 +76,11 @@ class MujocoModel(EngineModel):
 
     def check_scene(self, scene) -> None:
         if scene.material.nu < 0:
-            raise ValueError(f"nu must lie in [0, 0.5) for {self.name} (MuJoCo's documented range of poisson), "
-                             f"got {scene.material.nu:g}")
+            raise SceneNotRepresentable(f"nu must lie in [0, 0.5) for {self.name} (MuJoCo's documented range of "
+                                        f"poisson), got {scene.material.nu:g}")
         if self.kind != "tet" and not bool(scene.body.mask.all()):
-            raise ValueError(f"body: {self.name} needs a box-shaped body (its interpolation grid spans the bounding "
-                             "box); use mujoco-tet for other shapes")
+            raise SceneNotRepresentable(f"body: {self.name} needs a box-shaped body (its interpolation grid spans "
+                                        "the bounding box); use mujoco-tet for other shapes")
 
 
 class MujocoTet(MujocoModel):

@@ -28,7 +28,7 @@ from __future__ import annotations
 import importlib.util
 import warnings
 
-from .._engine_model import EngineModel
+from .._engine_model import EngineModel, SceneNotRepresentable
 from ..base import Style
 
 STATIC_REST_RTOL = 1e-3
@@ -64,8 +64,8 @@ class NewtonModel(EngineModel):
 
     def check_scene(self, scene) -> None:
         if not scene.material.nu > -5.0 / 14.0:
-            raise ValueError(f"nu must lie in (-5/14, 0.5) for {self.name} (its k_lambda = lambda + 5 mu/6 must be "
-                             f"> 0), got {scene.material.nu:g}")
+            raise SceneNotRepresentable(f"nu must lie in (-5/14, 0.5) for {self.name} (its k_lambda = lambda + "
+                                        f"5 mu/6 must be > 0), got {scene.material.nu:g}")
 
 
 class NewtonSemi(NewtonModel):
