@@ -38,8 +38,6 @@ class EngineModel(ModelBase):
     solvers = ("static", "explicit")
     kernels = ("engine",)
     """The engine's own compiled step (``info['engine']``): the harness's kernels do not run it."""
-    studies = ()
-    """No study role yet: the studies' sweeps and tables are unchanged by installing the engine."""
 
     def make_body(self, system, dt: float, ramp_time: float, **kw):
         """The engine's body of ``system`` (an :class:`hybmss.models._engine_body.EngineBody`)."""
