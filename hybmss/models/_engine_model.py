@@ -149,6 +149,7 @@ class EngineModel(ModelBase):
         r = body.result(f"{self.name}-rest", done, self.static_rest_rtol,
                         {"dt": dt, "omega_1": w1, "omega_max": wmax, "damping": c, "ramp_time": T,
                          "t_end": done * dt, "kernel": "engine", "engine_name": self.engine, "until_rest": True,
+                         "load_steps": 0,
                          "static_from": f"rest state of {self.engine}'s damped run (rest_report)"})
         if not r.converged:
             raise StaticSolveError(
