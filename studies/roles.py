@@ -186,6 +186,13 @@ def in_role(role: str) -> tuple[str, ...]:
     return tuple(n for n in models.names() if takes_part(n, role))
 
 
+def studied() -> tuple[str, ...]:
+    """Names of the models that take part in any study role (a model listed with no role, such as an
+    engine whose study resolutions are not chosen yet, is left out of every study), in the
+    registry's order."""
+    return tuple(n for n in models.names() if part(n).roles)
+
+
 def published(model: str) -> dict[str, str]:
     """The publications that report ``model``, each with its name for it."""
     return part(model).published

@@ -39,6 +39,7 @@ from hybmss.scene import Body, Material, Model, admissible_nu
 from hybmss.solvers import StaticSolveError
 
 from . import publications as publication
+from . import roles
 from .paper import printed
 from .compare import default_law, diff_metrics
 from .paper import load as load_paper
@@ -244,10 +245,12 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
-    """Effective moduli of every registered model, with each parameter set it is compared in."""
+    """Effective moduli of every model of the studies (:func:`studies.roles.studied`), with each
+    parameter set it is compared in."""
     variants = []
+    studied = roles.studied()
     for m in models.all_models():
-        if not m.supports("static"):
+        if m.name not in studied or not m.supports("static"):
             continue
         for nu in nus:  # every parameter set the model is compared in at any of these ν
             variants += [Model(m.name, **v) for v in m.study_variants(nu)]
