@@ -10,7 +10,7 @@ run), ``track_static_reaction_vs_fem`` the relative difference of the top plate'
 from __future__ import annotations
 
 from fem_reference.solve import solve as fem_solve
-from hybmss.solvers import solve_static
+from hybmss.solve import solve_static
 from hybmss.system import build
 
 from .asv_common import MESHES, rel_l2, scene

@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from hybmss.experiments import SceneSpec
-from hybmss.solvers import StaticSolveError, solve_static
+from hybmss.solve import StaticSolveError, solve_static
 from studies.publications import models_of
 
 CUBE, BEAM = (10, 10, 10), (8, 8, 48)

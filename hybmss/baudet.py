@@ -64,9 +64,9 @@ The correction on the j-faces depends on the springs of the other axes (includin
 diagonals' response to non-affine motions), but the j-face motion does not enter those forces
 in the transposed way: the Jacobian ``∂f/∂x`` of the corrections is not symmetric, so the forces
 have a non-zero curl and do work around closed loops (``tests/test_baudet.py`` measures both).
-There is no potential energy: :func:`hybmss.solvers.solve_static` cannot minimize one and
+There is no potential energy: :func:`hybmss.solve.solve_static` cannot minimize one and
 solves this variant in its residual mode (Newton on the force residual, see
-:mod:`hybmss.solvers`), with :meth:`Corrections.stiffness` as the term's Jacobian.
+:mod:`hybmss.solve`), with :meth:`Corrections.stiffness` as the term's Jacobian.
 
 What the residual mode guarantees: a configuration where the total force (springs,
 corrections, gravity, loads) on every free degree of freedom is below ``rtol`` times the

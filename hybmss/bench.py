@@ -30,7 +30,7 @@ from . import models
 from .experiments import SceneSpec
 from .explicit import WARM_UP_THREADS, dt_crit, simulate_explicit
 from .scene import Scene
-from .solvers import solve_static
+from .solve import solve_static
 from .system import build
 
 MESH = (10, 10, 10)

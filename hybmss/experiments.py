@@ -35,8 +35,7 @@ from functools import cached_property
 import numpy as np
 
 from . import models
-from .scene import NU_OPEN_RANGE, Body, Material, Model, Motion, Plate, Region, Scene
-from .solvers import NU_RANGE
+from .scene import NU_OPEN_RANGE, NU_RANGE, Body, Material, Model, Motion, Plate, Region, Scene
 
 EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending", "uniaxial")
 

@@ -34,8 +34,8 @@ import numpy as np
 
 from .experiments import shear_scene, uniaxial_scene
 from .forces import internal_forces
-from .scene import NU_OPEN_RANGE, Material, Model, Scene, admissible_nu
-from .solvers import check_nu, solve_static
+from .scene import NU_OPEN_RANGE, Material, Model, Scene, admissible_nu, check_nu
+from .solve import solve_static
 from .system import build
 
 STRAIN_RANGE = (1e-6, 1e-2)
@@ -127,7 +127,7 @@ def shear_stress_from_reactions(scene: Scene, result) -> float:
 
 def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: int = 2, judge: bool = False) -> dict:
     """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``.  ``ValueError`` for a
-    strain outside :data:`STRAIN_RANGE` or ν outside :data:`hybmss.solvers.NU_RANGE`;
+    strain outside :data:`STRAIN_RANGE` or ν outside :data:`hybmss.scene.NU_RANGE`;
     :class:`MeasurementError` (``judge``) for a state that is not an equilibrium or moduli out of
     bounds."""
     lo, hi = STRAIN_RANGE

@@ -161,7 +161,7 @@ NU_OPEN_RANGE = (-1.0, 0.5)
 """The Poisson ratios of a stable isotropic material, an open interval: ν → −1 loses the bulk
 modulus, ν → ½ the shear modulus relative to it.  Every check of ν in the harness, its studies and
 its report uses it (:func:`admissible_nu`); the solvers' narrower float64 range is
-:data:`hybmss.solvers.NU_RANGE`."""
+:data:`NU_RANGE`."""
 
 
 def admissible_nu(nu: float) -> bool:
@@ -179,6 +179,22 @@ studies' size and cost estimates count that element (:func:`nearly_incompressibl
 def nearly_incompressible(nu: float) -> bool:
     """Whether ``nu`` ≥ :data:`NEARLY_INCOMPRESSIBLE_NU`."""
     return nu >= NEARLY_INCOMPRESSIBLE_NU
+
+
+NU_RANGE = (-0.99, 0.49999)
+"""Poisson ratios for which the Newton solvers (static, implicit) reach equilibrium in float64 and
+the moduli come out right (tests/verification/test_moduli.py).  Beyond ν = 0.49999 the volume term
+(κ > 1.6e4 E) drowns the plate reactions in its round-off; below ν = −0.99 the shear springs
+(k > 50 E le) do, and finite-strain terms amplified by G/K make the measured E wrong by more than
+1 % at a strain of 1e-4."""
+
+
+def check_nu(nu: float) -> None:
+    """Raise ``ValueError`` for a Poisson ratio outside :data:`NU_RANGE`."""
+    lo, hi = NU_RANGE
+    if not (lo <= nu <= hi):
+        raise ValueError(f"nu={nu!r} is outside [{lo}, {hi}], the range in which the static and implicit "
+                         "solvers reach an equilibrium in float64")
 
 
 @dataclass(frozen=True)

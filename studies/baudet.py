@@ -135,7 +135,7 @@ def _experiment(make, cells, ref_cells, check_cells, progress, label, models=Non
     the grid of ``ref_cells`` (and its change from the grid of ``check_cells``)."""
     import pandas as pd
 
-    from hybmss.solvers import solve_static
+    from hybmss.solve import solve_static
 
     models = error_models() if models is None else models
     t = time.perf_counter()

@@ -135,7 +135,14 @@ def _settings(spec: SceneSpec | None, shape, refine=None) -> str:
 
 
 def check_result(res, what: str) -> None:
-    """A result that is not what was asked (not converged, non-finite outputs) is a failure."""
+    """A result that is not what was asked (not converged, a dynamic run not at rest, non-finite
+    outputs) is a failure."""
+    rest = res.info.get("rest")
+    if isinstance(rest, dict) and not rest.get("at_rest"):
+        steps = res.info.get("steps", res.iterations)
+        why = " ".join(str(rest.get("not_at_rest_because") or "").split())
+        raise SolveFailure(f"the {what} ({res.solver}) is not at rest after {steps} steps: raise --steps or "
+                           f"--damping" + (f" ({why})" if why else ""))
     if not res.converged:
         why = " ".join(str(res.info.get("warning") or res.info.get("message") or "did not converge").split())
         raise SolveFailure(f"the {what} ({res.solver}) did not converge: {why}; try a smaller load or a finer mesh")
@@ -381,8 +388,17 @@ def _side(spec: SceneSpec, result) -> dict:
     return out
 
 
+def check_solver(spec: SceneSpec, solver: str) -> None:
+    """Refuse a solver kind the scene's model does not support (its ``solvers``)."""
+    model = models.get(spec.model)
+    if not model.supports(solver):
+        raise InputError(f"--solver = {solver} is not allowed: model {model.name} does not support it; "
+                         f"allowed: {', '.join(model.solvers)}")
+
+
 def compare(args):
     spec = scene_spec(args, args.scene, (args.solver, "fem"))
+    check_solver(spec, args.solver)
     dyn = {"dt": args.dt, "steps": args.steps, "ramp_time": args.ramp_time}
     if args.solver == "static":
         for name, v in dyn.items():

@@ -70,6 +70,6 @@ if _is_server():
 # the workers' code, loaded after the variables (numpy and scipy load their BLAS here)
 import fem_reference.solve  # noqa: E402,F401
 import hybmss.explicit  # noqa: E402,F401
-import hybmss.solvers  # noqa: E402,F401
+import hybmss.solve  # noqa: E402,F401
 
 from . import runner  # noqa: E402,F401

@@ -100,11 +100,11 @@ def solve(task: Task):
     scene = task.scene.build()
     s = task.solver
     if s.kind == "static":
-        from hybmss.solvers import solve_static
+        from hybmss.solve import solve_static
 
         return solve_static(scene)
     if s.kind == "implicit":
-        from hybmss.solvers import ImplicitOptions, simulate_implicit
+        from hybmss.solve import ImplicitOptions, simulate_implicit
 
         return simulate_implicit(scene, ImplicitOptions(dt=s.dt, steps=s.steps, ramp_time=s.ramp_time))
     if s.kind == "explicit":
@@ -186,6 +186,23 @@ def base_row(task: Task, key: str | None = None) -> dict:
     }
 
 
+def failure_row(exc: Exception) -> dict:
+    """The fields of a failed run's row: its ``status`` by the exception's type ("diverged": an
+    explicit run left the physical range, :class:`hybmss.explicit.DivergenceError`; "unstable": a
+    Newton solve lost the equilibrium, :class:`hybmss.solve.StaticSolveError`; else "error"), its
+    ``message`` (the type's name and the message on one line) and, for a solver error, its numbers
+    (``failure``: the fields of :meth:`hybmss.solve.StaticSolveError.fields`)."""
+    from hybmss.explicit import DivergenceError
+    from hybmss.solve import StaticSolveError
+
+    row = {"status": "diverged" if isinstance(exc, DivergenceError) else (
+               "unstable" if isinstance(exc, StaticSolveError) else "error"),
+           "message": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+    if isinstance(exc, StaticSolveError):
+        row["failure"] = exc.fields()
+    return row
+
+
 def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
     the process that runs the sweep stores them)."""
@@ -204,10 +221,7 @@ def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
             arrays["cell_volumes"] = res.cell_volumes
         row["info"] = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
     except Exception as exc:  # noqa: BLE001 - every failure becomes a stored, reported row
-        name = type(exc).__name__
-        row["status"] = "diverged" if "Divergence" in name else (
-            "unstable" if name == "StaticSolveError" else "error")
-        row["message"] = f"{name}: {' '.join(str(exc).split())}"
+        row.update(failure_row(exc))
         row["traceback"] = traceback.format_exc(limit=4)
     row["elapsed_s"] = time.perf_counter() - t0
     return row, arrays

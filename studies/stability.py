@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 import time
 
 import numpy as np
@@ -60,7 +59,7 @@ from hybmss.scene import Material
 
 from . import roles
 from .compare import diff_metrics
-from .runner import SolverSpec, Task, run_tasks
+from .runner import SolverSpec, Task, failure_row, run_tasks
 from .store import Store
 
 def stability_models() -> tuple[str, ...]:
@@ -239,19 +238,18 @@ def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict])
 
 
 # ------------------------------------------------------------------------------ (d) limit stretch
-_FAIL = re.compile(r"failed at load factor s=(?P<s_fail>[^ ]+) \(last converged s=(?P<s_last>[^)]+)\); "
-                   r"smallest eigenvalue of the constrained Hessian: (?P<lam>[^ ]+) N/m at s=[^,]+, "
-                   r"(?P<lam_next>[^ ]+) N/m")
+def failure_numbers(row: dict) -> dict:
+    """Load factors and eigenvalues of a run that lost its equilibrium, from the fields of its
+    :class:`hybmss.solve.StaticSolveError` (a row's ``failure``, :func:`studies.runner.failure_row`;
+    NaN where absent)."""
+    f = row.get("failure") or {}
 
+    def num(name):
+        v = f.get(name)
+        return float("nan") if v is None else float(v)
 
-def parse_failure(message: str) -> dict:
-    """Load factors and eigenvalues of a :class:`StaticSolveError` message (NaN if absent)."""
-    m = _FAIL.search(message or "")
-    if not m:
-        return {"s_last": float("nan"), "s_fail": float("nan"), "lambda_min": float("nan"),
-                "lambda_min_next": float("nan")}
-    return {"s_last": float(m["s_last"]), "s_fail": float(m["s_fail"]), "lambda_min": float(m["lam"]),
-            "lambda_min_next": float(m["lam_next"])}
+    return {"s_last": num("load_factor"), "s_fail": num("next_load_factor"), "lambda_min": num("smallest_eigenvalue"),
+            "lambda_min_next": num("next_smallest_eigenvalue")}
 
 
 D_MAX = 1.0
@@ -290,7 +288,7 @@ def limit_table(store: Store, tasks, rows) -> pd.DataFrame:
     out = []
     for (nu, model, ve), d in by.items():
         r = d["limit"]
-        p = parse_failure(r.get("message", ""))
+        p = failure_numbers(r)
         reached = r["status"] == "ok"
         spec = models.get(model)
         row = {"nu": nu, "variant": model, "volume_energy": ve, "d_max": D_MAX, "status": r["status"],
@@ -378,7 +376,7 @@ def _irregular_rows(job: tuple) -> list[dict]:
     """The rows of part (e) at one ν (``job``: (quick, ν))."""
     from fem_reference.solve import solve as fem_solve
     from hybmss.explicit import simulate_explicit
-    from hybmss.solvers import solve_static
+    from hybmss.solve import solve_static
 
     quick, nu = job
     rows = []
@@ -417,11 +415,7 @@ def _irregular_rows(job: tuple) -> list[dict]:
                     if "load_steps" in res.info:
                         row["load_steps"] = res.info["load_steps"]
                 except Exception as exc:  # noqa: BLE001 - reported as a row
-                    nm = type(exc).__name__
-                    row.update(status="diverged" if "Divergence" in nm else (
-                        "unstable" if nm == "StaticSolveError" else "error"),
-                        inverted_cells=0, message=f"{nm}: {' '.join(str(exc).split())}",
-                        rel_l2_vs_fem=np.nan)
+                    row.update(failure_row(exc), inverted_cells=0, rel_l2_vs_fem=np.nan)
                 row["elapsed_s"] = time.perf_counter() - t0
                 rows.append(row)
     return rows

@@ -36,7 +36,7 @@ from hybmss.experiments import SceneSpec
 from hybmss.lattice import Lattice
 from hybmss.moduli import measure_moduli
 from hybmss.scene import Body, Material, Model, admissible_nu
-from hybmss.solvers import StaticSolveError
+from hybmss.solve import StaticSolveError
 
 from . import publications as publication
 from . import roles

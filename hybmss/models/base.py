@@ -49,7 +49,7 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
   ``precision`` or ``threads`` it does not have raises :class:`ValueError`) returning a
   :class:`hybmss.result.Result`, for a model that brings its own (e.g. a position-based integrator
   whose static answer is the rest state of a damped run).
-  :func:`hybmss.solvers.solve_static` and :func:`hybmss.explicit.simulate_explicit` hand the
+  :func:`hybmss.solve.solve_static` and :func:`hybmss.explicit.simulate_explicit` hand the
   scene to them; :func:`hybmss.explicit.dt_crit` returns the model's ``dt_crit`` when it has one.
   ``simulate_explicit`` refuses a kernel that is not in ``kernels``, ``solve_static`` a model
   without ``"static"`` in ``solvers``.

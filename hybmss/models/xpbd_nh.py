@@ -72,7 +72,7 @@ from ..explicit import initial_state, plate_arrays, ramp
 from ..lattice import CORNERS
 from ..result import Result
 from ..scene import Material
-from ..solvers import StaticSolveError
+from ..solve.errors import StaticSolveError
 from ..system import System, build
 from ..terms import DeadLoad
 from .base import ModelBase, Style, check
@@ -682,9 +682,9 @@ def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "
 
 
 def solve_scene(scene, options=None, system: System | None = None) -> Result:
-    """The static answer with the signature of :func:`hybmss.solvers.solve_static`: the rest state
+    """The static answer with the signature of :func:`hybmss.solve.solve_static`: the rest state
     of a damped run (:func:`solve_static`, defaults from the body's frequencies; ``options`` of the
-    Newton solvers do not apply).  Raises :class:`hybmss.solvers.StaticSolveError` if the run does
+    Newton solvers do not apply).  Raises :class:`hybmss.solve.StaticSolveError` if the run does
     not come to rest in its time budget."""
     S = massless_static(system if system is not None else build(scene))
     p = scene.model.params
@@ -693,7 +693,8 @@ def solve_scene(scene, options=None, system: System | None = None) -> Result:
     if not r.converged:
         raise StaticSolveError(
             f"xpbd-nh scene {scene.name or '(unnamed)'}: the damped run did not come to rest within "
-            f"{r.info['t_end']:.4g} s (largest speed {r.info['max_speed']:.3g} m/s); raise the damping or the time budget")
+            f"{r.info['t_end']:.4g} s (largest speed {r.info['max_speed']:.3g} m/s); raise the damping or the time budget",
+            cause="rest-state", time=float(r.info['t_end']))
     return r
 
 

@@ -116,6 +116,15 @@ REFUSED = [
     (["compare", "compression", "--steps", "100", "--json"], "--steps = 100"),
     (["fem", "--convergence", "1,2", "--refine", "2"], "--refine = 2 is not allowed with --convergence"),
     # one cell layer between two plates leaves nothing to solve
+    # a solver kind the model does not support (its `solvers`)
+    (["compare", "compression", "--mesh", "2x2x2", "--model", "corot-hex8", "--solver", "implicit"],
+     "--solver = implicit is not allowed: model corot-hex8 does not support it; allowed: static, explicit"),
+    (["compare", "compression", "--mesh", "2x2x2", "--model", "corot-hex8-sri", "--solver", "implicit", "--json"],
+     "--solver = implicit is not allowed: model corot-hex8-sri"),
+    (["compare", "compression", "--mesh", "2x2x2", "--model", "baudet2009", "--solver", "implicit"],
+     "--solver = implicit is not allowed: model baudet2009"),
+    (["compare", "compression", "--mesh", "2x2x2", "--model", "xpbd-nh", "--solver", "implicit"],
+     "--solver = implicit is not allowed: model xpbd-nh"),
     (["compare", "compression", "--mesh", "1x1x1"], "--mesh = 1x1x1"),
     (["fem", "--scene", "shear", "--mesh", "3x3x1", "--json"], "NZ >= 2"),
     # size guard: memory estimated from mesh and refinement, refused with what it would need
@@ -324,6 +333,13 @@ def test_moduli_of_the_default_model():
     # the calibration reproduces the input moduli exactly for every nu (README "Models")
     assert out["E_eff"] == pytest.approx(1e4, rel=1e-5) and out["nu_eff"] == pytest.approx(0.3, abs=1e-5)
     assert out["G_eff"] == pytest.approx(1e4 / 2.6, rel=1e-5)
+
+
+def test_implicit_run_that_ends_before_rest_exits_3():
+    # five steps of 1 ms end long before the 1 s load ramp does: not at rest, never converged
+    out = check(hybmss("compare", "compression", "--mesh", CUBE, "--solver", "implicit", "--steps", "5",
+                       "--json"), 3, "not at rest after 5 steps: raise --steps or --damping")
+    assert out["status"] == "failed" and "load ramp is at s = " in out["message"]
 
 
 def test_failed_simulation_exits_3():

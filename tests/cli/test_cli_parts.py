@@ -115,7 +115,7 @@ def test_parameter_errors_name_the_range():
 
 def test_help_ranges_are_the_solvers(capsys):
     from hybmss.moduli import STRAIN_RANGE
-    from hybmss.solvers import NU_RANGE
+    from hybmss.solve import NU_RANGE
 
     for argv in (["moduli", "--help"], ["compare", "--help"]):
         assert cli.main(argv) == 0

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studies import pareto, performance, stability
+from studies import pareto, performance, runner, stability
 from studies.runner import SolverSpec, Task, run_tasks
 from studies.scenes import SceneSpec
 from studies.store import Store
@@ -78,19 +78,20 @@ def test_sample_refuses_points_off_the_lattice():
 
 
 def test_limit_stretch_at_nu_zero_is_reported_with_its_cause():
-    from hybmss.solvers import StaticSolveError, solve_static
+    from hybmss.solve import StaticSolveError, solve_static
 
     scene = SceneSpec.default("tension", mesh=(1, 1, 6), nu=0.0, deformation=1.0).build()
     with pytest.raises(StaticSolveError) as err:
         solve_static(scene)
-    p = stability.parse_failure(str(err.value))
+    p = stability.failure_numbers(runner.failure_row(err.value))
     assert 0.05 < p["s_last"] < p["s_fail"] < 0.5
+    assert err.value.cause in ("limit-point", "indefinite-at-rest")
     assert "kappa" in str(err.value) or "positive definite" in str(err.value)
 
 
 def test_jittered_lattice_is_at_rest_and_solvable():
     from hybmss.forces import energy_forces
-    from hybmss.solvers import solve_static
+    from hybmss.solve import solve_static
 
     scene = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.3).build()
     S = stability.jittered_system(scene, 0.1, seed=1)

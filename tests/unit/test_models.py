@@ -309,7 +309,7 @@ def test_the_default_model_comes_from_the_registry():
 def test_a_model_with_its_own_solvers_and_time_step_gets_the_scene():
     """``solve_static``, ``simulate_explicit`` and ``dt_crit`` of a model replace the harness's."""
     from hybmss.explicit import dt_crit, simulate_explicit
-    from hybmss.solvers import solve_static
+    from hybmss.solve import solve_static
 
     seen = []
 

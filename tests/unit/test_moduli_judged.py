@@ -7,7 +7,7 @@ import pytest
 from hybmss.experiments import uniaxial_scene
 from hybmss.moduli import EQUILIBRIUM_TOL, MeasurementError, check_moduli, equilibrium_error, measure_moduli
 from hybmss.scene import Material, Model
-from hybmss.solvers import solve_static
+from hybmss.solve import solve_static
 
 
 @pytest.mark.parametrize("m, bad", [

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene, parse_mesh
-from hybmss.solvers import ImplicitOptions
+from hybmss.solve import ImplicitOptions
 
 
 def _scene(**kw):

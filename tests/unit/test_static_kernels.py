@@ -7,7 +7,7 @@ import pytest
 
 from hybmss.experiments import SceneSpec
 from hybmss.forces import cell_volumes, energy_forces, hessian, stiffness
-from hybmss.solvers import _Factorizer, _grid_dissection, _superlu_symmetric, _tangent, cholmod
+from hybmss.solve.linalg import Factorizer, cholmod, grid_dissection, superlu_symmetric, tangent
 from hybmss.system import build
 
 
@@ -35,11 +35,11 @@ def test_fixed_pattern_tangent_is_the_sliced_hessian_and_keeps_one_analysis():
     S = build(SceneSpec.default("tension", mesh=(2, 2, 6), nu=0.45).build())
     free = ~S.fixed.ravel()
     rng = np.random.default_rng(3)
-    fac = _Factorizer()
+    fac = Factorizer()
     b = rng.standard_normal(np.count_nonzero(free))
     for amp in (0.0, 1e-3):
         x = S.X + amp * rng.standard_normal(S.X.shape)
-        T = _tangent(S, x, 1.0, free)
+        T = tangent(S, x, 1.0, free)
         ref = stiffness(S, x)[free][:, free].toarray()
         # the CSR rows are read as CSC columns: H_ffᵀ, equal to H_ff but for the round-off asymmetry
         # of the volume blocks (d2W g_p g_q against d2W g_q g_p)
@@ -53,16 +53,16 @@ def test_fixed_pattern_tangent_is_the_sliced_hessian_and_keeps_one_analysis():
         for A in (T, T.shifted(-0.5)):  # the permuted matrix SuperLU factorizes is a gather on the pattern
             Ap, ref_p = A.permuted(), A.csc()[A.order][:, A.order].tocsc()
             assert Ap.has_sorted_indices and np.array_equal(Ap.toarray(), ref_p.toarray())
-        lu = _superlu_symmetric(T)  # in the nested-dissection order: same inertia, same solution
+        lu = superlu_symmetric(T)  # in the nested-dissection order: same inertia, same solution
         assert np.allclose(ref @ lu.solve(b), b, rtol=0, atol=1e-9 * np.abs(b).max())
         assert np.count_nonzero(lu.U.diagonal() < 0) == np.count_nonzero(np.linalg.eigvalsh(ref) < 0)
     if cholmod is not None:
         assert (fac.symbolic, fac.numeric) == (1, 4)
 
 
-def test_grid_dissection_is_a_permutation_with_separators_last():
+def testgrid_dissection_is_a_permutation_with_separators_last():
     S = build(SceneSpec.default("compression", mesh=(4, 3, 6)).build())
-    order = _grid_dissection(S.lattice.grid, leaf=4)
+    order = grid_dissection(S.lattice.grid, leaf=4)
     assert np.array_equal(np.sort(order), np.arange(S.n))
     # the last nodes form the first separator: the middle plane of the longest extent (z)
     z = S.lattice.grid[order, 2]

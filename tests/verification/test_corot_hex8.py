@@ -13,8 +13,8 @@ from fem_reference.solve import solve as fem_solve
 from hybmss.explicit import DivergenceError
 from hybmss.models.corot_hex8 import corot_term, dt_crit, element_stiffness, simulate_explicit
 from hybmss.moduli import measure_moduli
-from hybmss.solvers import StaticOptions
-from hybmss.solvers import solve_static as harness_static
+from hybmss.solve import StaticOptions
+from hybmss.solve import solve_static as harness_static
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene, rotation_matrix
 from hybmss.system import build
 

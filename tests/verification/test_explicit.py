@@ -201,7 +201,7 @@ def test_damped_run_settles_to_the_static_equilibrium():
     mode decays at least as exp(−min(c/2, ω²/c)·t); c = 2 ω_min gives the rate ω_min for all modes,
     so 14/ω_min after the ramp leaves e^-14 ≈ 1e-6 of the transient (the 20 % compression shifts
     ω_min by tens of % at most)."""
-    from hybmss.solvers import solve_static
+    from hybmss.solve import solve_static
 
     side = 1.0
     n = 6

@@ -9,7 +9,7 @@ import pytest
 
 from hybmss import Body, Material, Model, Motion, Plate, Region, Scene
 from hybmss.explicit import dt_crit, simulate_explicit
-from hybmss.solvers import solve_static
+from hybmss.solve import solve_static
 from hybmss.system import build
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hybmss.scene import Body, Load, Material, Model, Motion, Plate, Region, Scene
-from hybmss.solvers import solve_static
+from hybmss.solve import solve_static
 from hybmss.system import build
 from hybmss.voxelize import l_shape, voxelize, winding_number
 

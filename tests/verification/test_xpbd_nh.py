@@ -13,7 +13,7 @@ from hybmss.lattice import CORNERS
 from hybmss.models.xpbd_nh import CELL_TETS, cell_tetrahedra, simulate_explicit, solve_static, xpbd_lame, xpbd_term
 from hybmss.experiments import SceneSpec
 from hybmss.moduli import measure_moduli, shear_scene, uniaxial_scene
-from hybmss.solvers import solve_static as harness_static
+from hybmss.solve import solve_static as harness_static
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
 from hybmss.system import build
 
