@@ -191,7 +191,8 @@ def failure_row(exc: Exception) -> dict:
     explicit run left the physical range, :class:`hybmss.explicit.DivergenceError`; "unstable": a
     Newton solve lost the equilibrium, :class:`hybmss.solve.StaticSolveError`; else "error"), its
     ``message`` (the type's name and the message on one line) and, for a solver error, its numbers
-    (``failure``: the fields of :meth:`hybmss.solve.StaticSolveError.fields`)."""
+    (``failure_<name>`` for each field of :meth:`hybmss.solve.StaticSolveError.fields`, None where
+    it does not apply: top-level scalars, so the store keeps a non-finite one)."""
     from hybmss.explicit import DivergenceError
     from hybmss.solve import StaticSolveError
 
@@ -199,7 +200,7 @@ def failure_row(exc: Exception) -> dict:
                "unstable" if isinstance(exc, StaticSolveError) else "error"),
            "message": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
     if isinstance(exc, StaticSolveError):
-        row["failure"] = exc.fields()
+        row.update({f"failure_{k}": v for k, v in exc.fields().items()})
     return row
 
 

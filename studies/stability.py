@@ -240,12 +240,11 @@ def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict])
 # ------------------------------------------------------------------------------ (d) limit stretch
 def failure_numbers(row: dict) -> dict:
     """Load factors and eigenvalues of a run that lost its equilibrium, from the fields of its
-    :class:`hybmss.solve.StaticSolveError` (a row's ``failure``, :func:`studies.runner.failure_row`;
-    NaN where absent)."""
-    f = row.get("failure") or {}
+    :class:`hybmss.solve.StaticSolveError` (a row's ``failure_*`` fields,
+    :func:`studies.runner.failure_row`; NaN where absent)."""
 
     def num(name):
-        v = f.get(name)
+        v = row.get(f"failure_{name}")
         return float("nan") if v is None else float(v)
 
     return {"s_last": num("load_factor"), "s_fail": num("next_load_factor"), "lambda_min": num("smallest_eigenvalue"),
@@ -415,7 +414,9 @@ def _irregular_rows(job: tuple) -> list[dict]:
                     if "load_steps" in res.info:
                         row["load_steps"] = res.info["load_steps"]
                 except Exception as exc:  # noqa: BLE001 - reported as a row
-                    row.update(failure_row(exc), inverted_cells=0, rel_l2_vs_fem=np.nan)
+                    failed = failure_row(exc)  # the table keeps its columns: status and message
+                    row.update(status=failed["status"], message=failed["message"], inverted_cells=0,
+                               rel_l2_vs_fem=np.nan)
                 row["elapsed_s"] = time.perf_counter() - t0
                 rows.append(row)
     return rows
