@@ -80,13 +80,18 @@ def test_sample_refuses_points_off_the_lattice():
 def test_limit_stretch_at_nu_zero_is_reported_with_its_cause():
     from hybmss.solve import StaticSolveError, solve_static
 
-    scene = SceneSpec.default("tension", mesh=(1, 1, 6), nu=0.0, deformation=1.0).build()
+    spec = SceneSpec.default("tension", mesh=(1, 1, 6), nu=0.0, deformation=1.0)
     with pytest.raises(StaticSolveError) as err:
-        solve_static(scene)
-    p = stability.failure_numbers(runner.failure_row(err.value))
-    assert 0.05 < p["s_last"] < p["s_fail"] < 0.5
+        solve_static(spec.build())
     assert err.value.cause in ("limit-point", "indefinite-at-rest")
     assert "kappa" in str(err.value) or "positive definite" in str(err.value)
+    # the runner's row of the same run: classified by type, its numbers stored as fields
+    row, _ = runner.compute(Task(spec, SolverSpec("static"), "stability"))
+    assert row["status"] == "unstable" and row["message"].startswith("StaticSolveError: ")
+    p = stability.failure_numbers(row)
+    assert 0.05 < p["s_last"] < p["s_fail"] < 0.5
+    assert (p["s_last"], p["s_fail"]) == (err.value.load_factor, err.value.next_load_factor)
+    assert f"failed at load factor s={p['s_fail']:.6g} (last converged s={p['s_last']:.6g})" in row["message"]
 
 
 def test_jittered_lattice_is_at_rest_and_solvable():
