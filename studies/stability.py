@@ -19,7 +19,7 @@ Six parts, each a table in the results store:
     state, and the relative L2 nodal difference against the FEM (Neo-Hookean, Hex2, mixed u–p at
     ν ≥ 0.45, same mesh) where the FEM converges.
 (d) ``limit_stretch``: tension of the beam at ν ∈ {0, −0.5}: the static solver is asked for 100 %
-    stretch and stops where the equilibrium is lost (its :class:`StaticSolveError` message gives
+    stretch and stops where the equilibrium is lost (its :class:`StaticSolveError` fields give
     the last converged load factor and the smallest eigenvalue of the constrained Hessian there
     and beyond); the stretch at the loss lies between ``1 + s_last`` and ``1 + s_fail``.  For each
     variant, with the quadratic volume energy and with the ``squared`` alternative; plus whether
