@@ -11,7 +11,7 @@ import pytest
 
 from hybmss.explicit import simulate_explicit
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
-from hybmss.solvers import ImplicitOptions, simulate_implicit, solve_static
+from hybmss.solve import ImplicitOptions, simulate_implicit, solve_static
 
 D = -0.02  # the top plate's displacement at full load (m)
 

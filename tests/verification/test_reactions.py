@@ -12,7 +12,7 @@ import pytest
 from fem_reference.solve import solve as fem_solve
 from hybmss.explicit import dt_crit, simulate_explicit
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene
-from hybmss.solvers import ImplicitOptions, simulate_implicit, solve_static
+from hybmss.solve import ImplicitOptions, simulate_implicit, solve_static
 
 RHO, G = 1000.0, np.array([0.0, -3.0, -10.0])
 N, LE = 2, 0.1
