@@ -8,12 +8,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ..solvers import StaticSolveError
+from ..solve.errors import StaticSolveError
 from .base import ModelBase, NoParameters
 
 class SceneNotRepresentable(ValueError, StaticSolveError):
     """What an engine cannot represent, refused before any work: a :class:`ValueError` naming the
-    parameter (exit 2 of a command), and a :class:`hybmss.solvers.StaticSolveError` for a sweep
+    parameter (exit 2 of a command), and a :class:`hybmss.solve.StaticSolveError` for a sweep
     that records a failed solve as a row (the studies' moduli table runs every model at ν < 0)."""
 
 
@@ -107,7 +107,7 @@ class EngineModel(ModelBase):
         ω₁ of the linear Hex8 stiffness of the same grid), stopped when
         :func:`hybmss.explicit.rest_report` finds it at rest with ``rtol`` :attr:`static_rest_rtol`
         (for a float32 engine: within its force resolution, :data:`SETTLE`/ω₁ after the ramp),
-        checked every 1/ω₁; :class:`hybmss.solvers.StaticSolveError` if it is not within
+        checked every 1/ω₁; :class:`hybmss.solve.StaticSolveError` if it is not within
         ``T + 60/ω₁``.  A massless body (ρ = 0) runs with unit density and no weight (the rest
         state does not depend on a uniform density)."""
         from ..system import build
@@ -154,7 +154,8 @@ class EngineModel(ModelBase):
         if not r.converged:
             raise StaticSolveError(
                 f"{self.name} scene {scene.name or '(unnamed)'}: the damped run did not come to rest within "
-                f"{done * dt:.4g} s ({r.info['rest']['not_at_rest_because']}); raise the damping or the time budget")
+                f"{done * dt:.4g} s ({r.info['rest']['not_at_rest_because']}); raise the damping or the time budget",
+                cause="rest-state", time=float(done * dt))
         return r
 
 

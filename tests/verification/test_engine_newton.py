@@ -18,7 +18,7 @@ pytest.importorskip("warp")
 
 from hybmss import Body, Material, Model, Motion, Plate, Region, Scene  # noqa: E402
 from hybmss.moduli import measure_moduli  # noqa: E402
-from hybmss.solvers import solve_static  # noqa: E402
+from hybmss.solve import solve_static  # noqa: E402
 from hybmss.system import build  # noqa: E402
 
 NAME = "newton-semi"
@@ -117,7 +117,7 @@ def test_refuses_what_it_cannot_represent():
     from hybmss.explicit import simulate_explicit
     from hybmss.scene import Load
 
-    from hybmss.solvers import StaticSolveError
+    from hybmss.solve import StaticSolveError
 
     with pytest.raises(ValueError, match="nu"):
         solve_static(cube(-0.4, motion("stretch", STRAIN)))
