@@ -1,4 +1,4 @@
-"""Numba helpers of the explicit stencil kernel: plates, divergence check, [B09] corrections.
+"""Numba helpers of the explicit kernels: plates, divergence check, the particle state.
 
 The step itself (springs, volume term, integration) is generated per lattice by
 :mod:`hybmss._stencil_gen` and works on one flat array ``W`` (its layout is described there).
@@ -7,9 +7,10 @@ This module holds what the generated driver calls between steps, on the same fla
 1. plates: prescribed components ``x = X + u(s(t))`` (f64 stores x, f32 stores u) with the ramp
    s(t), ``v = Δu/dt``;
 2. every ``check_every`` steps: a non-finite position or a displacement beyond the limit stops
-   the run and names the node;
-3. baudet2009: the correction forces of :mod:`hybmss._kernels_baudet` on the positions of the
-   step, into the kernel's external-force rows (added to any dead load).
+   the run and names the node.
+
+The models with kernels of their own (``hybmss/models/<name>/_kernels.py``) use the same helpers
+on a particle-indexed state (:func:`particle_state`, :func:`kernel_state`).
 
 Node q, component d of a region with base ``b`` (index of node 0, component 0) is
 ``W[b + d L + q]``.
@@ -21,8 +22,6 @@ import math
 
 import numpy as np
 from numba import njit
-
-from ._kernels_baudet import corrections_accumulate, corrections_stage
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
 
@@ -91,6 +90,36 @@ def particle_state(x: np.ndarray, v: np.ndarray):
     xg[:] = np.asarray(x).T
     vg[:] = np.asarray(v).T
     return W, xg, vg
+
+
+PRECISIONS = ("f64", "f32")
+
+
+def kernel_state(x: np.ndarray, v: np.ndarray, X: np.ndarray, precision: str = "f64"):
+    """``(W, xg, vg, posmode)``: the flat state of :func:`particle_state` and its (3, n) views.
+
+    ``f64`` stores positions x, float64 (``posmode`` True); ``f32`` stores displacements
+    ``u = x − X`` and velocities in float32, as the lattice's float32 kernel
+    (:mod:`hybmss._stencil_gen`): a position of a few metres keeps only ~1e-7 m in float32, a
+    displacement 1e-7 of itself.  A kernel then evaluates its arithmetic in float64 from
+    ``X + u``, so the float32 state is the only rounding.  ``x``, ``v``, ``X``: (n, 3)."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+    if precision == "f64":
+        W, xg, vg = particle_state(x, v)
+        return W, xg, vg, True
+    W64, _, _ = particle_state(np.asarray(x) - np.asarray(X), v)
+    W = W64.astype(np.float32)
+    n = len(x)
+    return W, W[:3 * n].reshape(3, n), W[3 * n:].reshape(3, n), False
+
+
+def read_state(xg: np.ndarray, vg: np.ndarray, X: np.ndarray, posmode: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities (n, 3), float64, of the views of :func:`kernel_state`."""
+    x = xg.T.astype(np.float64)
+    if not posmode:
+        x = x + X
+    return np.ascontiguousarray(x), np.ascontiguousarray(vg.T, dtype=np.float64)
 
 
 @njit(**_OPTS)
@@ -171,18 +200,6 @@ def plate_scratch(pl_ptr):
     for ip in range(pl_ptr.shape[0] - 1):
         nmax = max(nmax, pl_ptr[ip + 1] - pl_ptr[ip])
     return np.empty((3, 3)), np.empty((3, nmax)), np.empty((3, nmax))
-
-
-@njit(**_OPTS)
-def external_forces(W, xb, feb, L, N, F0, kc, coff, le, c, P, Fc):
-    """External-force rows = ``F0`` (dead loads, (3, N)) + the [B09] corrections at the positions
-    of the rows at ``xb``."""
-    x = W[xb:xb + 3 * L].reshape((3, L))[:, :N]
-    corrections_stage(x, kc, coff, le, c, P, 0, N)
-    corrections_accumulate(P, coff, Fc, 0, N)
-    for d in range(3):
-        for q in range(N):
-            W[feb + d * L + q] = F0[d, q] + Fc[d, q]
 
 
 @njit(**_OPTS)

@@ -47,6 +47,11 @@ TARGET_S = 0.5
 :data:`MIN_STEPS`, at most :data:`MAX_STEPS`) as a short probe says fit in this, so a slow model
 or a large mesh costs the matrix no more than a fast one."""
 QUICK_TARGET_S = 0.02
+CHECK_EVERY = 100
+"""Steps between the divergence checks of a timed run (a check reads the positions once, about
+1/1000 of the steps' work at this interval): the loop's calls of about 0.1 s are whole check
+intervals, so that Ctrl-C stops ``hybmss bench`` within one (:mod:`hybmss.stepper`)."""
+
 MIN_STEPS = 20
 PROBE_STEPS = 10
 
@@ -104,7 +109,7 @@ class _Config:
     def _run(self, n, warm_up=0.0):
         return simulate_explicit(self.scene, dt=DT, steps=n, kernel=self.kernel, threads=self.threads,
                                  precision=self.precision, system=self.system, dt_crit_value=self.dc,
-                                 compute_dt_crit=False, check_every=max(n, 1), warm_up=warm_up)
+                                 compute_dt_crit=False, check_every=min(max(n, 1), CHECK_EVERY), warm_up=warm_up)
 
     def time_once(self):
         r = self._run(self.steps, warm_up=WARM_UP_THREADS if self.threads > 1 else 0.0)

@@ -29,7 +29,7 @@ shear).  A lattice keeps every cell's own share, so an edge shared by 4 cells ge
 edge family constant is ``ke = 4 kx`` (each cell gives ke/4 = kx, SPEC §1) and ``kc = kd``
 (an inner diagonal belongs to one cell); then any homogeneous deformation of a body costs the
 sum of the single cubes.  No face diagonals, κ = 0; the lateral correction forces (not an
-energy) are in :mod:`hybmss.baudet`.
+energy) are in :mod:`hybmss.models.baudet2009.corrections`.
 """
 
 from __future__ import annotations

@@ -3,9 +3,9 @@
 Every model the harness knows is one object on the protocol of :mod:`hybmss.models.base`.  The
 registry holds
 
-- the in-tree models: every module (or package) of this package whose name does not start with
-  ``_`` (and is not ``base``) defines ``MODEL``, or ``MODELS``, a tuple of models (one per variant
-  of an engine; empty when the engine is not installed);
+- the in-tree models: every module or folder (package) of this package whose name does not start
+  with ``_`` (and is not ``base``) defines ``MODEL``, or ``MODELS`` (a tuple, for a family of
+  variants such as the corotational hexahedra or an engine's models);
 - the models of other packages, declared in the entry-point group :data:`ENTRY_POINT_GROUP`
   (``importlib.metadata``); an entry point names a model object or a class to instantiate;
 - models added at run time with :func:`register` (and removed with :func:`unregister`).

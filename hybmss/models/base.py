@@ -42,17 +42,21 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
   ratio ``nu`` (default ``({},)``: the defaults only);
 - ``dt_crit(system) -> float | None``: its critical explicit time step, or None to let the
   harness estimate it from the system's stiffness and masses (the default);
-- ``solve_static``, ``simulate_explicit``: None (the default) to use the harness's Newton and
-  explicit integrator, or methods ``solve_static(self, scene, options=None, system=None)`` and
-  ``simulate_explicit(self, scene, **kw)`` (the keywords of :func:`hybmss.explicit.simulate_explicit`
-  except ``damping``, applied to the scene first, and ``rest_rtol``/``compile_first``; a
-  ``precision`` or ``threads`` it does not have raises :class:`ValueError`) returning a
+- ``stepper(system, dt, *, ramp_time, kernel, precision, threads)``: the object that advances
+  its explicit dynamics (the protocol of :mod:`hybmss.stepper`: ``load``, ``advance``, ``state``,
+  ``internal_forces``, ``energy``, ``info``).  None (the default) runs the harness's spring and
+  volume lattice (:class:`hybmss.explicit.LatticeStepper`); a model with its own dynamics (its own
+  elements, a position-based integrator, an external engine) returns its own, and the one loop
+  :func:`hybmss.explicit.simulate_explicit` runs it with the plates' ramp, damping, divergence
+  and rest checks, history, timing and the :class:`hybmss.result.Result` of every model.  A
+  ``precision`` or ``threads`` it does not have raises :class:`ValueError`;
+  :func:`hybmss.explicit.dt_crit` returns the model's ``dt_crit`` when it has one.
+- ``solve_static``: None (the default) to use the harness's Newton, or a method
+  ``solve_static(self, scene, options=None, system=None)`` returning a
   :class:`hybmss.result.Result`, for a model that brings its own (e.g. a position-based integrator
-  whose static answer is the rest state of a damped run).
-  :func:`hybmss.solve.solve_static` and :func:`hybmss.explicit.simulate_explicit` hand the
-  scene to them; :func:`hybmss.explicit.dt_crit` returns the model's ``dt_crit`` when it has one.
-  ``simulate_explicit`` refuses a kernel that is not in ``kernels``, ``solve_static`` a model
-  without ``"static"`` in ``solvers``.
+  whose static answer is the rest state of a damped run); :func:`hybmss.solve.solve_static`
+  hands the scene to it.  ``simulate_explicit`` refuses a kernel that is not in ``kernels``,
+  ``solve_static`` a model without ``"static"`` in ``solvers``.
 
 A model with no springs and one force term (a corotational hexahedral FEM) returns
 :data:`NO_SPRINGS` and puts its element forces and tangent in ``terms``; a model with its own
@@ -60,8 +64,10 @@ integrator also sets ``solvers``/``kernels`` to what it provides.
 
 Registering a model
 -------------------
-An in-tree model is one module in ``hybmss/models/`` that defines ``MODEL = MyModel()``; the
-registry finds it.  Another package registers its model through the entry-point group
+An in-tree model is a folder ``hybmss/models/<name>/`` (a package holding the model's module, its
+kernels and their NumPy twins) or a single module ``hybmss/models/<name>.py`` whose top level
+defines ``MODEL = MyModel()``, or ``MODELS = (...)`` for a family of variants; the registry finds
+it.  Another package registers its model through the entry-point group
 ``hybmss.models`` (``[project.entry-points."hybmss.models"] my-model = "mypkg:MODEL"``) or by
 calling :func:`hybmss.models.register`.  A scene then stores the model by ``name`` and its
 parameters under their own names (:class:`hybmss.scene.Model`), so they enter the scene digest.
@@ -144,6 +150,8 @@ class ModelBase:
     order: ClassVar[int] = 100
     solve_static: ClassVar[Callable | None] = None
     simulate_explicit: ClassVar[Callable | None] = None
+    """A whole explicit run of its own (the engine models, :mod:`hybmss.models._engine_model`, until
+    they supply a ``stepper``): :func:`hybmss.explicit.simulate_explicit` hands the scene to it."""
 
     # ------------------------------------------------------------------ parameters
     def parameter_names(self) -> tuple[str, ...]:
@@ -173,6 +181,12 @@ class ModelBase:
         return ()
 
     def dt_crit(self, system) -> float | None:
+        return None
+
+    def stepper(self, system, dt: float, *, ramp_time: float, kernel: str = "numba", precision: str = "f64",
+                threads: int = 1):
+        """The explicit stepper of ``system``, or None (the default) for the harness's spring and
+        volume lattice (:class:`hybmss.explicit.LatticeStepper`)."""
         return None
 
     # ------------------------------------------------------------------ naming

@@ -136,7 +136,7 @@ def test_thread_ranges_tile_the_blocks_with_equal_work(shape, threads):
     partial sums land in the thread's nodes (``H = s0 + s1 + 1`` nodes below its first); the
     work of a thread with blocks, its blocks plus LOOP1_SHARE of one per halo block, is within
     one block of the others'; a thread left without blocks has no halo."""
-    cfg = Config(shape, ((0, 0, 1),), True, False, False, False, False, "f64", threads, 1.0)
+    cfg = Config(shape, ((0, 0, 1),), True, False, False, False, None, "f64", threads, 1.0)
     lay = layout(cfg)
     ranges = thread_ranges(lay)
     assert ranges[0][0] == 0 and ranges[-1][1] == lay.nblocks

@@ -27,10 +27,18 @@ IN_TREE = PUBLICATION_MODELS + COMPETITORS
 
 def test_in_tree_models_are_registered_in_order():
     assert models.names()[:len(IN_TREE)] == IN_TREE
-    # one module per model, each defining MODEL
-    files = sorted(p.stem for p in (ROOT / "hybmss" / "models").glob("*.py") if not p.stem.startswith("_")
-                   and p.stem != "base")
-    assert sorted(m.replace("-", "_") for m in IN_TREE) == files
+    # a module or a folder per model (a family of variants in one folder: MODELS), none defined twice
+    import importlib
+
+    here = ROOT / "hybmss" / "models"
+    places = sorted([p.stem for p in here.glob("*.py")] + [p.parent.name for p in here.glob("*/__init__.py")])
+    places = [p for p in places if not p.startswith("_") and p != "base"]
+    assert places == ["baudet2009", "corot_hex8", "hybmss", "hybmss_cf", "hybmss_fd", "xpbd_nh"]
+    declared = []
+    for place in places:
+        module = importlib.import_module(f"hybmss.models.{place}")
+        declared += [m.name for m in getattr(module, "MODELS", None) or (module.MODEL,)]
+    assert sorted(declared) == sorted(IN_TREE)
 
 
 @pytest.mark.parametrize("name", models.names())
@@ -307,8 +315,9 @@ def test_the_default_model_comes_from_the_registry():
 
 
 def test_a_model_with_its_own_solvers_and_time_step_gets_the_scene():
-    """``solve_static``, ``simulate_explicit`` and ``dt_crit`` of a model replace the harness's."""
-    from hybmss.explicit import dt_crit, simulate_explicit
+    """``solve_static``, ``stepper`` and ``dt_crit`` of a model replace the harness's; the one
+    explicit loop runs the model's stepper."""
+    from hybmss.explicit import LatticeStepper, dt_crit, simulate_explicit
     from hybmss.solve import solve_static
 
     seen = []
@@ -322,9 +331,9 @@ def test_a_model_with_its_own_solvers_and_time_step_gets_the_scene():
             seen.append(("static", scene.model.name))
             return "static answer"
 
-        def simulate_explicit(self, scene, **kw):
-            seen.append(("explicit", kw["dt"], kw["steps"]))
-            return "explicit answer"
+        def stepper(self, system, dt, **kw):
+            seen.append(("explicit", dt, kw["kernel"]))
+            return LatticeStepper(system, dt, **kw)
 
         def dt_crit(self, system):
             return 0.125
@@ -333,11 +342,12 @@ def test_a_model_with_its_own_solvers_and_time_step_gets_the_scene():
     try:
         scene = SceneSpec.default("compression", mesh=(1, 1, 1), model="test-own").build()
         assert solve_static(scene) == "static answer"
-        assert simulate_explicit(scene, dt=1e-3, steps=7, kernel="numpy") == "explicit answer"
+        r = simulate_explicit(scene, dt=1e-3, steps=7, kernel="numpy")
+        assert r.iterations == 7 and r.info["dt_crit"] == 0.125
         assert dt_crit(scene) == 0.125
         with pytest.raises(ValueError, match="no numba kernel"):
             simulate_explicit(scene, kernel="numba")
-        assert seen == [("static", "test-own"), ("explicit", 1e-3, 7)]
+        assert seen == [("static", "test-own"), ("explicit", 1e-3, "numpy")]
     finally:
         models.unregister("test-own")
     rods = _Rods()

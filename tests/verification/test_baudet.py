@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hybmss.baudet import Corrections, GridCorrections, cell_transmitted_forces, correction_jacobian
+from hybmss.models.baudet2009.corrections import Corrections, GridCorrections, cell_transmitted_forces, correction_jacobian
 from hybmss.forces import spring_energy_forces
 from hybmss.moduli import measure_moduli, uniaxial_scene
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene

@@ -178,7 +178,7 @@ def test_polar_rotation_lanes_is_the_scalar_iteration_bit_for_bit():
     """The lane iteration of the kernel against the scalar one, per lane, on matrices that need
     from 1 to many iterations in one batch (converged lanes must stop while the others go on):
     identical to the last bit, and R is a rotation with Rᵀ F symmetric."""
-    from hybmss import _kernels_corot as K
+    from hybmss.models.corot_hex8 import _kernels as K
 
     rng = np.random.default_rng(3)
     L = K.LANES

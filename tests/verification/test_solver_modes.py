@@ -4,7 +4,7 @@ Poisson-ratio range of the solvers, and implicit Euler at its default step."""
 import numpy as np
 import pytest
 
-from hybmss.baudet import Corrections
+from hybmss.models.baudet2009.corrections import Corrections
 from hybmss.forces import energy_forces, spring_energy_forces, stiffness
 from hybmss.moduli import measure_moduli
 from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene

@@ -1,5 +1,9 @@
 """Corotational linear hexahedra on the voxel grid: ``corot-hex8`` and ``corot-hex8-sri`` (SPEC §10).
 
+The folder holds the whole model: this module (element, forces, tangent, the explicit stepper
+:class:`CorotStepper` and both variants, ``MODELS``) and its Numba kernels
+(:mod:`hybmss.models.corot_hex8._kernels`), whose NumPy twins are here.
+
 What a real-time FEM user runs instead of a mass-spring system (SOFA ``HexahedronFEMForceField``,
 method "polar"; Nesme et al. 2005), built on the MSS's grid: nodes are the lattice particles,
 each active cell is one trilinear hexahedron, masses are the lumped ``ρ Vc/8`` per corner.
@@ -43,21 +47,20 @@ the Jacobian of the forces to central-difference accuracy; Newton converges quad
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .. import _kernels_corot
-from ..explicit import initial_state, lanczos_start, plate_arrays, ramp
-from ..lattice import CORNERS
-from ..result import Result
-from ..scene import Material
-from ..system import System, build
-from .base import ModelBase, Style
-from ._voxel_explicit import (blowup_limit2, divergence, find_bad, kernel_state, one_thread, read_state,
-                              run_result)
+from ...explicit import (DENSE_EIG_MAX, lambda_max, lanczos_start, numpy_advance, plate_arrays,
+                         scaled_free_stiffness, simulate_explicit as _simulate_explicit)
+from ...lattice import CORNERS
+from ...result import Result
+from ...scene import Material
+from ...stepper import ParticleStepper
+from ...system import System
+from ..base import ModelBase, Style
+from . import _kernels as _kernels_corot
 
 XI = np.ascontiguousarray(2.0 * CORNERS - 1.0)
 """(8, 3) natural coordinates of the corners."""
@@ -118,7 +121,7 @@ def element_stiffness(lam: float, mu: float, le: float, sri: bool = False) -> np
 # ------------------------------------------------------------------------------ polar (NumPy twin)
 def polar_rotations(F: np.ndarray) -> np.ndarray:
     """Rotations R (m, 3, 3) of the polar decompositions ``F = R U`` of (m, 3, 3) matrices with
-    det F > 0: the iteration of :func:`hybmss._kernels_corot.polar_rotation`, vectorized (each
+    det F > 0: the iteration of :func:`hybmss.models.corot_hex8._kernels.polar_rotation`, vectorized (each
     matrix stops when no entry changes by more than ``POLAR_TOL``)."""
     R = np.array(F, dtype=float, copy=True)
     active = np.ones(len(R), dtype=bool)
@@ -242,24 +245,7 @@ def _cross_matrices(v: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------------------------------------------ explicit dynamics
 def _scaled_free_stiffness(system: System, term: CorotHex8):
-    m3 = np.repeat(system.mass, 3)
-    free = (~system.fixed).ravel() & (m3 > 0)
-    K = term.stiffness(system.X, rotation_derivative=False)[free][:, free]
-    s = sp.diags(1.0 / np.sqrt(m3[free]))
-    A = (s @ K @ s).tocsr()
-    return 0.5 * (A + A.T)
-
-
-DENSE_EIG_MAX = 64
-"""Largest matrix whose eigenvalues are taken densely: above it ARPACK (sparse products, no BLAS
-threads; a dense ``eigvalsh`` of a few hundred rows takes seconds when BLAS threads share a busy
-machine)."""
-
-
-def _lmax(A) -> float:
-    if A.shape[0] <= DENSE_EIG_MAX:
-        return float(np.linalg.eigvalsh(A.toarray())[-1])
-    return float(spla.eigsh(A, k=1, which="LA", tol=1e-10, return_eigenvectors=False, v0=lanczos_start(A.shape[0]))[0])
+    return scaled_free_stiffness(system, term.stiffness(system.X, rotation_derivative=False))
 
 
 def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
@@ -272,7 +258,7 @@ def frequency_range(system: System, term: CorotHex8) -> tuple[float, float]:
         w = np.linalg.eigvalsh(A.toarray())
         lmin, lmax = float(w[0]), float(w[-1])
     else:
-        lmax = _lmax(A)
+        lmax = lambda_max(A)
         lmin = float(spla.eigsh(A.tocsc(), k=1, sigma=-1e-6 * lmax, which="LM", return_eigenvectors=False,
                                 v0=lanczos_start(A.shape[0]))[0])
     return math.sqrt(max(lmin, 0.0)), math.sqrt(max(lmax, 0.0))
@@ -282,7 +268,7 @@ def omega_max(system: System, term: CorotHex8) -> float:
     """``ω_max`` (rad/s) of ``M⁻¹K`` at rest on the free degrees of freedom (as
     :func:`frequency_range`, without its shift-invert solve for ω_min)."""
     A = _scaled_free_stiffness(system, term)
-    return math.sqrt(max(_lmax(A), 0.0)) if A.shape[0] else 0.0
+    return math.sqrt(max(lambda_max(A), 0.0)) if A.shape[0] else 0.0
 
 
 def dt_crit(system: System, term: CorotHex8) -> float:
@@ -305,100 +291,51 @@ def numpy_step(system: System, term: CorotHex8, x, v, dt, damp, x_old, x_new):
     v[fixed] = (x_new - x_old)[fixed] / dt
 
 
+class CorotStepper(ParticleStepper):
+    """The stepper (:mod:`hybmss.stepper`) of the corotational hexahedra: semi-implicit Euler with
+    the element forces of ``term``, by the Numba kernel (:mod:`hybmss.models.corot_hex8._kernels`,
+    float64 or float32 state, one thread) or its NumPy twin (:func:`numpy_step`)."""
+
+    def __init__(self, system: System, term: CorotHex8, dt: float, *, ramp_time: float, kernel: str = "numba",
+                 precision: str = "f64", threads: int = 1):
+        super().__init__(system, term, dt, ramp_time=ramp_time, kernel=kernel, precision=precision,
+                         threads=threads, kernels=KERNELS)
+        self.damp = 1.0 / (1.0 + system.scene.damping * self.dt)
+        if kernel == "numba":
+            n = system.n
+            self._f = np.empty((3, n))
+            self._gacc = np.zeros((3, n))
+            if system.gravity is not None:
+                self._gacc[:] = system.gravity[:, None]
+            self._Xg, self._invm = np.ascontiguousarray(system.X.T), 1.0 / system.mass
+            self._plates = plate_arrays(system)
+
+    def _numpy_step(self, x, v, P_old, P_new):
+        X = self.system.X
+        numpy_step(self.system, self.term, x, v, self.dt, self.damp, X if P_old is None else P_old,
+                   X if P_new is None else P_new)
+
+    def advance(self, step0, n, check_every, limit2):
+        S, term = self.system, self.term
+        if self.kernel == "numba":
+            return _kernels_corot.advance(self._W, self._Xg, term.cells, term.Ke, XI, term.le, self._invm, self._gacc,
+                                          S.gravity is not None, self.dt, self.damp, self.ramp_time, self._plates,
+                                          step0, n, check_every, limit2, self._f, self._posmode)
+        return numpy_advance(S, self._numpy_step, self._x, self._v, self.dt, self.ramp_time, step0, n, check_every,
+                             limit2)
+
+
 def simulate_explicit(system: System, term: CorotHex8, dt: float = 1e-3, steps: int = 10_000,
                       kernel: str = "numba", ramp_time: float = 1.0, *, check_every: int = 10,
                       record_every: int = 0, x0: np.ndarray | None = None, v0: np.ndarray | None = None,
                       dt_crit_value: float | None = None, compute_dt_crit: bool = True,
                       precision: str = "f64") -> Result:
-    """Semi-implicit Euler of ``system`` with the corotational forces ``term``: the protocol of
-    :func:`hybmss.explicit.simulate_explicit` (damping ``scene.damping`` implicit, plate ramp,
-    divergence every ``check_every`` steps; ``record_every > 0`` keeps ``info['history']`` of t,
-    the largest displacement and the kinetic energy).  ``precision``: ``'f64'`` or ``'f32'`` (numba
-    kernel only: float32 displacements and velocities, :mod:`hybmss.models._voxel_explicit`).
-    ``wall_time_s`` is the stepping alone."""
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
-    if precision != "f64" and kernel != "numba":
-        raise ValueError(f"precision {precision} needs kernel='numba' (the NumPy twin runs in f64)")
-    dt, steps = float(dt), int(steps)
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be > 0 s, got {dt}")
-    if steps < 0:
-        raise ValueError(f"steps must be >= 0, got {steps}")
-    if not (ramp_time >= 0 and math.isfinite(ramp_time)):
-        raise ValueError(f"ramp_time must be >= 0 s, got {ramp_time}")
-    if (system.mass <= 0).any():
-        raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
-    damp = 1.0 / (1.0 + system.scene.damping * dt)
-    limit2 = blowup_limit2(system)
-    check_every = max(1, int(check_every))
-    x, v = initial_state(system, x0, v0, ramp_time)
-    dt_c = dt_crit_value
-    if dt_c is None and compute_dt_crit:
-        dt_c = dt_crit(system, term)
-
-    if kernel == "numba":
-        W, xg, vg, posmode = kernel_state(x, v, system.X, precision)
-        f = np.empty((3, system.n))
-        gacc = np.zeros((3, system.n))
-        if system.gravity is not None:
-            gacc[:] = system.gravity[:, None]
-        Xg, invm, plates = np.ascontiguousarray(system.X.T), 1.0 / system.mass, plate_arrays(system)
-
-        def advance(step0, n):
-            return _kernels_corot.advance(W, Xg, term.cells, term.Ke, XI, term.le, invm, gacc,
-                                          system.gravity is not None, dt, damp, ramp_time, plates, step0, n,
-                                          check_every, limit2, f, posmode)
-
-        def state():
-            return read_state(xg, vg, system.X, posmode)
-    else:
-        def advance(step0, n):
-            P_old = system.prescribed(ramp(step0 * dt, ramp_time))
-            for k in range(n):
-                P_new = system.prescribed(ramp((step0 + k + 1) * dt, ramp_time))
-                numpy_step(system, term, x, v, dt, damp, P_old, P_new)
-                P_old = P_new
-                if (k + 1) % check_every == 0 or k == n - 1:
-                    bad = find_bad(x, system.X, limit2)
-                    if bad >= 0:
-                        return k + 1, bad
-            return n, -1
-
-        def state():
-            return x.copy(), v.copy()
-
-    history = {"t": [], "max_displacement": [], "kinetic": []} if record_every > 0 else None
-
-    def record(step):
-        xs, vs = state()
-        history["t"].append(step * dt)
-        history["max_displacement"].append(float(np.linalg.norm(xs - system.X, axis=1).max()))
-        history["kinetic"].append(float(0.5 * np.sum(system.mass[:, None] * vs * vs)))
-
-    if history is not None:
-        record(0)
-    chunk = int(record_every) if record_every > 0 else max(steps, 1)
-    wall, cpu, done = 0.0, 0.0, 0
-    while done < steps:
-        n = min(chunk, steps - done)
-        c0, t0 = time.process_time(), time.perf_counter()
-        k, bad = advance(done, n)
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        if bad >= 0:
-            raise divergence(system, state()[0], bad, done + k, dt, dt_c, check_every, term.name)
-        done += n
-        if history is not None:
-            record(done)
-    x, v = state()
-    info = {"kernel": kernel, "threads": 1, "precision": precision, "cpu_time_s": cpu, "dt": dt, "steps": steps, "t_end": steps * dt,
-            "dt_crit": None if dt_c is None else float(dt_c), "damping": float(system.scene.damping),
-            "ramp_time": float(ramp_time), "load_factor": ramp(steps * dt, ramp_time), "model": term.name}
-    if history is not None:
-        info["history"] = history
-    return run_result(system, f"{term.name}-explicit", x, v, term.forces(x), {"strain": term.energy(x)}, steps,
-                      wall, info)
+    """The explicit run of ``system`` with the corotational forces ``term`` (:class:`CorotStepper`
+    in the one loop :func:`hybmss.explicit.simulate_explicit`, whose keywords these are)."""
+    stepper = CorotStepper(system, term, dt, ramp_time=ramp_time, kernel=kernel, precision=precision)
+    return _simulate_explicit(system.scene, dt, steps, kernel, ramp_time, record_every=record_every, system=system,
+                              x0=x0, v0=v0, dt_crit_value=dt_crit_value, compute_dt_crit=compute_dt_crit,
+                              check_every=check_every, precision=precision, stepper=stepper)
 
 
 # ------------------------------------------------------------------------------ the registry's model
@@ -408,19 +345,6 @@ def corot_term(system: System) -> CorotHex8:
         if isinstance(t, CorotHex8):
             return t
     raise ValueError("the system has no corotational hexahedra (its model is not corot-hex8 or corot-hex8-sri)")
-
-
-def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba", ramp_time: float = 1.0,
-                   threads: int = 1, record_every: int = 0, system: System | None = None, *,
-                   x0: np.ndarray | None = None, v0: np.ndarray | None = None, dt_crit_value: float | None = None,
-                   compute_dt_crit: bool = True, check_every: int = 10, precision: str = "f64") -> Result:
-    """:func:`simulate_explicit` with the signature of :func:`hybmss.explicit.simulate_explicit`
-    (one thread: the element scatter is serial; ``threads`` > 1 is refused)."""
-    one_thread(threads, "corot-hex8")
-    S = system if system is not None else build(scene)
-    return simulate_explicit(S, corot_term(S), dt, steps, kernel, ramp_time, check_every=check_every,
-                             record_every=record_every, x0=x0, v0=v0, dt_crit_value=dt_crit_value,
-                             compute_dt_crit=compute_dt_crit, precision=precision)
 
 
 class CorotHex8Model(ModelBase):
@@ -441,7 +365,22 @@ class CorotHex8Model(ModelBase):
     def dt_crit(self, system) -> float:
         return dt_crit(system, corot_term(system))
 
-    simulate_explicit = staticmethod(simulate_scene)
+    def stepper(self, system, dt, *, ramp_time, kernel="numba", precision="f64", threads=1):
+        return CorotStepper(system, corot_term(system), dt, ramp_time=ramp_time, kernel=kernel, precision=precision,
+                            threads=threads)
 
 
-MODEL = CorotHex8Model()
+class CorotHex8SRI(CorotHex8Model):
+    """``corot-hex8-sri``: the same hexahedra with selective reduced integration (λ part of the
+    Hooke matrix at the centre point only): no volumetric locking as ν → ½."""
+
+    name = "corot-hex8-sri"
+    label = "corotational linear Hex8 FEM, selective reduced integration (Hughes 1980)"
+    style = Style("#17becf", "P", "--")
+    order = 21
+    sri = True
+
+
+MODELS = (CorotHex8Model(), CorotHex8SRI())
+"""The two variants of the folder (the registry takes both)."""
+MODEL = MODELS[0]

@@ -92,7 +92,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .lattice import CORNERS, VOLUME_SIGNS
+from ...lattice import CORNERS, VOLUME_SIGNS
 
 AXIS_SIGNS = 2.0 * CORNERS - 1.0
 """(8, 3): +1 if corner c lies on the i+ face of its cell, −1 on the i− face."""
@@ -145,6 +145,15 @@ class Corrections:
     def stiffness(self, x: np.ndarray) -> sp.csr_matrix:
         """``∂(−f_corr)/∂x``: minus :func:`correction_jacobian` (not symmetric)."""
         return -correction_jacobian(x, self)
+
+    def stencil_stage(self, system):
+        """Its stage in the generated stencil kernel (:class:`hybmss.explicit.StencilStage`):
+        :func:`hybmss.models.baudet2009._kernels.stencil_stage` on the grid layout of
+        :class:`GridCorrections`, float64 only."""
+        from ...explicit import StencilStage
+
+        return StencilStage(f"{_kernels_module()}:stencil_stage", GridCorrections.from_system(system).stage_args,
+                            ("f64",))
 
 
 # ------------------------------------------------------------------------- NumPy reference
@@ -219,7 +228,7 @@ def correction_jacobian(x, corr: Corrections) -> sp.csr_matrix:
 @dataclass(frozen=True, eq=False)
 class GridCorrections:
     """The corrections of a system laid out on its full grid for the Numba twin
-    (:mod:`hybmss._kernels_baudet`): ``flat`` (n,) grid index of each particle, ``kc`` (2, N)
+    (:mod:`hybmss.models.baudet2009._kernels`): ``flat`` (n,) grid index of each particle, ``kc`` (2, N)
     per-cell ``kx``, ``kd`` at the cell's lowest corner (0: no cell), ``coff`` (8,) corner offsets."""
 
     shape: tuple[int, int, int]
@@ -248,11 +257,22 @@ class GridCorrections:
         Xg = np.asarray(system.scene.body.origin, dtype=float)[:, None] + gi * corr.le
         return cls(shape, flat, kc, (CORNERS @ strides).astype(np.int64), corr.le, corr.c, Xg)
 
+    def stage_args(self) -> tuple:
+        """``args`` of :func:`hybmss.models.baudet2009._kernels.stencil_stage`: the grid constants
+        and fresh scratch ``(kc, coff, le, c, P (3, 3, N), Fc (3, N))``."""
+        N = int(np.prod(self.shape))
+        return (self.kc, self.coff, float(self.le), float(self.c), np.zeros((3, 3, N)), np.zeros((3, N)))
+
     def forces(self, x: np.ndarray) -> np.ndarray:
         """Correction forces (n, 3) at particle positions ``x`` (n, 3), by the Numba kernel."""
-        from ._kernels_baudet import correction_forces_grid
+        from ._kernels import correction_forces_grid
 
         xg = self.Xg.copy()
         xg[:, self.flat] = np.asarray(x, dtype=float).T
         F = correction_forces_grid(xg, self.kc, self.coff, self.le, self.c)
         return np.ascontiguousarray(F[:, self.flat].T)
+
+
+def _kernels_module() -> str:
+    """The module of the corrections' Numba kernels (named in the generated stencil's source)."""
+    return __name__.rsplit(".", 1)[0] + "._kernels"

@@ -15,7 +15,7 @@ One substep of size h (see :mod:`hybmss.models.xpbd_nh` for the method):
 3. ``v = (x − x_prev)/h``.
 
 Precision: the state ``W`` holds float64 positions or float32 displacements (``posmode`` False,
-:mod:`hybmss.models._voxel_explicit`); the constraint arithmetic is float64 in both.
+:func:`hybmss._kernels.kernel_state`); the constraint arithmetic is float64 in both.
 
 Speed.  A tetrahedron's projection is about 130 scalar operations with a square root and two
 divisions; one at a time (:func:`project_all`) they run at the scalar peak, ~55 ns each.  The
@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernels import apply_plates, cofactor3, find_bad, plate_scratch, ramp
+from ..._kernels import apply_plates, cofactor3, find_bad, plate_scratch, ramp
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
 

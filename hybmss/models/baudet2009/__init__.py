@@ -1,12 +1,16 @@
 """``baudet2009``: the cubic-cell MSS of [B09] — per-cell edges and inner diagonals, no face
-diagonals, no volume energy, and lateral correction forces for ν (not an energy:
-:mod:`hybmss.baudet`)."""
+diagonals, no volume energy, and lateral correction forces for ν (not an energy).
+
+The folder holds the whole model: this module (the registry's ``MODEL``), the corrections and
+their derivation (:mod:`hybmss.models.baudet2009.corrections`, the NumPy reference) and their
+Numba kernels (:mod:`hybmss.models.baudet2009._kernels`), among them the stage the corrections
+contribute to the lattice's generated stencil kernel (``Corrections.stencil_stage``)."""
 
 from __future__ import annotations
 
-from ..baudet import Corrections
-from ..calibrate import b09_springs
-from .base import ModelBase, Style
+from ...calibrate import b09_springs
+from ..base import ModelBase, Style
+from .corrections import Corrections
 
 
 class Baudet2009(ModelBase):

@@ -1,5 +1,9 @@
 """XPBD with the stable Neo-Hookean constraints on the voxel grid: ``xpbd-nh`` (SPEC §10).
 
+The folder holds the whole model: this module (elements, constraints, the explicit stepper
+:class:`XpbdStepper`, the static relaxation, NumPy twins) and its Numba kernels
+(:mod:`hybmss.models.xpbd_nh._kernels`).
+
 What a real-time physics user runs instead of a mass-spring system (Macklin, Müller, Chentanez
 2016; Macklin & Müller 2021), built on the MSS's grid: nodes are the lattice particles, masses the
 lumped ``ρ Vc/8`` per cell corner, the same plates and ramp.
@@ -67,18 +71,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _kernels_xpbd
-from ..explicit import initial_state, plate_arrays, ramp
-from ..lattice import CORNERS
-from ..result import Result
-from ..scene import Material
-from ..solve.errors import StaticSolveError
-from ..system import System, build
-from ..terms import DeadLoad
-from .base import ModelBase, Style, check
-from .corot_hex8 import CorotHex8, frequency_range, omega_max
-from ._voxel_explicit import (blowup_limit2, divergence, find_bad, kernel_state, one_thread, read_state,
-                              run_result)
+from ...explicit import (BLOWUP_FACTOR, RAMP_LAW, _divergence, find_bad, initial_state, plate_arrays,
+                         plate_reactions, ramp, simulate_explicit as _simulate_explicit)
+from ...lattice import CORNERS
+from ...result import Result
+from ...scene import Material
+from ...solve.errors import StaticSolveError
+from ...stepper import Chunks, ParticleStepper, interruptible, timed
+from ...system import System, build
+from ...terms import DeadLoad
+from ..base import ModelBase, Style, check
+from ..corot_hex8 import CorotHex8, frequency_range, omega_max
+from . import _kernels as _kernels_xpbd
 
 KERNELS = ("numba", "numpy")
 
@@ -117,10 +121,10 @@ def cell_tetrahedra(le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def cell_batches(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The cells of a body in batches of :data:`hybmss._kernels_xpbd.LANES` that share no node,
+    """The cells of a body in batches of :data:`hybmss.models.xpbd_nh._kernels.LANES` that share no node,
     ordered so that any two cells sharing a node keep their order in ``cells`` (``bnodes``
     (nb, 8, LANES) corner nodes, pad lanes repeating the batch's first cell; ``bcount`` (nb,)
-    cells per batch): the sweep of :func:`hybmss._kernels_xpbd.project_cells` is then the
+    cells per batch): the sweep of :func:`hybmss.models.xpbd_nh._kernels.project_cells` is then the
     cell-by-cell sweep, bit for bit."""
     cells = np.ascontiguousarray(cells, dtype=np.int64)
     lanes = _kernels_xpbd.LANES
@@ -271,19 +275,6 @@ def inverse_masses(system: System) -> np.ndarray:
     return w
 
 
-CALL_PROJECTIONS = 20_000_000
-"""Tetrahedron projections per kernel call (about a second): a long run is split into calls of a
-whole number of check intervals (the same arithmetic and checks, bit for bit), so that Ctrl-C,
-which Python handles between calls, stops it promptly."""
-
-
-def calls_of(per_substep: int, align: int) -> int:
-    """Substeps (or iterations) per kernel call: about :data:`CALL_PROJECTIONS` projections, a
-    multiple of ``align`` (the check interval), at least one interval."""
-    align = max(1, int(align))
-    return max(align, (CALL_PROJECTIONS // max(1, int(per_substep))) // align * align)
-
-
 def frequencies(system: System, material: Material | None = None) -> tuple[float, float]:
     """``(ω₁, ω_max)`` (rad/s) of the body at rest, from the linear Hex8 stiffness of the same grid
     and material (the small-strain limit of the constraints' energy on the same cells): they set
@@ -298,125 +289,100 @@ def highest_frequency(system: System) -> float:
     return omega_max(system, CorotHex8(system.lattice, system.scene.material))
 
 
+class XpbdStepper(ParticleStepper):
+    """The stepper (:mod:`hybmss.stepper`) of XPBD: a step of the loop is one frame ``dt`` of
+    ``substeps`` substeps with ``iterations`` Gauss–Seidel sweeps, the two constraints of a
+    tetrahedron solved together (``coupled``) or one after the other; damping ``c`` of the scene
+    per substep.  The loop's ``check_every`` frames are ``check_every · substeps`` substeps.  With
+    ``until_rest`` the stepper stops after the ramp once no node moved more than
+    ``rest_tol · le`` over a check interval (``info['stopped_at_rest']``, ``info['t_rest']``).
+    ``precision``: ``'f64'`` or ``'f32'`` (numba kernel only: float32 displacements and velocities,
+    :func:`hybmss._kernels.kernel_state`).  One thread (Gauss–Seidel is sequential)."""
+
+    def __init__(self, system: System, term: XpbdNH, dt: float, *, ramp_time: float, kernel: str = "numba",
+                 precision: str = "f64", threads: int = 1, substeps: int = 10, iterations: int = 1,
+                 coupled: bool = True, until_rest: bool = False, rest_tol: float = 1e-7):
+        super().__init__(system, term, dt, ramp_time=ramp_time, kernel=kernel, precision=precision,
+                         threads=threads, kernels=KERNELS)
+        substeps, iterations = int(substeps), int(iterations)
+        if substeps < 1 or iterations < 1:
+            raise ValueError(f"substeps >= 1 and iterations >= 1 required, got {substeps}, {iterations}")
+        self.substeps, self.iterations, self.coupled = substeps, iterations, bool(coupled)
+        self.h = float(dt) / substeps
+        self.damp = 1.0 / (1.0 + system.scene.damping * self.h)
+        self.rest_after = int(math.ceil(ramp_time / self.h)) if until_rest else -1
+        self.rest_disp = rest_tol * system.scene.body.le
+        self.winv = inverse_masses(system)
+        self.accel = external_acceleration(system)
+        self.info.update({"substeps": substeps, "iterations": iterations, "h": self.h, "coupled": self.coupled,
+                          "until_rest": bool(until_rest), "stopped_at_rest": False, "t_rest": None,
+                          "rest_tol": rest_tol, "tet_split": "two complementary 5-tet splits at half weight"})
+        if kernel == "numba":
+            n = system.n
+            self._gacc = np.zeros((3, n)) if self.accel is None else np.ascontiguousarray(self.accel.T)
+            self._Xg, self._wg = np.ascontiguousarray(system.X.T), np.ascontiguousarray(self.winv.T)
+            self._plates = plate_arrays(system)
+            self._xprev, self._lamb = np.empty((3, n)), np.empty((len(term.tets), 2))
+            self._B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
+
+    def _substeps(self, sub0, n, check_sub, limit2):
+        """(substeps done, bad particle or −1, at rest) of ``n`` substeps from ``sub0``."""
+        term, S = self.term, self.system
+        if self.kernel == "numba":
+            bnodes, bcount = term.batches()
+            done, bad, rest = _kernels_xpbd.run(
+                self._W, self._posmode, self._Xg, self._wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam,
+                term.gamma, self._gacc, self.accel is not None, self.h, self.damp, self.ramp_time,
+                *self._plates.args(), np.int64(sub0), np.int64(n), np.int64(self.iterations), bool(self.coupled),
+                np.int64(check_sub), float(limit2), np.int64(self.rest_after), float(self.rest_disp), self._xprev,
+                self._lamb, bnodes, bcount, self._B)
+            return int(done), int(bad), bool(rest)
+        x, v, fixed = self._x, self._v, S.fixed
+        x_check = x.copy()
+        for k in range(n):
+            step = sub0 + k
+            target = S.prescribed(ramp((step + 1) * self.h, self.ramp_time))
+
+            def set_plates(xx, target=target):
+                xx[fixed] = target[fixed]
+
+            numpy_substep(term, x, v, self.winv, self.h, self.damp, self.iterations, self.accel, set_plates,
+                          self.coupled)
+            if (k + 1) % check_sub == 0 or k == n - 1:
+                bad = find_bad(x, S.X, limit2)
+                if bad >= 0:
+                    return k + 1, bad, False
+                if self.rest_after >= 0 and step + 1 >= self.rest_after and (k + 1) % check_sub == 0:
+                    if np.abs(x - x_check).max() <= self.rest_disp:
+                        return k + 1, -1, True
+                x_check = x.copy()
+        return n, -1, False
+
+    def advance(self, step0, n, check_every, limit2):
+        m = self.substeps
+        done, bad, rest = self._substeps(step0 * m, n * m, check_every * m, limit2)
+        if rest:
+            self.info["stopped_at_rest"] = True
+            self.info["t_rest"] = (step0 * m + done) * self.h
+        return -(-done // m), bad
+
+
 def simulate_explicit(system: System, term: XpbdNH, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba",
                       ramp_time: float = 1.0, *, substeps: int = 10, iterations: int = 1, coupled: bool = True,
                       check_every: int = 10, until_rest: bool = False, rest_tol: float = 1e-7,
                       damping: float | None = None, record_every: int = 0, x0: np.ndarray | None = None,
                       v0: np.ndarray | None = None, precision: str = "f64") -> Result:
-    """XPBD run of ``steps`` frames of ``dt``, each of ``substeps`` substeps with ``iterations``
-    Gauss–Seidel sweeps, the two constraints of a tetrahedron solved together (``coupled``) or
-    one after the other.  Damping is ``scene.damping`` unless ``damping`` is given.  Divergence is
-    checked every ``check_every`` frames; with ``until_rest`` the run stops after the ramp once no
-    node moved more than ``rest_tol · le`` over ``check_every`` frames (``info['rest']``,
-    ``info['t_rest']``).  ``record_every > 0`` keeps ``info['history']`` (t, largest displacement,
-    kinetic energy) every that many frames.  ``precision``: ``'f64'`` or ``'f32'`` (numba kernel
-    only: float32 displacements and velocities, :mod:`hybmss.models._voxel_explicit`).
-    ``wall_time_s`` is the stepping alone."""
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
-    if precision != "f64" and kernel != "numba":
-        raise ValueError(f"precision {precision} needs kernel='numba' (the NumPy twin runs in f64)")
-    dt, steps, substeps, iterations = float(dt), int(steps), int(substeps), int(iterations)
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be > 0 s, got {dt}")
-    if steps < 0 or substeps < 1 or iterations < 1:
-        raise ValueError(f"steps >= 0, substeps >= 1 and iterations >= 1 required, got {steps}, {substeps}, "
-                         f"{iterations}")
-    if not (ramp_time >= 0 and math.isfinite(ramp_time)):
-        raise ValueError(f"ramp_time must be >= 0 s, got {ramp_time}")
-    if (system.mass <= 0).any():
-        raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
-    c = system.scene.damping if damping is None else float(damping)
-    h = dt / substeps
-    damp = 1.0 / (1.0 + c * h)
-    limit2 = blowup_limit2(system)
-    check_sub = max(1, int(check_every)) * substeps
-    nsub = steps * substeps
-    rest_after = int(math.ceil(ramp_time / h)) if until_rest else -1
-    rest_disp = rest_tol * system.scene.body.le
-    x, v = initial_state(system, x0, v0, ramp_time)
-    winv = inverse_masses(system)
-    accel = external_acceleration(system)
-
-    if kernel == "numba":
-        W, xg, vg, posmode = kernel_state(x, v, system.X, precision)
-        gacc = np.zeros((3, system.n)) if accel is None else np.ascontiguousarray(accel.T)
-        Xg, wg, plates = np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), plate_arrays(system)
-        xprev, lamb = np.empty((3, system.n)), np.empty((len(term.tets), 2))
-        bnodes, bcount = term.batches()
-        B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
-
-        def advance(sub0, n):
-            done, bad, rest = _kernels_xpbd.run(
-                W, posmode, Xg, wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam, term.gamma, gacc,
-                accel is not None, h, damp, float(ramp_time), *plates.args(), np.int64(sub0), np.int64(n),
-                np.int64(iterations), bool(coupled), np.int64(check_sub), float(limit2), np.int64(rest_after),
-                float(rest_disp), xprev, lamb, bnodes, bcount, B)
-            return int(done), int(bad), bool(rest)
-
-        def state():
-            return read_state(xg, vg, system.X, posmode)
-    else:
-        fixed = system.fixed
-
-        def advance(sub0, n):
-            x_check = x.copy()
-            for k in range(n):
-                step = sub0 + k
-                target = system.prescribed(ramp((step + 1) * h, ramp_time))
-
-                def set_plates(xx, target=target):
-                    xx[fixed] = target[fixed]
-
-                numpy_substep(term, x, v, winv, h, damp, iterations, accel, set_plates, coupled)
-                if (k + 1) % check_sub == 0 or k == n - 1:
-                    bad = find_bad(x, system.X, limit2)
-                    if bad >= 0:
-                        return k + 1, bad, False
-                    if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_sub == 0:
-                        if np.abs(x - x_check).max() <= rest_disp:
-                            return k + 1, -1, True
-                    x_check = x.copy()
-            return n, -1, False
-
-        def state():
-            return x.copy(), v.copy()
-
-    history = {"t": [], "max_displacement": [], "kinetic": []} if record_every > 0 else None
-
-    def record(sub):
-        xs, vs = state()
-        history["t"].append(sub * h)
-        history["max_displacement"].append(float(np.linalg.norm(xs - system.X, axis=1).max()))
-        history["kinetic"].append(float(0.5 * np.sum(system.mass[:, None] * vs * vs)))
-
-    if history is not None:
-        record(0)
-    chunk = int(record_every) * substeps if record_every > 0 else calls_of(len(term.tets) * iterations, check_sub)
-    wall, cpu, done, at_rest = 0.0, 0.0, 0, False
-    while done < nsub and not at_rest:
-        n = min(chunk, nsub - done)
-        c0, t0 = time.process_time(), time.perf_counter()
-        k, bad, at_rest = advance(done, n)
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        if bad >= 0:
-            raise divergence(system, state()[0], bad, -(-(done + k) // substeps), dt, None, check_every, term.name)
-        done += k
-        if history is not None:
-            record(done)
-    x, v = state()
-    frames = -(-done // substeps)
-    info = {"kernel": kernel, "threads": 1, "precision": precision, "cpu_time_s": cpu, "dt": dt, "steps": frames,
-            "substeps": substeps,
-            "iterations": iterations, "h": h, "coupled": bool(coupled), "t_end": done * h, "damping": c, "ramp_time": float(ramp_time),
-            "load_factor": ramp(done * h, ramp_time), "model": term.name, "until_rest": bool(until_rest),
-            "rest": bool(at_rest), "t_rest": done * h if at_rest else None, "rest_tol": rest_tol,
-            "dt_crit": None, "tet_split": "two complementary 5-tet splits at half weight"}
-    if history is not None:
-        info["history"] = history
-    return run_result(system, f"{term.name}-explicit", x, v, term.forces(x), {"strain": term.energy(x)}, frames,
-                      wall, info)
+    """The XPBD run of ``steps`` frames of ``dt`` (:class:`XpbdStepper` with these options in the
+    one loop :func:`hybmss.explicit.simulate_explicit`); damping is ``scene.damping`` unless
+    ``damping`` is given."""
+    if damping is not None:
+        scene = dataclasses.replace(system.scene, damping=float(damping))
+        system = dataclasses.replace(system, scene=scene)
+    stepper = XpbdStepper(system, term, dt, ramp_time=ramp_time, kernel=kernel, precision=precision,
+                          substeps=substeps, iterations=iterations, coupled=coupled, until_rest=until_rest,
+                          rest_tol=rest_tol)
+    return _simulate_explicit(system.scene, dt, steps, kernel, ramp_time, record_every=record_every, system=system,
+                              x0=x0, v0=v0, check_every=check_every, precision=precision, stepper=stepper)
 
 
 REST_TOL = 1e-7
@@ -486,7 +452,8 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
     check = max(1, int(round(check_time / H)))
     rest_after = int(math.ceil(ramp_time / H))
     rest_disp = rest_tol * system.scene.body.le
-    limit2 = blowup_limit2(system)
+    limit = BLOWUP_FACTOR * max(system.scene.body.size)
+    limit2 = limit * limit
     x, _ = initial_state(system, None, None, ramp_time)
     winv = inverse_masses(system)
     gdisp = np.zeros((system.n, 3))
@@ -508,14 +475,18 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
         lamb = np.empty((len(term.tets), 2))
         bnodes, bcount = term.batches()
         B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
-        per_call = calls_of(len(term.tets) * iterations, check)
+        chunks = Chunks(check)
         done, bad, rest = 0, -1, False
-        while done < n_max and bad < 0 and not rest:  # calls of whole check intervals: Ctrl-C between them
-            k, bad, rest = _kernels_xpbd.relax(
-                W, *args, np.int64(done), np.int64(min(per_call, n_max - done)), np.int64(iterations),
-                bool(coupled), np.int64(check), float(limit2), np.int64(rest_after), float(rest_disp), xprev, y,
-                lamb, bnodes, bcount, B)
-            done, bad, rest = done + int(k), int(bad), bool(rest)
+        with interruptible():  # calls of whole check intervals (~0.1 s): a signal stops it between them
+            while done < n_max and bad < 0 and not rest:
+                interruptible.check()
+                n_call = chunks.next(n_max - done)
+                (k, bad, rest), w, _ = timed(
+                    _kernels_xpbd.relax, W, *args, np.int64(done), np.int64(n_call), np.int64(iterations),
+                    bool(coupled), np.int64(check), float(limit2), np.int64(rest_after), float(rest_disp), xprev, y,
+                    lamb, bnodes, bcount, B)
+                chunks.took(n_call, w)
+                done, bad, rest = done + int(k), int(bad), bool(rest)
         x, x_prev = np.ascontiguousarray(xg.T), np.ascontiguousarray(xprev.T)
     else:
         fixed = system.fixed
@@ -543,7 +514,7 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
                 x_check = x.copy()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if bad >= 0:
-        raise divergence(system, x, bad, done, H, None, check, term.name)
+        raise _divergence(system, x, bad, done, H, limit, None, check)
     v = (x - x_prev) / H
     info = {"kernel": kernel, "threads": 1, "precision": "f64", "cpu_time_s": cpu, "h": h, "H": H,
             "over_relaxation": over, "beta": beta, "steps": done, "iterations": iterations, "coupled": bool(coupled),
@@ -551,8 +522,29 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
             "load_factor": ramp(done * H, ramp_time), "model": term.name, "until_rest": True, "rest": rest,
             "t_rest": done * H if rest else None, "rest_tol": rest_tol, "check_time": check * H,
             "tet_split": "two complementary 5-tet splits at half weight"}
-    return run_result(system, f"{term.name}-rest", x, v, term.forces(x), {"strain": term.energy(x)}, done, wall,
-                      info)
+    return _rest_result(system, f"{term.name}-rest", x, v, term.forces(x), {"strain": term.energy(x)}, done, wall,
+                        info)
+
+
+def _rest_result(system: System, solver: str, x: np.ndarray, v: np.ndarray, f_int: np.ndarray, energy: dict,
+                 steps: int, wall: float, info: dict) -> Result:
+    """Result of the relaxation ending at ``x, v`` with internal forces ``f_int`` (no gravity);
+    reactions as in :func:`hybmss.explicit.simulate_explicit`: ``−(f_int + m g)`` summed over
+    each plate's particles, prescribed components only.  ``converged``: True (the caller sets it
+    from ``info['rest']``)."""
+    lat = system.lattice
+    vols = lat.cell_volumes(x)
+    reactions = plate_reactions(system, x, f_int)
+    energy = dict(energy)
+    energy["kinetic"] = float(0.5 * np.sum(system.mass[:, None] * v * v))
+    info = dict(info)
+    info.setdefault("ramp_law", RAMP_LAW)
+    info["inverted_cells"] = int(np.count_nonzero(vols <= 0.0))
+    info["max_speed"] = float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0
+    return Result(solver=solver, scene_digest=system.scene.digest(), X=system.X.copy(), u=x - system.X,
+                  volume=float(vols.sum()), volume0=float(lat.cell_volumes(system.X).sum()),
+                  reactions=reactions, energy=energy, iterations=int(steps), wall_time_s=float(wall),
+                  converged=True, cell_volumes=vols, info=info)
 
 
 def solve_static(system: System, term: XpbdNH, dt: float | None = None, substeps: int = 10, iterations: int = 1,
@@ -664,23 +656,6 @@ def xpbd_term(system: System) -> XpbdNH:
     raise ValueError("the system has no XPBD constraints (its model is not xpbd-nh)")
 
 
-def simulate_scene(scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "numba", ramp_time: float = 1.0,
-                   threads: int = 1, record_every: int = 0, system: System | None = None, *,
-                   x0: np.ndarray | None = None, v0: np.ndarray | None = None, dt_crit_value: float | None = None,
-                   compute_dt_crit: bool = True, check_every: int = 10, precision: str = "f64") -> Result:
-    """:func:`simulate_explicit` with the signature of :func:`hybmss.explicit.simulate_explicit`:
-    ``steps`` frames of ``dt``, the substeps, iterations and solve of the scene's model parameters
-    (one thread: Gauss–Seidel is sequential, ``threads`` > 1 is refused; substeps 0:
-    :func:`auto_substeps`)."""
-    one_thread(threads, "xpbd-nh")
-    S = system if system is not None else build(scene)
-    p = scene.model.params
-    substeps = p.substeps or auto_substeps(S, dt)
-    return simulate_explicit(S, xpbd_term(S), dt, steps, kernel, ramp_time, substeps=substeps,
-                             iterations=p.iterations, coupled=not p.sequential, check_every=check_every,
-                             record_every=record_every, x0=x0, v0=v0, precision=precision)
-
-
 def solve_scene(scene, options=None, system: System | None = None) -> Result:
     """The static answer with the signature of :func:`hybmss.solve.solve_static`: the rest state
     of a damped run (:func:`solve_static`, defaults from the body's frequencies; ``options`` of the
@@ -719,7 +694,14 @@ class XpbdNHModel(ModelBase):
         at rest): XPBD itself has no such limit (its constraints are solved implicitly)."""
         return 2.0 / highest_frequency(system)
 
-    simulate_explicit = staticmethod(simulate_scene)
+    def stepper(self, system, dt, *, ramp_time, kernel="numba", precision="f64", threads=1):
+        """:class:`XpbdStepper` with the substeps (0: :func:`auto_substeps`), iterations and solve of
+        the scene's model parameters."""
+        p = system.scene.model.params
+        return XpbdStepper(system, xpbd_term(system), dt, ramp_time=ramp_time, kernel=kernel, precision=precision,
+                           threads=threads, substeps=p.substeps or auto_substeps(system, dt),
+                           iterations=p.iterations, coupled=not p.sequential)
+
     solve_static = staticmethod(solve_scene)
 
 

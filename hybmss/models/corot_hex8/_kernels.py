@@ -13,7 +13,7 @@ gravity.  One step:
 3. plates and the divergence check of :func:`hybmss._kernels.end_of_step`.
 
 Precision: the state ``W`` holds float64 positions or float32 displacements (``posmode`` False,
-:mod:`hybmss.models._voxel_explicit`); the element arithmetic is float64 in both.
+:func:`hybmss._kernels.kernel_state`); the element arithmetic is float64 in both.
 
 The readable twin is :mod:`hybmss.models.corot_hex8` (NumPy, vectorized over cells).
 """
@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import cofactor3, end_of_step, plate_scratch
+from ..._kernels import cofactor3, end_of_step, plate_scratch
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
 

@@ -1,5 +1,6 @@
-"""Numba twin of the [B09] correction forces (:mod:`hybmss.baudet`), in the stencil layout of
-:mod:`hybmss._kernels`.
+"""Numba twin of the [B09] correction forces (:mod:`hybmss.models.baudet2009.corrections`), in the
+stencil layout of :mod:`hybmss._stencil_gen`, and their stage in the generated stencil kernel
+(:func:`stencil_stage`).
 
 Arrays live on the full ``(nx+1)(ny+1)(nz+1)`` grid, flattened in C order: ``x`` (3, N)
 positions; ``kc`` (2, N) the spring shares ``kx``, ``kd`` of the cell whose lowest corner is p
@@ -120,3 +121,18 @@ def correction_forces_grid(x, kc, coff, le, c, P=None, F=None):
     corrections_stage(x, kc, coff, float(le), float(c), P, 0, N)
     corrections_accumulate(P, coff, F, 0, N)
     return F
+
+
+@njit(**_OPTS)
+def stencil_stage(W, xb, feb, L, N, F0, args):
+    """The stage of the corrections in the generated stencil kernel (:mod:`hybmss._stencil_gen`):
+    external-force rows at ``feb`` = ``F0`` (dead loads, (3, N)) + the corrections at the
+    positions of the rows at ``xb``.  ``args``: ``(kc, coff, le, c, P, Fc)`` of
+    :meth:`hybmss.models.baudet2009.corrections.GridCorrections.stage_args`."""
+    kc, coff, le, c, P, Fc = args
+    x = W[xb:xb + 3 * L].reshape((3, L))[:, :N]
+    corrections_stage(x, kc, coff, le, c, P, 0, N)
+    corrections_accumulate(P, coff, Fc, 0, N)
+    for d in range(3):
+        for q in range(N):
+            W[feb + d * L + q] = F0[d, q] + Fc[d, q]
