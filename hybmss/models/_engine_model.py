@@ -65,7 +65,7 @@ class EngineModel(ModelBase):
         ``converged`` by :func:`hybmss.explicit.rest_report`."""
         from ..explicit import REST_RTOL
         from ..system import build
-        from ._voxel_explicit import divergence
+        from ..explicit import BLOWUP_FACTOR, _divergence
         self._check(scene, threads, precision)
         if record_every:
             raise ValueError(f"record_every must be 0 for {self.name} (no trajectory recording)")
@@ -94,7 +94,8 @@ class EngineModel(ModelBase):
             done += k
             if bad >= 0:
                 xs, _ = body.state()
-                raise divergence(S, body.vertices(), min(bad, S.n - 1), done, dt, dt_c, check_every, self.name)
+                raise _divergence(S, body.vertices(), min(bad, S.n - 1), done, dt,
+                                  BLOWUP_FACTOR * max(scene.body.size), dt_c, check_every, self)
         r = body.result(f"{self.name}-explicit", done, REST_RTOL if rest_rtol is None else rest_rtol,
                         {"dt": dt, "steps": done, "dt_crit": dt_c, "damping": float(scene.damping),
                          "ramp_time": float(ramp_time), "kernel": "engine", "engine_name": self.engine,
