@@ -897,9 +897,66 @@ def simulate_explicit(
     ``info['cpu_time_s']`` is the process CPU time of the same span (all threads), steadier than
     wall time on a busy machine.
     """
+    model = scene.model.spec
+    _check_options(model, kernel, precision, warm_up)
+    if damping is not None:
+        scene, system = _with_damping(scene, system, damping)
+    own = getattr(model, "simulate_explicit", None)
+    if own is not None:  # an engine model that still runs its own loop (hybmss.models._engine_model)
+        return own(scene, dt=dt, steps=steps, kernel=kernel, ramp_time=ramp_time, threads=threads,
+                   record_every=record_every, system=system, x0=x0, v0=v0, dt_crit_value=dt_crit_value,
+                   compute_dt_crit=compute_dt_crit, check_every=check_every, precision=precision)
+    dt, steps, threads = _check_run(kernel, precision, dt, steps, ramp_time, threads)
+    t_setup = time.perf_counter()
+    run = _prepare(scene, system, model, dt, ramp_time, check_every)
+    x, v = initial_state(run.system, x0, v0, ramp_time)
+    if dt_crit_value is None and compute_dt_crit and model.explicit_limit:
+        t0 = time.perf_counter()
+        dt_crit_value = dt_crit(run.system)
+        run.dt_crit_s = time.perf_counter() - t0
+    run.dt_c = dt_crit_value
+    kw = dict(ramp_time=float(ramp_time), kernel=kernel, precision=precision, threads=threads)
+    st = stepper if stepper is not None else model.stepper(run.system, dt, **kw)
+    if st is None:  # the model is a variant of the lattice
+        st = LatticeStepper(run.system, dt, **kw)
+    st.load(x, v)
+    if compile_first:  # compile (or load from the cache) outside the timed span: a 0-step call
+        st.advance(0, 0, run.check_every, run.limit2)
+    warm_s = _warm_up(st, x, v, warm_up, run.limit2) if warm_up > 0.0 else 0.0
+    setup_s = time.perf_counter() - t_setup - run.dt_crit_s - warm_s
+    history = _History(run.system, st, dt) if record_every > 0 else None
+    done, wall, cpu = _march(run, st, steps, int(record_every), history)
+    t_post = time.perf_counter()
+    xs, vs = st.state()
+    energy = st.energy(xs, vs)
+    f_int = st.internal_forces(xs)
+    s_end = ramp(done * dt, ramp_time)
+    rest = rest_report(run.system, f_int, energy, s_end, rest_rtol)
+    info = dict(st.info)
+    info.update(_run_info(run, done, ramp_time, s_end, rest))
+    info.update({"cpu_time_s": cpu, "setup_s": setup_s, "warm_up_s": warm_s, "dt_crit_s": run.dt_crit_s})
+    return _result(run, st, scene, xs, vs, f_int, energy, info, history, done, wall, t_post)
+
+
+@dataclass
+class _Run:
+    """What the time loop of one explicit run needs besides its stepper: the system, the step, the
+    divergence bound and check interval, and the critical step (given, computed or None)."""
+
+    system: System
+    model: object
+    dt: float
+    limit: float
+    limit2: float
+    check_every: int
+    dt_c: float | None = None
+    dt_crit_s: float = 0.0
+
+
+def _check_options(model, kernel: str, precision: str, warm_up: float) -> None:
+    """Refuse a kernel, precision or warm-up that the run cannot have, before any work."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
-    model = scene.model.spec
     if kernel not in model.kernels:
         raise ValueError(f"model {model.name} has no {kernel} kernel (its kernels: {', '.join(model.kernels)}); "
                          f"use kernel={model.kernels[0]!r}")
@@ -907,18 +964,21 @@ def simulate_explicit(
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
     if not (warm_up >= 0 and math.isfinite(warm_up)):
         raise ValueError(f"warm_up must be >= 0 s, got {warm_up}")
-    if damping is not None:
-        damping = float(damping)
-        if not (damping >= 0 and math.isfinite(damping)):
-            raise ValueError(f"damping must be >= 0 (1/s), got {damping}")
-        scene = dataclasses.replace(scene, damping=damping)
-        if system is not None:
-            system = dataclasses.replace(system, scene=scene)
-    own = getattr(model, "simulate_explicit", None)
-    if own is not None:  # an engine model that still runs its own loop (hybmss.models._engine_model)
-        return own(scene, dt=dt, steps=steps, kernel=kernel, ramp_time=ramp_time, threads=threads,
-                   record_every=record_every, system=system, x0=x0, v0=v0, dt_crit_value=dt_crit_value,
-                   compute_dt_crit=compute_dt_crit, check_every=check_every, precision=precision)
+
+
+def _with_damping(scene: Scene, system: System | None, damping: float):
+    """The scene (and its system, if built) with the mass-proportional damping ``damping``."""
+    damping = float(damping)
+    if not (damping >= 0 and math.isfinite(damping)):
+        raise ValueError(f"damping must be >= 0 (1/s), got {damping}")
+    scene = dataclasses.replace(scene, damping=damping)
+    if system is not None:
+        system = dataclasses.replace(system, scene=scene)
+    return scene, system
+
+
+def _check_run(kernel: str, precision: str, dt, steps, ramp_time, threads) -> tuple[float, int, int]:
+    """``dt``, ``steps`` and ``threads`` as numbers the loop can run, else a :class:`ValueError`."""
     if precision != "f64" and kernel != "numba":
         raise ValueError(f"precision {precision} needs kernel='numba' (the NumPy twin runs in f64)")
     dt = float(dt)
@@ -932,116 +992,117 @@ def simulate_explicit(
     threads = int(threads)
     if threads < 1:
         raise ValueError(f"threads must be >= 1, got {threads}")
-    t_setup = time.perf_counter()
-    warm_s = 0.0
+    return dt, steps, threads
+
+
+def _prepare(scene: Scene, system: System | None, model, dt: float, ramp_time: float, check_every: int) -> _Run:
+    """The system of the run (built unless given; every particle must have mass) and its
+    divergence bound: a displacement beyond :data:`BLOWUP_FACTOR` body sizes."""
     sys_ = system if system is not None else build(scene)
     if (sys_.mass <= 0).any():
         raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
     limit = BLOWUP_FACTOR * max(scene.body.size)
-    limit2 = limit * limit
-    check_every = max(1, int(check_every))
+    return _Run(sys_, model, dt, limit, limit * limit, max(1, int(check_every)))
 
-    x, v = initial_state(sys_, x0, v0, ramp_time)
 
-    dt_c = dt_crit_value
-    t_dc = 0.0
-    if dt_c is None and compute_dt_crit and model.explicit_limit:
-        t0 = time.perf_counter()
-        dt_c = dt_crit(sys_)
-        t_dc = time.perf_counter() - t0
-
-    kw = dict(ramp_time=float(ramp_time), kernel=kernel, precision=precision, threads=threads)
-    st = stepper if stepper is not None else model.stepper(sys_, dt, **kw)
-    if st is None:  # the model is a variant of the lattice
-        st = LatticeStepper(sys_, dt, **kw)
+def _warm_up(st, x, v, seconds: float, limit2: float) -> float:
+    """Untimed steps for ``seconds`` from the initial state, which is then loaded again; the
+    seconds it took."""
+    t_warm, k = time.perf_counter(), 0
+    with interruptible():
+        while time.perf_counter() - t_warm < seconds:
+            interruptible.check()
+            done, bad = st.advance(k, WARM_UP_STEPS, WARM_UP_STEPS, limit2)
+            k += done
+            if bad >= 0 or done < WARM_UP_STEPS:
+                break
     st.load(x, v)
-    if compile_first:  # compile (or load from the cache) outside the timed span: a 0-step call
-        st.advance(0, 0, check_every, limit2)
-    if warm_up > 0.0:
-        t_warm, k = time.perf_counter(), 0
-        with interruptible():
-            while time.perf_counter() - t_warm < warm_up:
-                interruptible.check()
-                done, bad = st.advance(k, WARM_UP_STEPS, WARM_UP_STEPS, limit2)
-                k += done
-                if bad >= 0 or done < WARM_UP_STEPS:
-                    break
-        st.load(x, v)
-        warm_s = time.perf_counter() - t_warm
+    return time.perf_counter() - t_warm
 
-    setup_s = time.perf_counter() - t_setup - t_dc - warm_s
-    history = None
-    if record_every > 0:
-        history = {"t": [], "max_displacement": []}
 
-        def record(step):
-            xs, vs = st.state()
-            e = st.energy(xs, vs)
-            history["t"].append(step * dt)
-            history["max_displacement"].append(float(np.linalg.norm(xs - sys_.X, axis=1).max()))
-            for k, val in e.items():
-                history.setdefault(k, []).append(val)
+class _History:
+    """``info['history']``: t, the largest displacement and the stepper's energies at chosen steps."""
 
-        record(0)
-    span = int(record_every) if record_every > 0 else max(steps, 1)
+    def __init__(self, system: System, st, dt: float):
+        self.system, self.st, self.dt = system, st, dt
+        self.data = {"t": [], "max_displacement": []}
+        self.record(0)
 
+    def record(self, step: int) -> None:
+        xs, vs = self.st.state()
+        e = self.st.energy(xs, vs)
+        self.data["t"].append(step * self.dt)
+        self.data["max_displacement"].append(float(np.linalg.norm(xs - self.system.X, axis=1).max()))
+        for k, val in e.items():
+            self.data.setdefault(k, []).append(val)
+
+
+def _march(run: _Run, st, steps: int, record_every: int, history: _History | None) -> tuple[int, float, float]:
+    """Advance ``st`` by ``steps`` steps in calls of about 0.1 s (:class:`hybmss.stepper.Chunks`),
+    stopping at SIGINT/SIGTERM between calls, recording every ``record_every`` steps; a diverged
+    state raises :class:`DivergenceError`.  Returns the steps done (fewer when the stepper stops
+    by its own rule), and the wall and CPU seconds of the calls."""
+    span = record_every if record_every > 0 else max(steps, 1)
     wall = cpu = 0.0
     done, stopped = 0, False
-    chunks = Chunks(check_every)
+    chunks = Chunks(run.check_every)
     with interruptible():
         while done < steps and not stopped:
             end = min(done + span, steps)  # a span: up to the next record; checks counted from its start
             while done < end:
                 interruptible.check()
                 n = chunks.next(end - done)
-                (k, bad), w, c = timed(st.advance, done, n, check_every, limit2)
+                (k, bad), w, c = timed(st.advance, done, n, run.check_every, run.limit2)
                 chunks.took(n, w)
                 wall += w
                 cpu += c
                 if bad >= 0:
                     xs, _ = st.state()
-                    raise _divergence(sys_, xs, bad, done + k, dt, limit, dt_c, check_every, model)
+                    raise _divergence(run.system, xs, bad, done + k, run.dt, run.limit, run.dt_c, run.check_every,
+                                      run.model)
                 done += k
                 if k < n:  # the stepper stopped by its own rule
                     stopped = True
                     break
             if history is not None:
-                record(done)
+                history.record(done)
+    return done, wall, cpu
 
-    t_post = time.perf_counter()
-    xs, vs = st.state()
-    energy = st.energy(xs, vs)
-    lat = sys_.lattice
-    vols = lat.cell_volumes(xs)
-    V0 = float(lat.cell_volumes(sys_.X).sum())
-    f_int = st.internal_forces(xs)
-    reactions = plate_reactions(sys_, xs, f_int)
-    s_end = ramp(done * dt, ramp_time)
-    rest = rest_report(sys_, f_int, energy, s_end, rest_rtol)
-    info = dict(st.info)
-    info.update({
-        "model": model.name,
+
+def _run_info(run: _Run, done: int, ramp_time: float, s_end: float, rest: dict) -> dict:
+    """The protocol of the run in ``info``: model, rest verdict, step, damping and ramp."""
+    return {
+        "model": run.model.name,
         "rest": rest,
-        "dt": dt,
+        "dt": run.dt,
         "steps": done,
-        "t_end": done * dt,
-        "dt_crit": None if dt_c is None else float(dt_c),
-        "damping": float(sys_.scene.damping),
+        "t_end": done * run.dt,
+        "dt_crit": None if run.dt_c is None else float(run.dt_c),
+        "damping": float(run.system.scene.damping),
         "damping_scheme": "mass-proportional -c m v, implicit: v = (v + dt a) / (1 + c dt)",
         "ramp_time": float(ramp_time),
         "ramp_law": RAMP_LAW,
         "load_factor": s_end,
-        "cpu_time_s": cpu,
-        "setup_s": setup_s,
-        "warm_up_s": warm_s,
-        "dt_crit_s": t_dc,
+    }
+
+
+def _result(run: _Run, st, scene: Scene, xs, vs, f_int, energy: dict, info: dict, history: _History | None,
+            done: int, wall: float, t_post: float) -> Result:
+    """The :class:`Result` of the final state: displacements, cell volumes, plate reactions from
+    the stepper's own forces, ``converged`` = at rest."""
+    sys_ = run.system
+    lat = sys_.lattice
+    vols = lat.cell_volumes(xs)
+    V0 = float(lat.cell_volumes(sys_.X).sum())
+    reactions = plate_reactions(sys_, xs, f_int)
+    info.update({
         "postprocess_s": time.perf_counter() - t_post,
         "max_speed": float(np.linalg.norm(vs, axis=1).max()) if len(vs) else 0.0,
         "inverted_cells": int(np.count_nonzero(vols <= 0.0)),
         "kappa": float(sys_.kappa),
     })
     if history is not None:
-        info["history"] = history
+        info["history"] = history.data
     return Result(
         solver=getattr(st, "solver", SOLVER),
         scene_digest=scene.digest(),
@@ -1053,7 +1114,8 @@ def simulate_explicit(
         energy=energy,
         iterations=done,
         wall_time_s=wall,
-        converged=rest["at_rest"],
+        converged=bool(info["rest"]["at_rest"]),
         cell_volumes=vols,
         info=info,
     )
+
