@@ -263,7 +263,7 @@ def test_vbd_reactions_balance_weight():
 def test_vbd_refuses_sliding_plates():
     """A node held in some components only (slide plates, as the moduli command uses) cannot be a
     kinematic particle of SolverVBD, and set after its step it stays off equilibrium: refused."""
-    from hybmss.solvers import StaticSolveError
+    from hybmss.solve import StaticSolveError
 
     sc = Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=0.3, rho=1000.0), model=Model("newton-vbd"),
                plates=(Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
@@ -290,7 +290,7 @@ def test_xpbd_law_has_no_small_strain_shear_stiffness(nu):
 
 
 def test_xpbd_is_refused():
-    from hybmss.solvers import StaticSolveError
+    from hybmss.solve import StaticSolveError
 
     sc = cube(0.3, motion("stretch", STRAIN))
     with pytest.raises(ValueError, match="model: newton-xpbd cannot represent a shear modulus"):
