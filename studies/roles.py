@@ -114,6 +114,8 @@ IN_TREE = {
     "mujoco-trilinear": Part(()),
     "mujoco-quadratic": Part(()),
     "newton-semi": Part(()),
+    "newton-vbd": Part(()),
+    "newton-xpbd": Part(()),
 }
 """The part of each in-tree model (a model not listed here, or declared by its package, takes the
 default :class:`Part`)."""

@@ -27,8 +27,8 @@ H = N * LE
 STRAIN = 3e-3
 
 
-def cube(nu: float, motion: Motion, rho: float = 1000.0, **kw) -> Scene:
-    return Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=nu, rho=rho), model=Model(NAME),
+def cube(nu: float, motion: Motion, rho: float = 1000.0, name: str = NAME, **kw) -> Scene:
+    return Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=nu, rho=rho), model=Model(name),
                  plates=(Plate("bottom", Region("z-")), Plate("top", Region("z+"), motion)), **kw)
 
 
@@ -132,12 +132,13 @@ def test_refuses_what_it_cannot_represent():
         simulate_explicit(cube(0.3, motion("stretch", STRAIN)), dt=1e-4, steps=10, kernel="engine")
 
 
-def test_explicit_run_reaches_rest():
+@pytest.mark.parametrize("name", (NAME, "newton-vbd"))
+def test_explicit_run_reaches_rest(name):
     """The explicit protocol (Newton's steps, the harness's ramp and damping) ends at the static
     answer: the same reaction to 1e-3 once rest_report finds it at rest."""
     from hybmss.explicit import simulate_explicit
 
-    sc = cube(0.3, motion("stretch", STRAIN))
+    sc = cube(0.3, motion("stretch", STRAIN), name=name)
     st = solve_static(sc)
     i = st.info
     steps = int((i["ramp_time"] + 30.0 / i["omega_1"]) / i["dt"])
@@ -184,3 +185,115 @@ def test_missing_engine_leaves_its_models_out():
     code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'newton-semi']))"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+
+
+# ---------------------------------------------------------------------------- newton-vbd, newton-xpbd
+def homogeneous_stress(forces, X: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """Nominal stress of a unit-volume body under the homogeneous displacement gradient H from the
+    engine's own nodal forces (virtual work: ``P = −Σ_a f_a ⊗ X_a / V``)."""
+    return -np.einsum("ai,aj->ij", forces(X + X @ H.T), X)
+
+
+def law_moduli(forces, X: np.ndarray, eps: float = 1e-3) -> tuple[float, float]:
+    """(λ, μ) of a law at small strain from central differences (±ε: the O(ε²) terms cancel) of its
+    stress under uniaxial strain (λ = P_xx/ε) and simple shear (μ = P_xz/γ)."""
+    Hz, Hs = np.zeros((3, 3)), np.zeros((3, 3))
+    Hz[2, 2], Hs[0, 2] = eps, eps
+    Pz = (homogeneous_stress(forces, X, Hz) - homogeneous_stress(forces, X, -Hz)) / (2 * eps)
+    Ps = (homogeneous_stress(forces, X, Hs) - homogeneous_stress(forces, X, -Hs)) / (2 * eps)
+    assert Pz[2, 2] - Pz[0, 0] == pytest.approx(2 * Ps[0, 2], rel=1e-3, abs=1e-5 * abs(Pz[2, 2]))  # isotropic
+    return Pz[0, 0], Ps[0, 2]
+
+
+def one_cell_body(name: str, nu: float):
+    from hybmss.models.newton.engine import NewtonBody
+
+    sc = Scene(body=Body.box(1, 1, 1, le=1.0), material=Material(E=E, nu=nu, rho=1000.0), model=Model(name),
+               plates=(Plate("bottom", Region("z-")),))
+    return sc.material, NewtonBody(build(sc), "vbd", 1e-3, 1.0)
+
+
+@pytest.mark.parametrize("nu", (0.0, 0.25, 0.45))
+def test_vbd_moduli_of_its_law(nu):
+    """SolverVBD's own force evaluation (its evaluate_volumetric_neo_hookean_force_and_hessian) on
+    one cell's five tetrahedra under homogeneous strains of 1e-3: λ and μ are the material's, so
+    E, ν, G hold to 1e-4 (measured 2e-5: float32 positions of a 1 m cell carry 6e-8, 6e-5 of the
+    strain, mostly cancelled by the central difference)."""
+    m, body = one_cell_body("newton-vbd", nu)
+    lam, mu = law_moduli(body.internal_forces, body.nodes.X)
+    E_eff, nu_eff = mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu))
+    assert E_eff == pytest.approx(E, rel=1e-4)
+    assert nu_eff == pytest.approx(nu, abs=1e-4)
+    assert mu == pytest.approx(m.G, rel=1e-4)
+    assert body.k_mu == m.G and body.k_lambda == m.lam  # the builder's Lamé parameters as they are
+
+
+@pytest.mark.parametrize("nu", (0.0, 0.25, 0.45))
+@pytest.mark.parametrize("kind", ("stretch", "shear"))
+def test_vbd_same_mesh_linear_fem(kind, nu):
+    """At strain 1e-4 the reaction equals the linear FEM's on Newton's tetrahedra within the
+    engine's certified rest residual: 1e-3, or the float32 force resolution over the force scale
+    where larger (4.7e-3 stretch, 1.2e-2 shear at ν = 0; measured differences 2.9e-3, 3.2e-3):
+    VBD updates positions, and a correction below one unit in the last place of a position is
+    lost, so its sweeps stop at that residual (a longer settling leaves it unchanged)."""
+    sc = Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=nu, rho=0.0), model=Model("newton-vbd"),
+               plates=(Plate("bottom", Region("z-")), Plate("top", Region("z+"), motion(kind, 1e-4))))
+    r = solve_static(sc)
+    got = np.asarray(r.reactions["top"].force)
+    ref = tet_p1_reaction(sc)
+    rest = r.info["rest"]
+    tol = max(1e-3, rest["resolution_N"] / rest["force_scale_N"])
+    assert r.converged and r.info["integrator"] == "SolverVBD"
+    assert np.abs(got - ref).max() <= tol * np.abs(ref).max(), (kind, nu, got, ref, tol)
+    # the imbalance adds the two plates' errors, each within the residual (4.9e-3 measured at ν = 0)
+    assert r.info["reaction_balance"]["relative"] <= 2 * tol
+
+
+def test_vbd_reactions_balance_weight():
+    rho, g = 1000.0, 9.81
+    sc = Scene(body=Body.box(N, N, N, le=LE), material=Material(E=1e6, nu=0.3, rho=rho), model=Model("newton-vbd"),
+               plates=(Plate("bottom", Region("z-")),), gravity=(0.0, 0.0, -g))
+    r = solve_static(sc)
+    weight = rho * H**3 * g
+    assert r.converged
+    assert r.reactions["bottom"].force[2] == pytest.approx(weight, rel=1e-3)
+    assert r.u[:, 2].min() < 0.0
+
+
+def test_vbd_refuses_sliding_plates():
+    """A node held in some components only (slide plates, as the moduli command uses) cannot be a
+    kinematic particle of SolverVBD, and set after its step it stays off equilibrium: refused."""
+    from hybmss.solve import StaticSolveError
+
+    sc = Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=0.3, rho=1000.0), model=Model("newton-vbd"),
+               plates=(Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
+                       Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, 1e-3), components=(2,)))))
+    with pytest.raises(ValueError, match="plates"):
+        solve_static(sc)
+    with pytest.raises(StaticSolveError, match="plates"):
+        measure_moduli(Model("newton-vbd"), Material(E=E, nu=0.3, rho=1000.0))
+
+
+@pytest.mark.parametrize("nu", (0.0, 0.25, 0.45))
+def test_xpbd_law_has_no_small_strain_shear_stiffness(nu):
+    """SolverXPBD's own constraint forces (its solve_tetrahedra, from zero multipliers, over dt²)
+    with the builder's Lamé parameters k_mu = μ, k_lambda = λ: its constraints C = tr(FᵀF) − 3
+    and det F − 1 give a small-strain law of λ_eff = 4 k_mu + k_lambda and μ_eff = 0 (measured
+    2e-6 μ at γ = 1e-3, the γ² of a quartic energy); with k_lambda = 0 (ν = 0) the kernel skips
+    the tetrahedron altogether."""
+    from hybmss.models.newton.engine import xpbd_constraint_forces
+
+    m, body = one_cell_body("newton-vbd", nu)
+    lam, mu = law_moduli(lambda x: xpbd_constraint_forces(body.model, x), body.nodes.X)
+    assert abs(mu) <= 1e-5 * m.G
+    assert lam == pytest.approx(4 * m.G + m.lam if nu > 0 else 0.0, rel=1e-4, abs=1e-6 * m.G)
+
+
+def test_xpbd_is_refused():
+    from hybmss.solve import StaticSolveError
+
+    sc = cube(0.3, motion("stretch", STRAIN))
+    with pytest.raises(ValueError, match="model: newton-xpbd cannot represent a shear modulus"):
+        solve_static(Scene(body=sc.body, material=sc.material, model=Model("newton-xpbd"), plates=sc.plates))
+    with pytest.raises(StaticSolveError, match="shear modulus"):
+        measure_moduli(Model("newton-xpbd"), Material(E=E, nu=0.3, rho=1000.0))

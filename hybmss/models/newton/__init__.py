@@ -1,5 +1,6 @@
-"""NVIDIA Newton's soft bodies (on Warp) as a model: ``newton-semi`` (``SolverSemiImplicit``,
-explicit, on Warp's ``cpu`` device).
+"""NVIDIA Newton's soft bodies (on Warp) as models: ``newton-semi`` (``SolverSemiImplicit``,
+explicit), ``newton-vbd`` (``SolverVBD``, implicit Euler by vertex block descent) and
+``newton-xpbd`` (``SolverXPBD``, refused: below), on Warp's ``cpu`` device.
 
 The engine runs its own code from its own package (``newton`` ≥ 1.8, ``warp-lang``; imported only
 when the model runs: :mod:`hybmss.models.newton.engine`, which also says how a scene becomes a
@@ -21,6 +22,39 @@ high at ν = 0.45).  ν must leave ``k_lambda > 0``: ν > −5/14.
 
 Refused before any work: surface loads, ν ≤ −5/14, two threads, ``precision`` other than f32
 (Warp's particle state is float32).
+
+``newton-vbd``, from ``newton/_src/solvers/vbd/particle_vbd_kernels.py``, function
+``evaluate_volumetric_neo_hookean_force_and_hessian`` (called per adjacent tetrahedron by
+``accumulate_elasticity_force_and_hessian`` in each of ``SolverVBD.step``'s iterations): with
+``μ_NH = k_mu``, ``λ_NH = k_lambda + k_mu``, α = 1 + μ_NH/λ_NH, ``P = μ_NH F + λ_NH (J − α) cof F``
+(energy ``μ_NH/2 (I_C − 3) + λ_NH/2 (J − α)²``, no log term), linearized at F = I:
+``P ≈ k_mu (H + Hᵀ) + k_lambda tr H I``: its Lamé parameters are k_mu and k_lambda as they are
+(:func:`hybmss.models.newton.engine.lame_vbd`), a law unlike ``SolverSemiImplicit``'s for the same
+builder values; λ_NH = λ + μ > 0 for every ν in (−1, ½).  Measured with the solver's own force
+evaluation on one cell under homogeneous strains ±1e-3: λ, μ, E, ν to 3e-5.  Plates: a node whose
+three components are prescribed is a kinematic particle (mass 0: ``forward_step`` and the sweep
+leave it where it is put, at its target of the step's end before each step); a node held in some
+components only cannot be one (the sweep solves a 3×3 block per vertex), and set after the step it
+stays off equilibrium (6 % of the plate force measured on the moduli cube): ``slide`` plates are
+refused, so ``hybmss moduli`` (its frictionless plates) is refused too.  Iterations: at rest
+(v = 0, inertia target = x + h² g) a sweep leaves a vertex unmoved exactly where its force
+vanishes, so the rest state does not depend on the iteration count (1, 2, 10, 40 iterations: the
+shear reaction at strain 3e-3 equal to the same-mesh linear FEM's within 8e-5, the float32
+resolution 5.6e-4); 10 (Newton's default).  Reactions: Newton's
+``evaluate_volumetric_neo_hookean_force_and_hessian`` force on each vertex (damping 0), summed by a
+Warp kernel of :mod:`hybmss.models.newton.engine`.  A correction below one unit in the last place of
+a float32 position is lost, so the sweeps stop at the force resolution: at strain 1e-4 the
+reactions carry up to 5e-3 (3e-3 measured) against the same-mesh FEM.
+
+``newton-xpbd`` is refused for every scene: ``newton/_src/solvers/xpbd/kernels.py``, kernel
+``solve_tetrahedra`` (launched per iteration by ``SolverXPBD.step``), solves two scalar constraints
+per tetrahedron, ``C_dev = tr(FᵀF) − 3`` with compliance ``1/(V k_mu)`` and ``C_vol = det F − 1``
+with ``1/(V k_lambda)``: the energy ``V (k_mu/2 C_dev² + k_lambda/2 C_vol²)``.  C_dev = 2 tr ε +
+O(ε²) is the deviatoric constraint only by name: at small strain the law is ``λ_eff = 4 k_mu +
+k_lambda``, ``μ_eff = 0`` (simple shear: C_dev = γ², an energy quartic in γ); and the kernel skips
+a tetrahedron with k_lambda ≤ 0 (ν ≤ 0 with k_lambda = λ).  Measured with its own constraint
+forces (:func:`hybmss.models.newton.engine.xpbd_constraint_forces`) on one cell, k_mu = μ, k_lambda
+= λ, γ = 1e-3: μ_eff = 2e-6 μ, λ_eff = 4μ + λ to 1e-5.  No (k_mu, k_lambda) gives a shear modulus.
 """
 
 from __future__ import annotations
@@ -68,6 +102,38 @@ class NewtonModel(EngineModel):
                                         f"5 mu/6 must be > 0), got {scene.material.nu:g}")
 
 
+class NewtonVBD(NewtonModel):
+    name = "newton-vbd"
+    solver = "vbd"
+    label = "Newton (Warp) SolverVBD, Neo-Hookean tetrahedra"
+    style = Style("#4d7a00", "v", "--")
+    order = 46
+
+    def check_scene(self, scene) -> None:
+        # its λ_NH = λ + μ > 0 for every ν in (-1, 0.5): no ν is refused
+        for plate in scene.plates:
+            if not plate.motion.constrained.all():
+                raise SceneNotRepresentable(
+                    f"plates: {self.name} cannot represent the {plate.motion.kind} plate {plate.name!r} (some "
+                    "components free): SolverVBD moves a node as a whole (one 3x3 block solve per vertex), so a "
+                    "node held in some components is off equilibrium in the others (measured: a residual of 6 % "
+                    "of the plate force); use plates that prescribe all three components")
+
+
+class NewtonXPBD(NewtonModel):
+    name = "newton-xpbd"
+    solver = "xpbd"
+    label = "Newton (Warp) SolverXPBD tetrahedra: refused (no small-strain shear stiffness)"
+    style = Style("#a3d65c", "<", "--")
+    order = 47
+
+    def check_scene(self, scene) -> None:
+        raise SceneNotRepresentable(
+            f"model: {self.name} cannot represent a shear modulus (SolverXPBD's solve_tetrahedra constrains "
+            "C = tr(F^T F) - 3 with compliance 1/(V k_mu): an energy quadratic in C, quartic in a shear strain, "
+            "so G_eff = 0 at small strain); use newton-semi or newton-vbd")
+
+
 class NewtonSemi(NewtonModel):
     name = "newton-semi"
     solver = "semi"
@@ -77,7 +143,7 @@ class NewtonSemi(NewtonModel):
 
 
 if available():
-    MODELS = (NewtonSemi(),)
+    MODELS = (NewtonSemi(), NewtonVBD(), NewtonXPBD())
 else:
     # one line (no source line under it): the model is left out, nothing else changes
     warnings.warn_explicit("the newton package (or warp-lang) is not installed: the newton-* models are left out "

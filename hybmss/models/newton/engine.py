@@ -1,5 +1,5 @@
 """A scene as a Newton model (``newton`` ≥ 1.8 on ``warp-lang``), stepped by Newton's
-``SolverSemiImplicit`` on Warp's ``cpu`` device.
+``SolverSemiImplicit`` or ``SolverVBD`` on Warp's ``cpu`` device (laws: :mod:`hybmss.models.newton`).
 
 Imported only when a ``newton-*`` model runs (importing Warp and Newton takes ~10 s, the first
 use of its kernels compiles them into Warp's kernel cache, ~8 s per module, reported apart as
@@ -16,7 +16,10 @@ Scene translation
   ``ModelBuilder.add_tetrahedron`` with its rest pose from the reference positions.
 - **Plates**: after every ``solver.step`` the prescribed components are set to their targets at the
   new time and their velocities to the target's change over the step (the integrator is explicit
-  and per particle, so this is the harness's scheme with its plates).
+  and per particle, so this is the harness's scheme with its plates).  ``SolverVBD``: the plate
+  nodes are kinematic particles (mass 0) put at their targets of the step's end before the step
+  (its sweep solves the free nodes against them); the lumped mass stays in the harness's nodes
+  (the reactions' weight term).
 - **Damping**: the scene's mass-proportional c applied to Newton's step as the harness applies it
   (``v ← v'/(1 + c h)``, the position with it); the element damping ``k_damp`` is 0.  Gravity is
   Newton's (``ModelBuilder(gravity=...)``).
@@ -29,7 +32,9 @@ Scene translation
 
 Readouts: the elastic force on a node is Newton's own tetrahedron kernel
 (``newton/_src/solvers/semi_implicit/kernels_particle.py``, ``eval_tetrahedra_forces``, the
-launch ``SolverSemiImplicit.step`` makes) into a cleared ``particle_f``.
+launch ``SolverSemiImplicit.step`` makes) into a cleared ``particle_f``; for ``SolverVBD`` its
+``evaluate_volumetric_neo_hookean_force_and_hessian`` per tetrahedron and vertex (the force its
+sweep balances), summed by :func:`_vbd_tet_forces`.
 """
 
 from __future__ import annotations
@@ -44,6 +49,9 @@ wp.config.log_level = wp.LOG_WARNING  # no greeting nor module-load lines on std
 
 import newton  # noqa: E402
 from newton._src.solvers.semi_implicit.kernels_particle import eval_tetrahedra_forces  # noqa: E402
+from newton._src.solvers.vbd.particle_vbd_kernels import (  # noqa: E402
+    evaluate_volumetric_neo_hookean_force_and_hessian)
+from newton._src.solvers.xpbd.kernels import solve_tetrahedra  # noqa: E402
 
 from ...system import System  # noqa: E402
 from .._engine_body import EngineBody  # noqa: E402
@@ -78,6 +86,47 @@ def lame(material) -> tuple[float, float]:
     return 4.0 * mu0 / 3.0, lam0 + 5.0 * mu0 / 6.0
 
 
+def lame_vbd(material) -> tuple[float, float]:
+    """``(k_mu, k_lambda)`` of ``SolverVBD``'s tetrahedron law for the material's (λ₀, μ₀): its
+    ``evaluate_volumetric_neo_hookean_force_and_hessian`` takes ``μ_NH = k_mu``, ``λ_NH = k_lambda
+    + k_mu``, ``P = μ_NH F + λ_NH (J − α) cof F``, α = 1 + μ_NH/λ_NH, whose linearization at F = I
+    is ``μ_NH (H + Hᵀ) + (λ_NH − μ_NH) tr H I``: the Lamé parameters are k_mu and k_lambda as they
+    are."""
+    return float(material.G), float(material.lam)
+
+
+@wp.kernel
+def _vbd_tet_forces(pos: wp.array[wp.vec3], tet_indices: wp.array2d[wp.int32], tet_poses: wp.array[wp.mat33],
+                    tet_materials: wp.array2d[float], f_out: wp.array[wp.vec3]):
+    # SolverVBD's own force of a tetrahedron on one of its vertices (no damping: pos_prev = pos)
+    t, v = wp.tid()
+    f, h = evaluate_volumetric_neo_hookean_force_and_hessian(t, v, pos, pos, tet_indices, tet_poses[t],
+                                                             tet_materials[t, 0], tet_materials[t, 1], 0.0, 1.0)
+    wp.atomic_add(f_out, tet_indices[t, v], f)
+
+
+def xpbd_constraint_forces(model, x: np.ndarray, dt: float = 1e-7) -> np.ndarray:
+    """(N, 3) forces of ``SolverXPBD``'s tetrahedron constraints at positions ``x``: one launch of
+    its ``solve_tetrahedra`` from zero multipliers with unit inverse masses and no relaxation, the
+    corrections ``Δx_i = Δλ ∇_i C`` over ``dt²`` (the constraint force ``λ ∇C / dt²``); ``dt`` so
+    short that ``Σ w |∇C|² dt²`` is ~1e-9 of the compliance ``1/(V k)``: the force is ``−∇U`` of
+    the constraints' energy ``U = V (k_mu/2 C_dev² + k_lambda/2 C_vol²)``."""
+    n, m = len(x), int(model.tet_count)
+    q = wp.array(np.asarray(x, dtype=np.float32), dtype=wp.vec3, device="cpu")
+    delta = wp.zeros(n, dtype=wp.vec3, device="cpu")
+    lam_in, lam_out = wp.zeros(2 * m, dtype=float, device="cpu"), wp.zeros(2 * m, dtype=float, device="cpu")
+    wp.launch(solve_tetrahedra, dim=m, device="cpu",
+              inputs=[q, wp.zeros(n, dtype=wp.vec3, device="cpu"), wp.ones(n, dtype=float, device="cpu"),
+                      model.tet_indices, model.tet_poses, wp.zeros(m, dtype=float, device="cpu"),
+                      model.tet_materials, float(dt), 1.0, lam_in],
+              outputs=[lam_out, delta])
+    return delta.numpy().astype(np.float64) / (dt * dt)
+
+
+VBD_ITERATIONS = 10
+"""``SolverVBD``'s iterations per step: its own default (``iterations=None`` → 10)."""
+
+
 class NewtonBody(EngineBody):
     """A scene's body stepped by Newton's ``SolverSemiImplicit`` (module docstring); the stepper
     protocol of :class:`hybmss.models._engine_body.EngineBody`."""
@@ -87,24 +136,36 @@ class NewtonBody(EngineBody):
     ~1e-7 of it."""
 
     def __init__(self, system: System, solver: str, dt: float, ramp_time: float, *, damping: float | None = None,
-                 density: float | None = None, gravity="scene"):
-        if solver != "semi":
-            raise ValueError(f"solver must be semi, got {solver!r}")
+                 density: float | None = None, gravity="scene", iterations: int = VBD_ITERATIONS):
+        if solver not in ("semi", "vbd"):
+            raise ValueError(f"solver must be semi or vbd, got {solver!r}")
         self.solver_name = solver
         self.setup(system, 1, dt, ramp_time, damping, density, gravity)
         lat = system.lattice
         self.tets = cell_tets(lat.cells, lat.cell_ijk)
-        k_mu, k_lambda = lame(system.scene.material)
+        vbd = solver == "vbd"
+        k_mu, k_lambda = lame_vbd(system.scene.material) if vbd else lame(system.scene.material)
+        # SolverVBD moves every particle of nonzero mass (a 3x3 block each): a node whose three
+        # components are prescribed is its kinematic particle (mass 0), a slide node stays free
+        # and has its prescribed components set after each step
+        self.kinematic = self.nodes.fixed.all(axis=1) if vbd else np.zeros(len(self.nodes.X), dtype=bool)
         t0 = time.perf_counter()
         g = (0.0, 0.0, 0.0) if self.gravity is None else tuple(float(v) for v in self.gravity)
         b = newton.ModelBuilder(gravity=g)
-        for x, m in zip(self.nodes.X, self.nodes.mass):
-            b.add_particle(wp.vec3(*map(float, x)), wp.vec3(0.0, 0.0, 0.0), mass=float(m), radius=0.0)
+        for x, m, kin in zip(self.nodes.X, self.nodes.mass, self.kinematic):
+            b.add_particle(wp.vec3(*map(float, x)), wp.vec3(0.0, 0.0, 0.0), mass=0.0 if kin else float(m),
+                           radius=0.0)
         for t in self.tets:
             b.add_tetrahedron(*map(int, t), k_mu=k_mu, k_lambda=k_lambda, k_damp=0.0)
+        if vbd:
+            b.color()  # SolverVBD's Gauss-Seidel sweeps go colour by colour
         self.model = b.finalize(device="cpu")
         self.model.particle_grid = None
-        self.solver = newton.solvers.SolverSemiImplicit(self.model)
+        if vbd:
+            self.iterations = int(iterations)
+            self.solver = newton.solvers.SolverVBD(self.model, iterations=self.iterations)
+        else:
+            self.solver = newton.solvers.SolverSemiImplicit(self.model)
         self.control = self.model.control()
         self.s0, self.s1, self.probe = self.model.state(), self.model.state(), self.model.state()
         self.internal_forces(self.nodes.X)  # compiles the force kernel
@@ -126,8 +187,9 @@ class NewtonBody(EngineBody):
 
     def describe(self) -> dict:
         return {"engine": ENGINE, "engine_version": VERSION, "element": "tet", "device": "cpu", "threads": 1,
-                "integrator": "SolverSemiImplicit", "precision": "f32",
+                "integrator": "SolverVBD" if self.solver_name == "vbd" else "SolverSemiImplicit", "precision": "f32",
                 "k_mu": self.k_mu, "k_lambda": self.k_lambda,
+                **({"iterations": self.iterations} if self.solver_name == "vbd" else {}),
                 "tet_split": "Newton's add_soft_grid split: 5 tetrahedra, alternating with the cell's parity"}
 
     def load(self, x: np.ndarray, v: np.ndarray, step0: int = 0) -> None:
@@ -139,7 +201,12 @@ class NewtonBody(EngineBody):
         damp = 1.0 / (1.0 + self.damping * self.dt)
         spent = 0.0
         fx = self.fixed_dofs
+        vbd = self.solver_name == "vbd"
         for k in range(step0, step0 + n):
+            if vbd:  # the kinematic particles at their targets of the step's end before it
+                u, _ = self.plate_targets(k + 1)
+                q = self.s0.particle_q.numpy().reshape(-1)
+                q[fx] = (self.nodes.X.ravel()[fx] + u).astype(np.float32)
             t0 = time.perf_counter()
             self.s0.clear_forces()
             self.solver.step(self.s0, self.s1, self.control, None, self.dt)
@@ -167,7 +234,13 @@ class NewtonBody(EngineBody):
         p.particle_q.assign(np.asarray(x, dtype=np.float32))
         p.particle_qd.zero_()
         p.clear_forces()
-        eval_tetrahedra_forces(self.model, p, self.control, p.particle_f)
+        if self.solver_name == "vbd":
+            m = self.model
+            wp.launch(_vbd_tet_forces, dim=(m.tet_count, 4), inputs=[p.particle_q, m.tet_indices, m.tet_poses,
+                                                                      m.tet_materials], outputs=[p.particle_f],
+                      device="cpu")
+        else:
+            eval_tetrahedra_forces(self.model, p, self.control, p.particle_f)
         return p.particle_f.numpy().astype(np.float64).reshape(-1, 3)
 
     def vertices(self, x: np.ndarray | None = None) -> np.ndarray:
