@@ -17,7 +17,7 @@ pytest.importorskip("pypbd")
 
 from hybmss import Body, Material, Model, Motion, Plate, Region, Scene  # noqa: E402
 from hybmss.moduli import measure_moduli  # noqa: E402
-from hybmss.solvers import solve_static  # noqa: E402
+from hybmss.solve import solve_static  # noqa: E402
 from hybmss.system import build  # noqa: E402
 
 NAME = "pbd-xpbd-fem"
@@ -121,7 +121,7 @@ def test_reactions_balance_weight():
 def test_refuses_what_it_cannot_represent():
     from hybmss.explicit import simulate_explicit
     from hybmss.scene import Load
-    from hybmss.solvers import StaticSolveError
+    from hybmss.solve import StaticSolveError
 
     for nu in (-0.1, 0.495):  # the constraint makes no correction outside [0, 0.49]
         with pytest.raises(ValueError, match="nu"):
@@ -159,3 +159,19 @@ def test_missing_engine_leaves_its_models_out():
     code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'pbd-xpbd-fem']))"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+
+
+def test_explicit_run_reaches_rest():
+    """The explicit protocol (the library's steps, the harness's ramp and damping) ends at the
+    static answer: the same reaction to 1e-3 once rest_report finds it at rest."""
+    from hybmss.explicit import simulate_explicit
+
+    sc = cube(0.3, motion("stretch", STRAIN))
+    st = solve_static(sc)
+    i = st.info
+    steps = int((i["ramp_time"] + 30.0 / i["omega_1"]) / i["dt"])
+    r = simulate_explicit(sc, dt=i["dt"], steps=steps, ramp_time=i["ramp_time"], damping=i["damping"],
+                          kernel="engine")
+    assert r.converged, r.info["rest"]
+    assert r.reactions["top"].force[2] == pytest.approx(st.reactions["top"].force[2], rel=1e-3)
+    assert r.info["engine"] == "pypbd" and r.info["device"] == "cpu" and r.info["mass_unit_kg"] > 1.0
