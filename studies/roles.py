@@ -107,7 +107,7 @@ IN_TREE = {
     "corot-hex8": Part(_ALL_BUT_REGRESSION),
     "corot-hex8-sri": Part(_ALL_BUT_REGRESSION),
     "xpbd-nh": Part(_ALL_BUT_REGRESSION, run_cost=_xpbd_cost),
-    # the engines' models (hybmss/models/mujoco, hybmss/models/newton): no study role yet, so that
+    # the engines' models (hybmss/models/mujoco, newton, pbd): no study role yet, so that
     # installing an engine leaves the studies' sweeps as they were (they still appear where a study
     # runs every registered model: the moduli table and the [B09] error tables)
     "mujoco-tet": Part(()),
@@ -116,6 +116,7 @@ IN_TREE = {
     "newton-semi": Part(()),
     "newton-vbd": Part(()),
     "newton-xpbd": Part(()),
+    "pbd-xpbd-fem": Part(()),
 }
 """The part of each in-tree model (a model not listed here, or declared by its package, takes the
 default :class:`Part`)."""

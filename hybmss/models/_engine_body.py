@@ -1,7 +1,7 @@
 """What the engine models share: the engine's nodes of a scene, its plates on them, and the
 readouts of a state (reactions, mean stress, rest report, the balance of the reactions, the
 :class:`~hybmss.result.Result`), whatever engine steps it (:mod:`hybmss.models.mujoco`,
-:mod:`hybmss.models.newton`).
+:mod:`hybmss.models.newton`, :mod:`hybmss.models.pbd`).
 
 A subclass builds its engine in ``__init__`` (after :meth:`EngineBody.setup`) and provides
 ``load(x, v)``, ``advance(step0, n) -> (done, bad)``, ``state() -> (x, v)``,

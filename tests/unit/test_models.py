@@ -33,7 +33,7 @@ def test_in_tree_models_are_registered_in_order():
     here = ROOT / "hybmss" / "models"
     places = sorted([p.stem for p in here.glob("*.py")] + [p.parent.name for p in here.glob("*/__init__.py")])
     places = [p for p in places if not p.startswith("_") and p != "base"]
-    assert places == ["baudet2009", "corot_hex8", "hybmss", "hybmss_cf", "hybmss_fd", "mujoco", "newton", "xpbd_nh"]
+    assert places == ["baudet2009", "corot_hex8", "hybmss", "hybmss_cf", "hybmss_fd", "mujoco", "newton", "pbd", "xpbd_nh"]
     declared = []
     for place in places:
         module = importlib.import_module(f"hybmss.models.{place}")

@@ -1,0 +1,226 @@
+"""A scene as a PositionBasedDynamics simulation model (``pypbd`` ≥ 2.2), stepped by the
+library's ``TimeStepController`` with its XPBD FEM tetrahedron constraints.
+
+Imported only when a ``pbd-*`` model runs.  The bindings keep one current ``Simulation`` (a
+singleton of the library: its gravity, its time step controller and the ``TimeManager``'s step
+that the XPBD constraints read); each body owns its ``SimulationModel`` and makes it the current
+one, with its step, before it steps.
+
+Scene translation
+-----------------
+- **Nodes**: one PBD particle per lattice particle (``SimulationModel.addTetModel``), mass the
+  lumped ``ρ Vc/8`` per cell corner (``ParticleData.setMass``), divided by the engine's mass unit
+  :attr:`PbdBody.mass_unit` (below).
+- **Mesh**: the library's own split of a grid cell, the one ``SimulationModel::addRegularTetModel``
+  makes (:data:`SPLIT_ODD` / :data:`SPLIT_EVEN`: 5 tetrahedra, the central one alternating with
+  the parity of ``i + j + k`` so that neighbouring cells' faces match), each oriented to a
+  positive volume (the constraint switches to its inversion handling below 20 % of the rest
+  volume, measured with that orientation).
+- **Plates**: a node whose three components a plate prescribes is a kinematic particle (mass 0),
+  set to its target at the new time before every step (``ParticleData.setPosition``); a node with
+  some components prescribed (a sliding plate) keeps its mass, and after every step its prescribed
+  components are set to their targets and their velocities to the target's change over the step
+  (the projection of a position-based step onto the plate).
+- **Gravity and damping**: the bindings expose no setter for the simulation's gravity (it stays
+  the library's default ``(0, −9.81, 0)``).  Before every step each free node's velocity becomes
+  ``v/(1 + c h) + h (g − g_pbd)``: the scene's mass-proportional damping c, and the scene's
+  gravity g in place of the library's g_pbd, which its semi-implicit Euler step adds back.
+- **Steps**: one substep and one constraint iteration per ``TimeStepController.step`` (XPBD's
+  multipliers restart each step); the harness's step is the library's time step.
+- **Mass unit**: ``XPBD::solve_FEMTetraConstraint`` skips a tetrahedron when
+  ``Σ w_i |∇U'_i|² + C² α < 1e-6`` (an absolute threshold in the engine's units; ``C² α =
+  2 U'/(E h²)``): in SI units at strain 1e-4 (E = 1e4 Pa, 0.5 m cells, h = 1e-3 s) every
+  tetrahedron is skipped and the body does not deform (measured).  Both terms scale with the mass
+  unit (``w`` as 1/M, E as 1/M), the motion not at all, so the engine runs in a mass unit
+  :attr:`PbdBody.mass_unit` that puts the threshold at a strain below 1e-10.
+
+Readouts: the library exposes no force (its XPBD constraints' multipliers are not bound).  The
+force of a tetrahedron's constraint, at XPBD's fixed point ``C + α̃ λ = 0`` (α̃ = 1/(E h²)),
+is ``λ ∇C / h² = −E C ∇C = −E ∇U'``, the gradient of the library's energy ``E U'``:
+:func:`svk_forces` evaluates it with the library's own formulas
+(``PositionBasedDynamics::computeGreenStrainAndPiolaStress``, ``computeGradCGreen``), checked
+against one projection of the engine (tests/verification/test_engine_pbd.py).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+import pypbd
+
+from ...explicit import ramp
+from ...system import System
+from .._engine_body import EngineBody, tet_volumes
+
+ENGINE = "pypbd"
+VERSION = "pypbd 2.2.2"
+G_PBD = np.array([0.0, -9.81, 0.0])
+"""The library's gravity (``Simulation::m_gravitation``), not settable through the bindings."""
+XPBD_FEM = 3
+"""``SimulationModel::addSolidConstraints`` method 3: ``XPBD_FEMTetConstraint`` per tetrahedron."""
+GATE = 1e-6
+"""``eps`` of ``XPBD.cpp``: a tetrahedron with ``Σ w |∇U'|² + C² α`` below it is skipped."""
+GATE_STRAIN = 1e-10
+"""Strain below which the engine's threshold :data:`GATE` may skip a tetrahedron (mass unit)."""
+
+# the library's corners p0 … p7 of a cell (addRegularTetModel: p0 (i,j,k), p1 +k, p3 +i, p2 +i+k,
+# p4 +j, p5 +j+k, p7 +i+j, p6 +i+j+k) in the harness's corner index c = di + 2 dj + 4 dk
+_P = (0, 4, 5, 1, 2, 6, 7, 3)
+SPLIT_ODD = tuple(tuple(_P[a] for a in t) for t in ((2, 1, 6, 3), (6, 3, 4, 7), (4, 1, 6, 5), (3, 1, 4, 0),
+                                                  (6, 1, 4, 3)))
+SPLIT_EVEN = tuple(tuple(_P[a] for a in t) for t in ((0, 2, 5, 1), (7, 2, 0, 3), (5, 2, 7, 6), (7, 0, 5, 4),
+                                                   (0, 2, 7, 5)))
+"""The library's 5-tetrahedron splits of a cell of odd / even ``i + j + k`` (harness corners)."""
+
+
+def cell_tets(cells: np.ndarray, cell_ijk: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """(5 m, 4) vertex indices of the library's tetrahedra of the cells (m, 8) at grid indices
+    (m, 3), each ordered to a positive volume at the positions X."""
+    cells = np.asarray(cells)
+    odd = (np.asarray(cell_ijk).sum(axis=1) % 2).astype(bool)
+    loc = np.where(odd[:, None, None], np.array(SPLIT_ODD)[None], np.array(SPLIT_EVEN)[None])
+    tets = cells[np.arange(len(cells))[:, None, None], loc].reshape(-1, 4)
+    neg = tet_volumes(X, tets) < 0.0
+    tets[neg] = tets[neg][:, [0, 1, 3, 2]]
+    return tets
+
+
+def lame_per_E(nu: float) -> tuple[float, float]:
+    """``(μ/E, λ/E)`` of ``XPBD::solve_FEMTetraConstraint``: ``1/(2(1+ν))`` and
+    ``ν/((1+ν)(1−2ν))``, the textbook map (its compliance is 1/E)."""
+    return 0.5 / (1.0 + nu), nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+
+def svk_forces(x: np.ndarray, tets: np.ndarray, Dminv: np.ndarray, V: np.ndarray, mu: float, lam: float) -> np.ndarray:
+    """Forces (N, 3) ``−∂U/∂x`` of the library's energy per tetrahedron ``V (μ |ε|² + λ/2 tr(ε)²)``,
+    ε the Green strain of ``F = [x0−x3, x1−x3, x2−x3] Dm⁻¹``: ``H = V P Dm⁻ᵀ``, P = F (2μ ε + λ tr ε I)
+    (``computeGreenStrainAndPiolaStress``, ``computeGradCGreen``)."""
+    p = x[tets]
+    Ds = np.stack((p[:, 0] - p[:, 3], p[:, 1] - p[:, 3], p[:, 2] - p[:, 3]), axis=-1)  # columns
+    F = Ds @ Dminv
+    eps = 0.5 * (np.einsum("tki,tkj->tij", F, F) - np.eye(3))
+    tr = np.trace(eps, axis1=1, axis2=2)
+    S = 2.0 * mu * eps + lam * tr[:, None, None] * np.eye(3)
+    H = V[:, None, None] * (F @ S) @ np.transpose(Dminv, (0, 2, 1))  # gradient wrt x0, x1, x2 (columns)
+    f = np.zeros_like(x)
+    g = np.transpose(H, (0, 2, 1))  # (t, 3 vertices, 3 components)
+    for a in range(3):
+        np.add.at(f, tets[:, a], -g[:, a])
+    np.add.at(f, tets[:, 3], g.sum(axis=1))
+    return f
+
+
+class PbdBody(EngineBody):
+    """A scene's body stepped by the library's ``TimeStepController`` with XPBD FEM tetrahedra
+    (module docstring); the stepper protocol of :class:`hybmss.models._engine_body.EngineBody`."""
+
+    def __init__(self, system: System, method: str, dt: float, ramp_time: float, *, damping: float | None = None,
+                 density: float | None = None, gravity="scene"):
+        if method != "xpbd-fem":
+            raise ValueError(f"method must be xpbd-fem, got {method!r}")
+        self.method = method
+        self.setup(system, 1, dt, ramp_time, damping, density, gravity)
+        lat = system.lattice
+        X = self.nodes.X
+        self.tets = cell_tets(lat.cells, lat.cell_ijk, X)
+        p = X[self.tets]
+        Dm = np.stack((p[:, 0] - p[:, 3], p[:, 1] - p[:, 3], p[:, 2] - p[:, 3]), axis=-1)
+        self.Dminv = np.linalg.inv(Dm)
+        self.V = np.abs(tet_volumes(X, self.tets))
+        mat = system.scene.material
+        self.E, self.nu = float(mat.E), float(mat.nu)
+        mu_, lam_ = lame_per_E(self.nu)
+        self.mu, self.lam = self.E * mu_, self.E * lam_
+        # mass unit: C² α = 2 U'/(E h²) ≥ V ε² /(3 E h²) (U' ≥ V μ' ε², μ' ≥ 1/3) exceeds GATE for
+        # ε ≥ GATE_STRAIN once multiplied by M (the engine's E is E/M)
+        self.mass_unit = max(1.0, GATE * 3.0 * self.E * self.dt**2 / (self.V.min() * GATE_STRAIN**2))
+        t0 = time.perf_counter()
+        self.sim = pypbd.Simulation.getCurrent()  # never getModel(): it may point to a freed body's model
+        self.model = pypbd.SimulationModel()
+        self.model.init()
+        self.sim.setModel(self.model)
+        tm = self.model.addTetModel([np.array(v, dtype=float) for v in X], self.tets.ravel().tolist())
+        M = self.mass_unit
+        self.model.addSolidConstraints(tm, XPBD_FEM, self.E / M, self.nu, self.E / M, False, False)
+        self.pd = self.model.getParticles()
+        fixed = self.nodes.fixed
+        self.held = np.flatnonzero(fixed.all(axis=1))  # kinematic particles (mass 0)
+        self.partial = np.flatnonzero(fixed.any(axis=1) & ~fixed.all(axis=1))  # reset after each step
+        self.free = np.flatnonzero(~fixed.all(axis=1))
+        held = set(self.held.tolist())
+        for i, m in enumerate(self.nodes.mass):
+            self.pd.setMass(i, 0.0 if i in held else float(m) / M)
+        ts = self.sim.getTimeStep()
+        ts.setValueUInt(pypbd.TimeStepController.NUM_SUB_STEPS, 1)
+        ts.setValueUInt(pypbd.TimeStepController.MAX_ITERATIONS, 1)
+        self.compile_time_s = time.perf_counter() - t0
+        self._targets: dict = {}
+        self.kick = np.zeros(3) if self.gravity is None else np.asarray(self.gravity, dtype=float)
+        self.kick = self.dt * (self.kick - G_PBD)
+
+    def describe(self) -> dict:
+        return {"engine": ENGINE, "engine_version": VERSION, "element": "tet", "device": "cpu", "threads": 1,
+                "integrator": "TimeStepController (XPBD, 1 substep, 1 iteration)", "precision": "f64",
+                "method": self.method, "mass_unit_kg": self.mass_unit,
+                "tet_split": "the library's addRegularTetModel split: 5 tetrahedra, alternating with i + j + k"}
+
+    def _target(self, s: float) -> np.ndarray:
+        """:meth:`prescribed` at load factor ``s``, kept for the last two values (constant after the ramp)."""
+        hit = self._targets.get(s)
+        if hit is None:
+            if len(self._targets) > 1:
+                self._targets.pop(next(iter(self._targets)))
+            hit = self._targets[s] = self.prescribed(s)
+        return hit
+
+    def _current(self) -> None:
+        self.sim.setModel(self.model)
+        pypbd.TimeManager.getCurrent().setTimeStepSize(self.dt)
+
+    def load(self, x: np.ndarray, v: np.ndarray, step0: int = 0) -> None:
+        self.step = int(step0)
+        for i in range(len(self.nodes.X)):
+            self.pd.setPosition(i, np.asarray(x[i], dtype=float))
+            self.pd.setVelocity(i, np.asarray(v[i], dtype=float))
+
+    def advance(self, step0: int, n: int) -> tuple[int, int]:
+        self._current()
+        damp = 1.0 / (1.0 + self.damping * self.dt)
+        ts, pd, kick = self.sim.getTimeStep(), self.pd, self.kick
+        spent = 0.0
+        for k in range(step0, step0 + n):
+            target = self._target(ramp((k + 1) * self.dt, self.ramp_time))
+            for i in self.held:
+                pd.setPosition(int(i), target[i])
+            for i in self.free:
+                i = int(i)
+                pd.setVelocity(i, np.asarray(pd.getVelocity(i)) * damp + kick)
+            t0 = time.perf_counter()
+            ts.step(self.model)
+            spent += time.perf_counter() - t0
+            if len(self.partial):
+                vel = (target - self._target(ramp(k * self.dt, self.ramp_time))) / self.dt
+                for i in self.partial:
+                    i = int(i)
+                    c = self.nodes.fixed[i]
+                    q, w = np.array(pd.getPosition(i)), np.array(pd.getVelocity(i))
+                    q[c], w[c] = target[i, c], vel[i, c]
+                    pd.setPosition(i, q)
+                    pd.setVelocity(i, w)
+        self.step_time_s += spent
+        self.step = step0 + n
+        return n, self.bad_node()
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        x = np.array(np.asarray(self.pd.getVertices()), dtype=float)
+        v = np.array([np.asarray(self.pd.getVelocity(i)) for i in range(len(x))], dtype=float).reshape(-1, 3)
+        return x, v
+
+    def internal_forces(self, x: np.ndarray) -> np.ndarray:
+        return svk_forces(np.asarray(x, dtype=float), self.tets, self.Dminv, self.V, self.mu, self.lam)
+
+    def vertices(self, x: np.ndarray | None = None) -> np.ndarray:
+        return self.state()[0] if x is None else np.asarray(x, dtype=float).copy()
+
