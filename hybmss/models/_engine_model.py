@@ -7,10 +7,30 @@ a run needs it (:meth:`EngineModel.make_body`)."""
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
+import warnings
 
 from ..solve.errors import StaticSolveError
 from .base import ModelBase, NoParameters
+
+def installed(*packages: str) -> bool:
+    """Whether every one of ``packages`` is installed (found, not imported)."""
+    try:
+        return all(importlib.util.find_spec(p) is not None for p in packages)
+    except (ImportError, ValueError):
+        return False
+
+
+def models_if_installed(module: str, packages: tuple[str, ...], make, missing: str) -> tuple:
+    """``make()`` (the models of an engine folder) when every one of ``packages`` is installed;
+    else ``()`` and one warning line ``missing`` (no source line under it): the models are left
+    out and nothing else changes."""
+    if installed(*packages):
+        return tuple(make())
+    warnings.warn_explicit(missing, RuntimeWarning, module, 0, module=module)
+    return ()
+
 
 class SceneNotRepresentable(ValueError, StaticSolveError):
     """What an engine cannot represent, refused before any work: a :class:`ValueError` naming the

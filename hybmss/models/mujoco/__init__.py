@@ -34,10 +34,8 @@ than one thread, float32.
 
 from __future__ import annotations
 
-import importlib.util
-import warnings
 
-from .._engine_model import EngineModel, SceneNotRepresentable
+from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
 from ..base import Style
 
 KINDS = ("tet", "trilinear", "quadratic")
@@ -48,13 +46,6 @@ well below the 1e-3 of the same-mesh checks."""
 CFL = 0.9
 """Step of the static run as a fraction of the stability limit ``2/ω_max``."""
 
-
-def available() -> bool:
-    """Whether the ``mujoco`` package is installed (found, not imported)."""
-    try:
-        return importlib.util.find_spec("mujoco") is not None
-    except (ImportError, ValueError):
-        return False
 
 
 def _engine():
@@ -107,11 +98,6 @@ class MujocoQuadratic(MujocoModel):
     order = 42
 
 
-if available():
-    MODELS = (MujocoTet(), MujocoTrilinear(), MujocoQuadratic())
-else:
-    # one line (no source line under it): the models are left out, nothing else changes
-    warnings.warn_explicit("the mujoco package is not installed: the mujoco-* models are left out "
-                           "(pip install 'mujoco>=4.0')", RuntimeWarning, "hybmss.models.mujoco", 0,
-                           module=__name__)
-    MODELS = ()
+MODELS = models_if_installed(__name__, ('mujoco',), lambda: (MujocoTet(), MujocoTrilinear(), MujocoQuadratic()),
+                             "the mujoco package is not installed: the mujoco-* models are left out "
+                             "(pip install 'mujoco>=4.0')")

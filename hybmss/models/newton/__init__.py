@@ -59,10 +59,8 @@ forces (:func:`hybmss.models.newton.engine.xpbd_constraint_forces`) on one cell,
 
 from __future__ import annotations
 
-import importlib.util
-import warnings
 
-from .._engine_model import EngineModel, SceneNotRepresentable
+from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
 from ..base import Style
 
 STATIC_REST_RTOL = 1e-3
@@ -71,13 +69,6 @@ below it the free-force residual of a float32 state is its force resolution
 (:meth:`hybmss.models.newton.engine.NewtonBody.force_resolution`), reached once the run has
 settled (:data:`hybmss.models._engine_model.SETTLE`)."""
 
-
-def available() -> bool:
-    """Whether the ``newton`` and ``warp`` packages are installed (found, not imported)."""
-    try:
-        return importlib.util.find_spec("newton") is not None and importlib.util.find_spec("warp") is not None
-    except (ImportError, ValueError):
-        return False
 
 
 def _engine():
@@ -142,11 +133,6 @@ class NewtonSemi(NewtonModel):
     order = 45
 
 
-if available():
-    MODELS = (NewtonSemi(), NewtonVBD(), NewtonXPBD())
-else:
-    # one line (no source line under it): the model is left out, nothing else changes
-    warnings.warn_explicit("the newton package (or warp-lang) is not installed: the newton-* models are left out "
-                           "(pip install 'newton>=1.8')", RuntimeWarning, "hybmss.models.newton", 0,
-                           module=__name__)
-    MODELS = ()
+MODELS = models_if_installed(__name__, ('newton', 'warp'), lambda: (NewtonSemi(), NewtonVBD(), NewtonXPBD()),
+                             "the newton package (or warp-lang) is not installed: the newton-* models are left out "
+                             "(pip install 'newton>=1.8')")

@@ -34,10 +34,8 @@ Refused before any work: surface loads, ν outside [0, 0.49], two threads, float
 
 from __future__ import annotations
 
-import importlib.util
-import warnings
 
-from .._engine_model import EngineModel, SceneNotRepresentable
+from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
 from ..base import Style
 
 NU_MAX = 0.49
@@ -51,13 +49,6 @@ CFL = 0.03
 residual of the 3×3×3 simple-shear scene of ``hybmss moduli`` is 9.3e-4 of its force scale,
 at the rest tolerance's edge."""
 
-
-def available() -> bool:
-    """Whether the ``pypbd`` package is installed (found, not imported)."""
-    try:
-        return importlib.util.find_spec("pypbd") is not None
-    except (ImportError, ValueError):
-        return False
 
 
 def _engine():
@@ -93,10 +84,6 @@ class PbdXpbdFem(PbdModel):
     order = 46
 
 
-if available():
-    MODELS = (PbdXpbdFem(),)
-else:
-    # one line (no source line under it): the model is left out, nothing else changes
-    warnings.warn_explicit("the pypbd package is not installed: the pbd-* models are left out "
-                           "(pip install 'pypbd>=2.2')", RuntimeWarning, "hybmss.models.pbd", 0, module=__name__)
-    MODELS = ()
+MODELS = models_if_installed(__name__, ('pypbd',), lambda: (PbdXpbdFem(),),
+                             "the pypbd package is not installed: the pbd-* models are left out "
+                             "(pip install 'pypbd>=2.2')")
