@@ -40,43 +40,23 @@ MOTIONS = {"stretch": Motion("translate", (0.0, 0.0, STRAIN * H)),
            "shear": Motion("translate", (STRAIN * H, 0.0, 0.0))}
 
 
-def tet_p1_reaction(scene: Scene) -> np.ndarray:
-    """Top-plate reaction of linear elasticity with ElementTetP1 on MuJoCo's tetrahedra of the
-    scene's lattice (scikit-fem), the plates imposed as Dirichlet conditions."""
-    from skfem import Basis, ElementTetP1, ElementVector, MeshTet, asm
-    from skfem.models.elasticity import lame_parameters, linear_elasticity
-
-    from hybmss.models._engine_body import tet_volumes
+def engine_tets(scene: Scene) -> np.ndarray:
+    """MuJoCo's tetrahedra (its grid split) of the scene's lattice: the mesh of the same-mesh
+    reference (the ``tet_p1_reaction`` fixture)."""
     from hybmss.models.mujoco.engine import cell_tets
 
-    S = build(scene)
-    tets = cell_tets(S.lattice.cells)
-    neg = tet_volumes(S.X, tets) < 0
-    tets[neg] = tets[neg][:, [0, 1, 3, 2]]
-    mesh = MeshTet(S.X.T.copy(), tets.T.copy())
-    basis = Basis(mesh, ElementVector(ElementTetP1()))
-    K = asm(linear_elasticity(*lame_parameters(scene.material.E, scene.material.nu)), basis)
-    u = np.zeros(basis.N)
-    target = S.prescribed(1.0) - S.X  # nodal dofs of ElementVector(P1): node-major x, y, z
-    dof = np.arange(3 * S.n).reshape(S.n, 3)
-    fixed = dof[S.fixed]
-    u[fixed] = target[S.fixed]
-    free = np.setdiff1d(np.arange(basis.N), fixed)
-    from scipy.sparse.linalg import spsolve
-    u[free] = spsolve(K[free][:, free].tocsc(), -K[free][:, fixed] @ u[fixed])
-    f = (K @ u)[dof]
-    return f[S.plate("top").particles].sum(axis=0)
+    return cell_tets(build(scene).lattice.cells)
 
 
 @pytest.mark.parametrize("motion", sorted(MOTIONS))
 @pytest.mark.parametrize("name", KINDS)
-def test_same_mesh_linear_fem(name, motion):
+def test_same_mesh_linear_fem(name, motion, tet_p1_reaction):
     nu = 0.3
     sc = cube(name, nu, MOTIONS[motion], rho=0.0)
     r = solve_static(sc)
     got = np.asarray(r.reactions["top"].force)
     if name == "mujoco-tet":
-        ref = tet_p1_reaction(sc)
+        ref = tet_p1_reaction(sc, engine_tets(sc))
     else:
         from fem_reference.solve import solve as fem_solve
         fem = fem_solve(sc, element="hex1" if name == "mujoco-trilinear" else "hex2", law="linear")
