@@ -1,6 +1,6 @@
 """A probe of the command line: invocations of every subcommand, each with the exit status it must
-give and the parameter its refusal must name, run in this process (:func:`conftest.run_cli`) with
-and without ``--json``.  Every one must be clean: the expected status; for 2 and 3 exactly one
+give and the parameter its refusal must name, run in this process (the ``cli_in_process``
+fixture of tests/conftest.py) with and without ``--json``.  Every one must be clean: the expected status; for 2 and 3 exactly one
 line on stderr (naming the parameter for 2); with ``--json`` exactly one strict-JSON object on
 stdout whose status matches; never a traceback.  Fast cases only (meshes of a few cells)."""
 
@@ -10,7 +10,6 @@ import json
 
 import pytest
 
-from conftest import run_cli
 from hybmss.experiments import SceneSpec
 
 OK, INVALID, FAILED = 0, 2, 3
@@ -242,7 +241,8 @@ def _strict(name):
 
 @pytest.mark.parametrize("as_json", [False, True], ids=["text", "json"])
 @pytest.mark.parametrize("text, status, names", CASES, ids=[c[0] or "(none)" for c in CASES])
-def test_probe(text, status, names, as_json, files, tmp_path):
+def test_probe(text, status, names, as_json, files, tmp_path, cli_in_process):
+    run_cli = cli_in_process
     argv = _argv(text, files) + (["--json"] if as_json else [])
     res = run_cli(*argv, cwd=tmp_path)
     assert "Traceback" not in res.stderr + res.stdout, res.stderr

@@ -58,11 +58,10 @@ def test_a_relaxation_that_never_moved_is_not_a_measurement():
 
 
 @pytest.mark.slow
-def test_compare_refuses_a_static_answer_that_never_moved():
+def test_compare_refuses_a_static_answer_that_never_moved(cli_in_process):
     """The same criterion in ``hybmss compare``: xpbd-nh's relaxation with 1e12 substeps ends
     where it started (exit 3); with its default substeps it is an answer (exit 0)."""
-    from conftest import run_cli
-
+    run_cli = cli_in_process
     args = ("compare", "compression", "--mesh", "2x2x2", "--element", "hex1", "--model", "xpbd-nh")
     bad = run_cli(*args, "--substeps", "1000000000000")
     assert bad.returncode == 3 and "stopped away from equilibrium" in bad.stderr
