@@ -1,0 +1,210 @@
+"""Cost of a method: repeated timings with their spread, explicit cost at the stable step, and the
+budget answer (the fastest method within an error budget, its lead, and whether the lead is a tie).
+
+**Timing.**  A figure is the *best* (smallest) of ``repeats`` timed runs, taken after ``warmup``
+untimed runs (compilation, caches).  Its noise is the *spread*, the relative range of the
+repeats::
+
+    spread = (max − min) / min
+
+(0.2: the slowest repeat took 20 % longer than the best).  A single timing has no spread
+(``nan``): nothing says how far it is from its own repeat.  The range is used rather than the
+interquartile ratio because a handful of repeats (3–5) has no meaningful quartiles, and because it
+is the conservative choice: a lead must beat the worst disturbance seen, not the typical one.
+
+**Explicit cost.**  An explicit step costs ``us_per_step`` µs whatever dt is; what a user pays is
+the wall time of one simulated second at the largest step that is stable::
+
+    dt_stable = SAFETY × dt_crit,   cost = us_per_step · 10⁻⁶ / dt_stable   (s per simulated s)
+
+``dt_crit = 2/√λmax(M⁻¹K)`` is the limit at rest (:func:`hybmss.explicit.dt_crit`).
+:data:`SAFETY` = ½, the step the stability study checks for every model (it must run the 10,000
+steps of the compression protocol): the limit at rest is not the limit of a deformed body (the
+stiffness under compression and of a Neo-Hookean law grows, so λmax does), and half the limit
+keeps every model's run stable on the protocols of this project.  A model with no explicit limit
+(``dt_crit`` = ∞: an implicit constraint solve such as XPBD) runs at the largest step its caller
+allows (``dt_max``, e.g. one frame).
+
+**Budget answer.**  For each error budget b, each method's cheapest row with ``error ≤ b`` stands
+for it (a method may have rows at several resolutions); the method of least cost wins, the next
+cheapest method is the runner-up and ``lead = cost(runner-up) / cost(winner)`` (≥ 1).  With
+``s = max(spread(winner), spread(runner-up))``::
+
+    tie  ⇔  lead < 1 + s
+
+(a lead of 1.1 with a spread of 20 % is a tie: the runner-up's best time lies within the range
+the winner's own repeats covered; a lead of 1.5 with a spread of exactly 0.5 is not).  When either
+spread is unknown (a single timing) ``tie`` is undetermined (``<NA>``); with no runner-up it is
+False.  Methods that meet no budget are listed once each, with their smallest error.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+SAFETY = 0.5
+"""Fraction of the explicit limit at rest ``dt_crit`` taken as the stable step (module docstring)."""
+
+NO_BUDGET = "meets no budget"
+"""``answer`` of a method that meets none of the budgets."""
+NONE_WITHIN = "none within budget"
+"""``method`` of a budget that no method meets."""
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Repeated durations (s) of one computation: :attr:`best`, :attr:`median`, :attr:`spread`
+    (relative range, module docstring) and :attr:`repeats`."""
+
+    samples: tuple[float, ...]
+
+    def __post_init__(self):
+        s = tuple(float(x) for x in self.samples)
+        if not s:
+            raise ValueError("samples: empty; a timing needs at least one duration")
+        bad = [x for x in s if not (math.isfinite(x) and x > 0)]
+        if bad:
+            raise ValueError(f"samples: {bad[0]!r} is not a duration; allowed: finite and > 0 s")
+        object.__setattr__(self, "samples", s)
+
+    @classmethod
+    def from_samples(cls, samples: Sequence[float]) -> "Timing":
+        """The timing of durations measured elsewhere (e.g. the wall times of stored runs)."""
+        return cls(tuple(samples))
+
+    @property
+    def repeats(self) -> int:
+        return len(self.samples)
+
+    @property
+    def best(self) -> float:
+        return min(self.samples)
+
+    @property
+    def median(self) -> float:
+        return float(np.median(self.samples))
+
+    @property
+    def spread(self) -> float:
+        """``(max − min) / min``; ``nan`` for a single duration."""
+        if len(self.samples) < 2:
+            return math.nan
+        return (max(self.samples) - self.best) / self.best
+
+    def as_dict(self, prefix: str = "time") -> dict:
+        """``{prefix}_s`` (best), ``{prefix}_median_s``, ``{prefix}_spread``, ``{prefix}_repeats``."""
+        return {f"{prefix}_s": self.best, f"{prefix}_median_s": self.median,
+                f"{prefix}_spread": self.spread, f"{prefix}_repeats": self.repeats}
+
+
+def time_repeated(fn: Callable[[], object], repeats: int = 5, warmup: int = 1) -> Timing:
+    """Call ``fn()`` ``warmup`` times untimed, then ``repeats`` times each timed with
+    :func:`time.perf_counter`."""
+    if repeats < 1 or warmup < 0:
+        raise ValueError(f"repeats={repeats}, warmup={warmup}: allowed repeats >= 1, warmup >= 0")
+    for _ in range(warmup):
+        fn()
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return Timing.from_samples(out)
+
+
+# ------------------------------------------------------------------------------ explicit cost
+def stable_dt(dt_crit, safety: float = SAFETY, dt_max=math.inf):
+    """``min(safety · dt_crit, dt_max)``: the step an explicit run takes (``dt_crit`` = ∞ for a
+    model with no explicit limit: then ``dt_max``, which must be finite)."""
+    dt = np.minimum(safety * np.asarray(dt_crit, dtype=float), dt_max)
+    if np.any(~np.isfinite(dt) & ~np.isnan(dt)):
+        raise ValueError("dt_max: inf with an unlimited dt_crit; give the largest step allowed (e.g. a frame)")
+    return float(dt) if np.ndim(dt) == 0 else dt
+
+
+def cost_per_simulated_second(us_per_step, dt):
+    """Wall seconds per simulated second of steps costing ``us_per_step`` µs at step ``dt`` s."""
+    c = np.asarray(us_per_step, dtype=float) * 1e-6 / np.asarray(dt, dtype=float)
+    return float(c) if np.ndim(c) == 0 else c
+
+
+def explicit_cost(us_per_step, dt_crit, simulated_s: float = 1.0, safety: float = SAFETY, dt_max=math.inf):
+    """Wall seconds of ``simulated_s`` simulated seconds at :func:`stable_dt`: whole steps,
+    ``ceil(simulated_s / dt) · us_per_step · 10⁻⁶`` (compare with a static solve's wall time
+    when ``simulated_s`` is the time the explicit run needs to come to rest)."""
+    dt = np.asarray(stable_dt(dt_crit, safety, dt_max), dtype=float)
+    steps = np.ceil(simulated_s / dt * (1 - 1e-12))  # 1.0/0.1 is 10.000000000000002
+    c = steps * np.asarray(us_per_step, dtype=float) * 1e-6
+    return float(c) if np.ndim(c) == 0 else c
+
+
+# ------------------------------------------------------------------------------ budget answer
+def is_tie(lead: float, spread_a: float, spread_b: float):
+    """``lead < 1 + max(spread_a, spread_b)``; ``pd.NA`` when a spread is unknown (``nan``)."""
+    if not np.isfinite(lead):
+        return False
+    if np.isnan(spread_a) or np.isnan(spread_b):
+        return pd.NA
+    return bool(lead < 1.0 + max(spread_a, spread_b))
+
+
+def budget_answer(df: pd.DataFrame, budgets, error: str = "error", cost: str = "cost",
+                  spread: str = "spread", method: str = "method", keep: Sequence[str] = ()) -> pd.DataFrame:
+    """The fastest method within each budget of ``budgets`` (module docstring), from ``df``: one
+    row per run (a method at one resolution) with its ``error``, ``cost`` (best time) and
+    ``spread``.  Rows whose error or cost is not finite are left out.
+
+    One row per budget (``answer`` "fastest" or :data:`NONE_WITHIN` as ``method``): ``budget``,
+    ``method``, ``error``, ``cost``, ``spread``, ``runner_up`` (``""`` when alone),
+    ``runner_up_error``, ``runner_up_cost``, ``runner_up_spread``, ``lead``, ``tie`` (nullable
+    boolean), ``n_within`` (methods within the budget), and the ``keep`` columns of the winner
+    (and ``runner_up_<col>``).  Then one row per method that meets no budget (``answer``
+    :data:`NO_BUDGET`, ``budget`` nan, ``error`` its smallest error, ``cost`` that run's; both
+    nan when none of its runs has a finite error and cost, e.g. all failed)."""
+    ok = df[np.isfinite(df[error].astype(float)) & np.isfinite(df[cost].astype(float))]
+    out = []
+    for b in budgets:
+        within = (ok[ok[error] <= b].sort_values([cost, error], kind="stable")
+                  .drop_duplicates(method, keep="first"))
+        rec = {"budget": float(b), "answer": "fastest", "method": NONE_WITHIN, "error": math.nan,
+               "cost": math.nan, "spread": math.nan, "runner_up": "", "runner_up_error": math.nan,
+               "runner_up_cost": math.nan, "runner_up_spread": math.nan, "lead": math.nan,
+               "tie": False, "n_within": len(within)}
+        rec.update({k: None for k in keep})
+        rec.update({f"runner_up_{k}": None for k in keep})
+        if len(within):
+            w = within.iloc[0]
+            rec.update(method=w[method], error=float(w[error]), cost=float(w[cost]),
+                       spread=float(w[spread]), **{k: w[k] for k in keep})
+            if len(within) > 1:
+                r = within.iloc[1]
+                lead = float(r[cost]) / float(w[cost])
+                rec.update(runner_up=r[method], runner_up_error=float(r[error]), runner_up_cost=float(r[cost]),
+                           runner_up_spread=float(r[spread]), lead=lead,
+                           tie=is_tie(lead, float(w[spread]), float(r[spread])),
+                           **{f"runner_up_{k}": r[k] for k in keep})
+        out.append(rec)
+    bmax = max(budgets) if len(budgets) else -math.inf
+    for m, g in df.groupby(method, sort=False):
+        g = g[g.index.isin(ok.index)]
+        if (g[error] <= bmax).any():
+            continue
+        r = (g.sort_values([error, cost], kind="stable").iloc[0] if len(g)
+             else pd.Series({error: math.nan, cost: math.nan, spread: math.nan, **{k: None for k in keep}}))
+        rec = {"budget": math.nan, "answer": NO_BUDGET, "method": m, "error": float(r[error]),
+               "cost": float(r[cost]), "spread": float(r[spread]), "runner_up": "",
+               "runner_up_error": math.nan, "runner_up_cost": math.nan, "runner_up_spread": math.nan,
+               "lead": math.nan, "tie": False, "n_within": 0, **{k: r[k] for k in keep}}
+        rec.update({f"runner_up_{k}": None for k in keep})
+        out.append(rec)
+    res = pd.DataFrame(out, columns=["budget", "answer", "method", "error", "cost", "spread", "runner_up",
+                                     "runner_up_error", "runner_up_cost", "runner_up_spread", "lead", "tie",
+                                     "n_within", *keep, *[f"runner_up_{k}" for k in keep]])
+    res["tie"] = res["tie"].astype("boolean")
+    return res
