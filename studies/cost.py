@@ -2,15 +2,17 @@
 budget answer (the fastest method within an error budget, its lead, and whether the lead is a tie).
 
 **Timing.**  A figure is the *best* (smallest) of ``repeats`` timed runs, taken after ``warmup``
-untimed runs (compilation, caches).  Its noise is the *spread*, the relative range of the
-repeats::
+untimed runs (compilation, caches).  Its noise is the *spread*, the median's excess over the best::
 
-    spread = (max − min) / min
+    spread = (median − best) / best
 
-(0.2: the slowest repeat took 20 % longer than the best).  A single timing has no spread
-(``nan``): nothing says how far it is from its own repeat.  The range is used rather than the
-interquartile ratio because a handful of repeats (3–5) has no meaningful quartiles, and because it
-is the conservative choice: a lead must beat the worst disturbance seen, not the typical one.
+(0.2: half the repeats took at least 20 % longer than the best).  A single timing has no spread
+(``nan``): nothing says how far it is from its own repeat; with two, the median is their mean
+and the spread half their relative range.  The median rather than the slowest repeat: on a shared
+machine one repeat in a few is disturbed far beyond the others (a kernel loaded from the compile
+cache by the first run of a worker, another job on the same core: ×100 seen on 0.01 s runs), and
+the range would then call every comparison a tie; the interquartile ratio needs more repeats
+(3–5 here) than it has quartiles.
 
 **Explicit cost.**  An explicit step costs ``us_per_step`` µs whatever dt is; what a user pays is
 the wall time of one simulated second at the largest step that is stable::
@@ -32,8 +34,8 @@ cheapest method is the runner-up and ``lead = cost(runner-up) / cost(winner)`` (
 
     tie  ⇔  lead < 1 + s
 
-(a lead of 1.1 with a spread of 20 % is a tie: the runner-up's best time lies within the range
-the winner's own repeats covered; a lead of 1.5 with a spread of exactly 0.5 is not).  When either
+(a lead of 1.1 with a spread of 20 % is a tie: the runner-up's best time is nearer the winner's
+best than a typical repeat of either method is to its own; a lead of 1.5 with a spread of exactly 0.5 is not).  When either
 spread is unknown (a single timing) ``tie`` is undetermined (``<NA>``); with no runner-up it is
 False.  Methods that meet no budget are listed once each, with their smallest error.
 """
@@ -60,7 +62,7 @@ NONE_WITHIN = "none within budget"
 @dataclass(frozen=True)
 class Timing:
     """Repeated durations (s) of one computation: :attr:`best`, :attr:`median`, :attr:`spread`
-    (relative range, module docstring) and :attr:`repeats`."""
+    (the median's excess over the best, module docstring) and :attr:`repeats`."""
 
     samples: tuple[float, ...]
 
@@ -92,10 +94,10 @@ class Timing:
 
     @property
     def spread(self) -> float:
-        """``(max − min) / min``; ``nan`` for a single duration."""
+        """``(median − best) / best``; ``nan`` for a single duration."""
         if len(self.samples) < 2:
             return math.nan
-        return (max(self.samples) - self.best) / self.best
+        return (self.median - self.best) / self.best
 
     def as_dict(self, prefix: str = "time") -> dict:
         """``{prefix}_s`` (best), ``{prefix}_median_s``, ``{prefix}_spread``, ``{prefix}_repeats``."""

@@ -16,10 +16,18 @@ def test_timing_of_samples():
     t = Timing.from_samples([2.0, 2.5, 3.0, 2.2, 2.4])
     assert t.best == 2.0
     assert t.median == 2.4
-    assert t.spread == pytest.approx((3.0 - 2.0) / 2.0)  # 0.5
+    assert t.spread == pytest.approx((2.4 - 2.0) / 2.0)  # 0.2: the median's excess over the best
     assert t.repeats == 5
-    assert t.as_dict("static") == {"static_s": 2.0, "static_median_s": 2.4, "static_spread": 0.5,
+    assert t.as_dict("static") == {"static_s": 2.0, "static_median_s": 2.4, "static_spread": pytest.approx(0.2),
                                    "static_repeats": 5}
+
+
+def test_one_disturbed_repeat_does_not_make_the_spread():
+    # a first run that loaded its kernels (100x) among three: the median ignores it
+    t = Timing.from_samples([1.0, 100.0, 1.1])
+    assert t.best == 1.0 and t.spread == pytest.approx(0.1)
+    # two repeats: the median is their mean, the spread half the relative range
+    assert Timing.from_samples([2.0, 3.0]).spread == pytest.approx(0.25)
 
 
 def test_one_sample_has_no_spread():
@@ -41,7 +49,7 @@ def test_time_repeated_times_the_repeats_not_the_warmup(monkeypatch):
     t = cost.time_repeated(lambda: calls.append(1), repeats=3, warmup=2)
     assert len(calls) == 5
     assert t.samples == (1.0, 2.0, 3.0)
-    assert t.best == 1.0 and t.median == 2.0 and t.spread == 2.0
+    assert t.best == 1.0 and t.median == 2.0 and t.spread == 1.0
 
 
 def test_time_repeated_measures_real_time():
