@@ -10,7 +10,8 @@ export PYVISTA_OFF_SCREEN := true
 .PHONY: help venv test test-fast bench reproduce-paper studies report clean
 
 help:
-	@echo "make reproduce-paper  create .venv, run the publication's studies, write artifacts/report"
+	@echo "make reproduce-paper  create .venv, run the publication's studies (studies/data/studies/*.toml"
+	@echo "                      and the extra studies' drivers), write artifacts/report"
 	@echo "make test             create .venv if needed and run the test suite"
 	@echo "make test-fast        the suite without the tests marked slow (day-to-day work)"
 	@echo "make bench            speed benchmarks (explicit kernels, static solver, FEM references; asv suite)"
@@ -39,6 +40,8 @@ bench: $(STAMP)
 	$(BIN)/asv machine --yes > /dev/null
 	HYBMSS_ASV_MESHES=10x10x10 $(BIN)/asv run --python=same --quick --show-stderr
 
+# the runs of the experiment study files in studies/data/studies/ and of the extra studies
+# (studies/reproduce.py: STUDY_FILES, EXTRA_STUDIES), one resumable store
 studies: $(STAMP)
 	$(BIN)/python -m studies run --all --out $(ARTIFACTS)/results
 

@@ -465,7 +465,7 @@ def run(args):
     3 when the sweep cannot go on (:class:`studies.executors.SweepError`), 130 on SIGINT or SIGTERM
     (finished runs are kept, running ones abandoned and their workers stopped; a second Ctrl-C
     exits at once)."""
-    from .reproduce import run_studies
+    from .reproduce import check_study_files, run_studies
 
     if args.all and args.study:
         raise InputError(f"--all and --study {','.join(args.study)} together are not allowed: "
@@ -477,6 +477,7 @@ def run(args):
     if args.scheduler is not None and args.executor != "dask":
         raise InputError(f"--scheduler {args.scheduler!r} is given with --executor {args.executor}; a scheduler "
                          "address needs executor dask")
+    check_study_files(None if args.all else args.study)  # the study files' keys (StudyError: exit 2)
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
     main = threading.current_thread() is threading.main_thread()

@@ -1,137 +1,94 @@
-"""The studies of ``make reproduce-paper``: lists of tasks, declared as data.
+"""The studies of ``make reproduce-paper``: the publication's experiments as study files.
 
-Each study is a function ``quick -> list[Task]`` built from parameter products.  ``quick``
-replaces the publication's meshes by coarse ones (the cube 4×4×4, the beam 2×2×12) so the same
-code runs in the test suite within seconds.
+Each of the five experiment studies is one or more study files shipped in
+``studies/data/studies/`` (the format: ``docs/study-format.md``), read with ``tomllib`` and
+turned into the runner's tasks by :func:`studies.study.experiment.experiment_tasks`: the
+publication's meshes, materials, loads, the models of each study role with their solvers, and
+the FEM references.  ``quick`` takes each file's ``[body.quick]`` meshes (the cube 4×4×4, the
+beam 2×2×12) and leaves out its ``skip_quick`` models, so the same files run in the test suite
+within seconds.
 
 Explicit runs follow the publication's protocol (symplectic Euler, dt = 1 ms, 10,000 steps),
 with the plates ramped over 1 s and mass-proportional damping c = 2 s⁻¹ (about critical for the
-cube's slowest mode; [G20] does not state its damping).
+cube's slowest mode; [G20] does not state its damping): the ``solver`` of the files'
+``explicit-tables`` models.
 """
 
 from __future__ import annotations
 
-import itertools
+import tomllib
+from importlib import resources
 from pathlib import Path
 
-from hybmss import models
-from hybmss.experiments import SceneSpec
-
-from . import roles
 from .runner import SolverSpec, Task, run_tasks
 from .store import Store
-
-NUS = (0.0, 0.25, 0.499)
-DEFORMATIONS = (0.05, 0.20)
-EXPLICIT_DAMPING = 2.0
-TORSION_TABLE_ANGLES = (1.0, 45.0)
-TORSION_SWEEP = (2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 90.0)
-TORSION_SWEEP_LINEAR_MAX = 10.0
-"""Largest angle of the sweep with a linear FEM run (the torque figure shows it up to here)."""
+from .study.experiment import experiment_tasks, validate_experiment
 
 STATIC = SolverSpec("static")
-EXPLICIT = SolverSpec("explicit", dt=1e-3, steps=10_000, ramp_time=1.0)
+
+STUDY_FILES = {
+    "compression": ("compression",),
+    "tension": ("tension",),
+    "shear": ("shear",),
+    "torsion": ("torsion", "torsion-sweep"),  # the table's angles, then torque against angle (full only)
+    "bending": ("bending",),
+}
+"""Each study of the reproduction: its files in ``studies/data/studies`` (``<name>.toml``)."""
+
+
+def study_file_path(name: str) -> Path:
+    """The shipped study file ``name`` (``compression``, ``torsion-sweep``, ...)."""
+    return Path(str(resources.files("studies").joinpath("data", "studies", f"{name}.toml")))
+
+
+def load_study_file(name: str) -> dict:
+    """The shipped study file ``name``, parsed and validated (:class:`studies.study.StudyError`)."""
+    path = study_file_path(name)
+    with path.open("rb") as fh:
+        doc = tomllib.load(fh)
+    validate_experiment(doc, str(path))
+    return doc
+
+
+class FileStudy:
+    """A study of the reproduction: ``study(quick) -> list[Task]``, the tasks of its ``files``
+    in order (read at each call, so that the files are the one place the studies are declared)."""
+
+    def __init__(self, files: tuple[str, ...]):
+        self.files = tuple(files)
+
+    def __call__(self, quick: bool = False) -> list[Task]:
+        return [t for f in self.files for t in experiment_tasks(load_study_file(f), quick)]
+
+    def __repr__(self) -> str:
+        return f"FileStudy({', '.join(f + '.toml' for f in self.files)})"
+
+
+STUDIES = {name: FileStudy(files) for name, files in STUDY_FILES.items()}
+
+
+def check_study_files(names=None) -> None:
+    """Read and validate the files of the named studies (every one by default) before any work:
+    :class:`studies.study.StudyError` at the first key that is not allowed."""
+    for name in (list(STUDIES) if not names else [n for n in names if n in STUDIES]):
+        for f in STUDIES[name].files:
+            load_study_file(f)
+
+
+def _meshes(name: str, quick: bool) -> tuple[tuple[int, int, int], ...]:
+    body = load_study_file(name)["body"]
+    meshes = body["quick"]["mesh"] if quick and "mesh" in body.get("quick", {}) else body["mesh"]
+    return tuple(tuple(m) for m in meshes)
 
 
 def cube(quick: bool) -> tuple[int, int, int]:
-    return (4, 4, 4) if quick else (10, 10, 10)
+    """The cube's mesh of the compression study (other studies that run its scenes take it here)."""
+    return _meshes("compression", quick)[0]
 
 
 def beams(quick: bool) -> tuple[tuple[int, int, int], ...]:
-    return ((2, 2, 12),) if quick else ((4, 4, 24), (8, 8, 48))
-
-
-def fem_solvers(spec: SceneSpec, quick: bool, sweep_svk: bool = True) -> list[SolverSpec]:
-    """Linear at small deformation; Neo-Hookean and St Venant–Kirchhoff at large (their spread
-    is the reference's model-form uncertainty).  Mixed u–p is selected for ν ≥ 0.45 (``auto``)."""
-    if spec.experiment == "torsion":
-        large = spec.angle_deg > 5.0
-    elif spec.experiment == "bending":
-        large = True
-    else:
-        large = spec.deformation > 0.05 + 1e-12
-    out = [SolverSpec("fem", element="auto", law="linear")]
-    if large:
-        out += [SolverSpec("fem", element="auto", law="neo-hookean")]
-        if sweep_svk:
-            out += [SolverSpec("fem", element="auto", law="svk")]
-    return out
-
-
-def _mss_models(nu: float) -> list[dict]:
-    """Every model of the ``tables`` role with each parameter set it is compared in at ν (its
-    defaults first; e.g. the E-form of [G20] eq. 5.12 where it differs from the G-form)."""
-    return [dict(model=m.name, **v) for m in models.all_models() if roles.takes_part(m.name, "tables")
-            for v in m.study_variants(nu)]
-
-
-def _with_fem(study: str, specs: list[SceneSpec], quick: bool) -> list[Task]:
-    tasks = []
-    explicit = roles.in_role("explicit-tables")
-    for spec in specs:
-        for m in _mss_models(spec.nu):
-            s = spec.replace(**m)
-            tasks.append(Task(s, STATIC, study))
-            defaults = len(m) == 1  # the model's own defaults, not a study variant of its parameters
-            if not quick and m["model"] in explicit and defaults:
-                tasks.append(Task(s.replace(damping=EXPLICIT_DAMPING), EXPLICIT, study))
-        for fs in fem_solvers(spec, quick):
-            tasks.append(Task(spec, fs, study))
-    return tasks
-
-
-def compression(quick: bool = False) -> list[Task]:
-    specs = [SceneSpec.default("compression", mesh=cube(quick), nu=nu, deformation=d)
-             for nu, d in itertools.product(NUS, DEFORMATIONS)]
-    return _with_fem("compression", specs, quick)
-
-
-def tension(quick: bool = False) -> list[Task]:
-    specs = [SceneSpec.default("tension", mesh=mesh, nu=nu, deformation=d)
-             for mesh, nu, d in itertools.product(beams(quick), NUS, DEFORMATIONS)]
-    return _with_fem("tension", specs, quick)
-
-
-def shear(quick: bool = False) -> list[Task]:
-    specs = [SceneSpec.default("shear", mesh=cube(quick), nu=nu, deformation=d)
-             for nu, d in itertools.product(NUS, DEFORMATIONS)]
-    return _with_fem("shear", specs, quick)
-
-
-def torsion(quick: bool = False) -> list[Task]:
-    specs = [SceneSpec.default("torsion", mesh=cube(quick), nu=nu, angle_deg=a)
-             for nu, a in itertools.product(NUS, TORSION_TABLE_ANGLES)]
-    tasks = _with_fem("torsion", specs, quick)
-    if not quick:  # torque against angle at ν = 1/4
-        for a in TORSION_SWEEP:
-            spec = SceneSpec.default("torsion", mesh=cube(quick), nu=0.25, angle_deg=a)
-            for m in roles.in_role("torsion-sweep"):
-                tasks.append(Task(spec.replace(model=m), STATIC, "torsion-sweep"))
-            for fs in fem_solvers(spec, quick, sweep_svk=False):
-                if fs.law == "linear" and a > TORSION_SWEEP_LINEAR_MAX:
-                    continue  # the small-strain FEM is no reference there: the figure omits it
-                tasks.append(Task(spec, fs, "torsion-sweep"))
-    return tasks
-
-
-def bending(quick: bool = False) -> list[Task]:
-    tasks = []
-    for mesh, E in itertools.product(beams(quick), (1e7, 2e6)):
-        spec = SceneSpec.default("bending", mesh=mesh, E=E, nu=0.25, gravity=10.0)
-        for m in roles.in_role("bending"):
-            tasks.append(Task(spec.replace(model=m), STATIC, "bending"))
-        tasks.append(Task(spec, SolverSpec("fem", element="hex2", law="linear"), "bending"))
-        tasks.append(Task(spec, SolverSpec("fem", element="hex2", law="neo-hookean"), "bending"))
-    return tasks
-
-
-STUDIES = {
-    "compression": compression,
-    "tension": tension,
-    "shear": shear,
-    "torsion": torsion,
-    "bending": bending,
-}
+    """The beam's meshes of the tension study."""
+    return _meshes("tension", quick)
 
 
 EXTRA_STUDIES: dict[str, str] = {

@@ -360,7 +360,7 @@ def test_bench_quick():
 def test_run_a_quick_study(tmp_path):
     out = check(hybmss("run", "--study", "bending", "--quick", "--jobs", "2", "--no-progress",
                        "--out", str(tmp_path / "res"), "--json"), 0)
-    assert out["runs"] == out["computed"] == len(reproduce.bending(quick=True)) and out["failed"] == 0
+    assert out["runs"] == out["computed"] == len(reproduce.STUDIES["bending"](quick=True)) and out["failed"] == 0
     again = check(hybmss("run", "--study", "bending", "--quick", "--no-progress", "--out", str(tmp_path / "res"),
                          "--json"), 0)  # resumed: every run stored
     assert again["runs"] == again["stored"] == out["runs"] and again["computed"] == 0

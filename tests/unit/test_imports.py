@@ -90,7 +90,8 @@ def test_the_walk_sees_imports():
     g = import_graph()
     assert "hybmss.scene" in g["hybmss.system"]  # from .scene import Scene
     assert "hybmss.models.base" in g["hybmss.models.hybmss"]
-    assert "hybmss.experiments" in g["studies.reproduce"]
+    assert "hybmss.experiments" in g["studies.study.experiment"]
+    assert "studies.study.experiment" in g["studies.reproduce"]  # from .study.experiment import ...
     # a circle is found when there is one
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
