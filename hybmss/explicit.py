@@ -76,6 +76,11 @@ WARM_UP_THREADS = 0.1
 the 8×8×48 beam, no faster than one thread (1.83, 1.42); with them 1.017 and 0.834.  One thread
 runs on the core that was busy all along and shows no such start."""
 
+NODE_SHIFT = 0.5
+"""Where a grid node that is not a particle (a pad of the kernel's flat state, a grid node outside
+the body) sits: its lattice point plus ``NODE_SHIFT · le`` along each axis, the centre of a cell
+(:meth:`Stencil.load`), out of reach of a particle moved by whole cell edges."""
+
 OFFSETS = np.array(
     [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) > (0, 0, 0)],
     dtype=np.int64,
@@ -363,20 +368,28 @@ class Stencil:
         lay = self.layout
         F, N, L = lay.F, lay.N, lay.L
         self.W = _aligned_zeros(lay.size, self.dtype)
-        # every entry of a position row, pads included, holds a finite point of the lattice
-        # continued beyond the grid (absent and pad nodes never move and join no spring)
+        # every entry of a position row that is not a particle (pads, absent grid nodes) holds a
+        # finite point: the centre of the cell above its point of the lattice continued beyond the
+        # grid (NODE_SHIFT).  Such nodes never move and join no spring (K = 0), but the kernel
+        # still evaluates k (1 - l0/l) for them, and a particle reaching their point exactly
+        # (l = 0) would make it 0 * inf = nan; a lattice point is reached exactly by a plate
+        # translated by a whole cell edge (the 10x10x10 shear at 20 % at t = 0.5 s), a cell centre
+        # only by a motion of half an edge along all three axes at once.
         q = np.arange(-F, L - F)
         gi = np.stack([q // lay.s0, (q % lay.s0) // lay.s1, q % lay.s1]).astype(float)
-        Xext = np.asarray(self.Xg[:, 0:1]) + gi * self.le
-        Xext[:, F:F + N] = self.Xg
+        shift = NODE_SHIFT * self.le
+        Xext = np.asarray(self.Xg[:, 0:1]) + gi * self.le + shift
+        absent = np.ones(N, dtype=bool)
+        absent[self.flat] = False
         xg = self.Xg.copy()
+        xg[:, absent] += shift
         xg[:, self.flat] = x.T
         vg = np.zeros((3, N))
         vg[:, self.flat] = v.T
         posmode = self.precision == "f64"
         for name in ("XA0", "XB0") if self.threads > 1 else ("XA0",):
             rows = self._rows(name)
-            rows[:] = Xext if posmode else 0.0
+            rows[:] = Xext if posmode else shift
             rows[:, F:F + N] = xg if posmode else xg - self.Xg
         self._rows("V0")[:, F:F + N] = vg
         for j in range(len(self.offs)):
@@ -712,6 +725,42 @@ class LatticeStepper:
 
 
 # ------------------------------------------------------------------------------ the run
+NEAR_LIMIT = 0.5
+"""A step above this fraction of ``dt_crit`` at rest is named as the likely cause of a divergence
+(:func:`_divergence_cause`): a deformed body can be stiffer than at rest, so such a step can be
+unstable there although it is stable at rest."""
+
+
+def _divergence_cause(system, x, dt: float, dt_c: float | None, model) -> str:
+    """The likely cause of a divergence at positions ``x``, for the message of
+    :func:`_divergence`.  The time step is named only when it is above :data:`NEAR_LIMIT` of the
+    stability limit at rest; a step far below it is said not to be the cause.  Then a non-finite
+    position while every other particle stayed within one body size of rest is a singular force (a
+    zero-length spring, a degenerate cell) in a bounded state, not a motion that ran away."""
+    u = np.asarray(x, dtype=float) - system.X
+    finite = np.isfinite(u).all(axis=1)
+    size = max(system.scene.body.size)
+    moved = float(np.hypot.reduce(u[finite], axis=1).max()) if finite.any() else math.inf
+    singular = not finite.all() and moved <= size
+    if dt_c is None:
+        return (f"the motion itself ran away ({model.name} has no explicit stability limit): large "
+                "deformation or a plate ramp too fast; reduce dt or lengthen the ramp")
+    if math.isnan(dt_c):
+        return (f"unknown (dt_crit could not be computed); check dt={dt:g} s against the explicit "
+                "stability limit 2/√λmax(M⁻¹K)")
+    if dt > dt_c:
+        return f"time step dt={dt:g} s exceeds the explicit stability limit dt_crit≈{dt_c:.4g} s"
+    if dt > NEAR_LIMIT * dt_c:
+        return (f"time step dt={dt:g} s is {dt / dt_c:.2f} of the stability limit dt_crit≈{dt_c:.4g} s at "
+                "rest, and a deformed body can be stiffer than at rest; reduce dt")
+    not_dt = f"not the time step: dt={dt:g} s is {dt_c / dt:.3g}× below the stability limit dt_crit≈{dt_c:.4g} s at rest"
+    if singular:
+        return (f"a non-finite force in a bounded state (the other particles within {moved:.3g} m of rest), "
+                f"i.e. a singular configuration such as two particles at one point or a degenerate cell; {not_dt}")
+    return (f"the motion itself ran away, {not_dt}: large deformation (inverted cells, a plate ramp too "
+            "fast) or a volume energy with κ < 0 (ν < 1/4) that rewards dilation")
+
+
 def _divergence(system, x, particle, step, dt, limit, dt_c, check_every, model=None):
     """The :class:`DivergenceError` of a run that left the physical range at ``step``."""
     model = system.scene.model.spec if model is None else model
@@ -728,20 +777,7 @@ def _divergence(system, x, particle, step, dt, limit, dt_c, check_every, model=N
             dt_c = dt_crit(system)
         except Exception:  # the message must still be raised
             dt_c = float("nan")
-    if dt_c is None:
-        cause = (f"the motion itself ran away ({model.name} has no explicit stability limit): large "
-                 "deformation or a plate ramp too fast; reduce dt or lengthen the ramp")
-    elif math.isnan(dt_c):
-        cause = (f"unknown (dt_crit could not be computed); check dt={dt:g} s against the explicit "
-                 "stability limit 2/√λmax(M⁻¹K)")
-    elif dt > dt_c:
-        cause = f"time step dt={dt:g} s exceeds the explicit stability limit dt_crit≈{dt_c:.4g} s"
-    else:
-        cause = (
-            f"dt={dt:g} s is below the stability limit dt_crit≈{dt_c:.4g} s at rest, so the motion "
-            "itself ran away: large deformation (inverted cells, a plate ramp too fast) or a volume "
-            "energy with κ < 0 (ν < 1/4) that rewards dilation"
-        )
+    cause = _divergence_cause(system, x, dt, dt_c, model)
     msg = (f"explicit {model.name} run diverged at step {step} (t = {step * dt:.6g} s; checked every "
            f"{check_every} steps): particle {particle} "
            f"(grid {grid}) {what}. Likely cause: {cause}.")
@@ -768,14 +804,32 @@ ELASTIC_PARTS = ("springs", "volume", "strain")
 """Energy parts of a stepper (:mod:`hybmss.stepper`) that count as elastic energy in :func:`rest_report`."""
 
 
-def force_scale(system: System, f_int: np.ndarray) -> float:
-    """Force scale of a state: the largest plate reaction ``|Σ f|`` over a plate's particles,
-    the weight ``|Σ m g|``, the total dead load, and ``1e-12 E le²`` (a floor for a body that
-    nothing loads; the same scale as the static solver's, plus that floor)."""
+def plate_wrench_scale(x: np.ndarray, f: np.ndarray) -> float:
+    """Force scale of the forces ``f`` (k, 3) on one plate's particles at ``x`` (k, 3): the larger
+    of their net force ``|Σ f|`` and their moment about the particles' centroid over the
+    particles' radius of gyration ``|Σ (x − x̄) × f| / √(mean |x − x̄|²)``.  The second is the net
+    force of a couple's forces were they aligned (for forces ∝ the lever arm, as in torsion, it
+    is ``√(k Σ |f|²)`` ≥ ``Σ |f|``), so a plate that only twists or bends is measured against
+    the forces it carries: a top plate twisted by 1° carries ~1e3 N·m but a net force of
+    ~θ² (6 N on the 4×4×4 cube of 5 m at ν = 0)."""
+    net = float(np.linalg.norm(f.sum(axis=0)))
+    r = x - x.mean(axis=0)
+    gyration = math.sqrt(float(np.mean(np.einsum("ij,ij->i", r, r))))
+    if gyration <= 0.0:
+        return net
+    return max(net, float(np.linalg.norm(np.cross(r, f).sum(axis=0))) / gyration)
+
+
+def force_scale(system: System, f_int: np.ndarray, x: np.ndarray | None = None) -> float:
+    """Force scale of a state at positions ``x`` (default: the reference positions): the largest
+    plate reaction over the plates (:func:`plate_wrench_scale`: net force or moment over the
+    plate's radius of gyration), the weight ``|Σ m g|``, the total dead load, and
+    ``1e-12 E le²`` (a floor for a body that nothing loads)."""
     f = f_int if system.gravity is None else f_int + system.mass[:, None] * system.gravity[None, :]
+    x = system.X if x is None else np.asarray(x)
     scale = 0.0
     for p in system.plates:
-        scale = max(scale, float(np.linalg.norm(f[p.particles].sum(axis=0))))
+        scale = max(scale, plate_wrench_scale(x[p.particles], f[p.particles]))
     if system.gravity is not None:
         scale = max(scale, float(np.linalg.norm(system.mass.sum() * system.gravity)))
     for t in system.terms:
@@ -785,11 +839,12 @@ def force_scale(system: System, f_int: np.ndarray) -> float:
 
 
 def rest_report(system: System, f_int: np.ndarray, energy: dict, load_factor: float,
-                rtol: float = REST_RTOL) -> dict:
+                rtol: float = REST_RTOL, x: np.ndarray | None = None) -> dict:
     """Whether an explicit run ended at rest, and the figures behind the verdict.
 
     At rest means all three of: the load ramp is complete (``load_factor == 1``); the force
-    residual on the free degrees of freedom ``‖f_free‖₂ ≤ rtol · scale`` (:func:`force_scale`);
+    residual on the free degrees of freedom ``‖f_free‖₂ ≤ rtol · scale`` (:func:`force_scale` at
+    the positions ``x``, default the reference positions);
     the kinetic energy ``≤ rtol² · max(|elastic energy|, scale · le)``.  A vibration of relative
     amplitude a about the equilibrium has residual ~ a · scale and kinetic energy up to
     ~ a² · elastic energy, so both tests ask for a ≲ rtol.  An undamped run rarely passes: set
@@ -798,7 +853,7 @@ def rest_report(system: System, f_int: np.ndarray, energy: dict, load_factor: fl
     f = f_int if system.gravity is None else f_int + system.mass[:, None] * system.gravity[None, :]
     free = ~system.fixed
     residual = float(np.linalg.norm(f[free]))
-    scale = force_scale(system, f_int)
+    scale = force_scale(system, f_int, x)
     elastic = float(sum(energy.get(k, 0.0) for k in ELASTIC_PARTS))
     e_scale = max(abs(elastic), scale * system.scene.body.le)
     ke = float(energy["kinetic"])
@@ -931,7 +986,7 @@ def simulate_explicit(
     energy = st.energy(xs, vs)
     f_int = st.internal_forces(xs)
     s_end = ramp(done * dt, ramp_time)
-    rest = rest_report(run.system, f_int, energy, s_end, rest_rtol)
+    rest = rest_report(run.system, f_int, energy, s_end, rest_rtol, xs)
     info = dict(st.info)
     info.update(_run_info(run, done, ramp_time, s_end, rest))
     info.update({"cpu_time_s": cpu, "setup_s": setup_s, "warm_up_s": warm_s, "dt_crit_s": run.dt_crit_s})

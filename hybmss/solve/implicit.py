@@ -85,7 +85,7 @@ def _rest(S: System, x: np.ndarray, v: np.ndarray, load: float, rtol: float):
     parts = dict(parts)
     parts["kinetic"] = 0.5 * float(np.sum(S.mass[:, None] * v * v))
     f_int = f if S.gravity is None else f - S.mass[:, None] * S.gravity[None, :]
-    return rest_report(S, f_int, parts, load, rtol), f, parts
+    return rest_report(S, f_int, parts, load, rtol, x), f, parts
 
 
 def simulate_implicit(scene: Scene, options: ImplicitOptions | None = None,
