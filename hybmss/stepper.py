@@ -178,10 +178,23 @@ class ParticleStepper:
         return self._x.copy(), self._v.copy()
 
     def internal_forces(self, x):
-        return self.term.forces(x)
+        """Every force but gravity, as :func:`hybmss.forces.internal_forces` for the lattice: the
+        term's and the dead loads (surface loads, applied whole in an explicit run)."""
+        return with_dead_loads(self.system, self.term.forces(x))
 
     def energy(self, x, v):
         return {"strain": self.term.energy(x), "kinetic": float(0.5 * np.sum(self.system.mass[:, None] * v * v))}
+
+
+def with_dead_loads(system, f: np.ndarray, load: float = 1.0) -> np.ndarray:
+    """``f`` plus ``load`` times the system's dead loads (:class:`hybmss.terms.DeadLoad`), ``f``
+    itself without any."""
+    from .terms import DeadLoad
+
+    loads = [t.f for t in system.terms if isinstance(t, DeadLoad)]
+    if not loads:
+        return f
+    return f + load * sum(loads)
 
 
 def one_thread(threads, model: str) -> None:

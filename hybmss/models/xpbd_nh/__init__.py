@@ -50,16 +50,23 @@ iteration differs from the energy's minimizer by a relative bias ≈ κ (h ω_ma
 κ ≈ 0.08 measured on the beam under gravity (2×2×12, E = 10 MPa, tip deflection; frames of
 1/ω_max in 5, 10, 20 substeps: −1.2e-3, reference, +6.3e-4 relative, so ≈ 8e-4 at 10 by
 Richardson in h²) and on the small-strain moduli (4e-4 … 9e-4 at h ω_max = 0.1).
-``h ω_max ≤ 0.1`` (:data:`H_OMEGA`, :data:`AUTO_SUBSTEPS_STATIC`) keeps it below 1e-3, a tenth of
-the smallest error budget (1 %) of the speed-against-error study; ω_max is the highest
-frequency of the linear Hex8 stiffness of the same grid at rest (ARPACK, :func:`frequencies`).
+``h ω_max ≤ 0.1`` (:data:`H_OMEGA`) keeps it below 1e-3 in the displacements of an explicit run,
+a tenth of the smallest error budget (1 %) of the speed-against-error study; ω_max is the
+highest frequency of the linear Hex8 stiffness of the same grid at rest (ARPACK,
+:func:`frequencies`).
 
-Its static answer is the rest state of a damped run (:func:`solve_static`), reached in 5× fewer
-projections by a relaxation with the same fixed point (:func:`relax_static`).  That state is not
-exactly the minimizer of the energy: with one iteration per substep, a stationary point of the
-iteration satisfies ``Σ_j ∇C_j C_j / (α_j + h² ∇C_jᵀ W ∇C_j) = 0``, i.e. each constraint acts with
-the compliance ``α + h² ∇CᵀW∇C`` instead of α, a relative stiffness bias of order
-``(h ω_e)²`` (ω_e an element's own frequency), which vanishes as the substeps shrink.
+Its static answer is the rest state of the XPBD substep (:func:`solve_static`), reached by a
+relaxation in pseudo-time steps H ≥ h with the same fixed point (:func:`relax_static`), and judged
+at rest by :func:`hybmss.explicit.rest_report` (force residual and kinetic energy) like every other
+answer.  That state is not exactly the minimizer of the energy: with one iteration per substep, a
+stationary point of the iteration satisfies ``Σ_j ∇C_j C_j / (α_j + h² ∇C_jᵀ W ∇C_j) = 0``, i.e.
+each constraint acts with the compliance ``α + h² ∇CᵀW∇C`` instead of α, a relative stiffness
+bias of order ``(h ω_e)²`` (ω_e an element's own frequency), which vanishes as the substeps
+shrink.  Measured by ``rest_report`` at ``h ω_max = 0.1``, the fixed point's free force residual
+is up to 2.6e-2 of the force scale (2×2×12 beam stretched 20 % at ν = 0.499), 3.2–3.8e-3 on the
+[B09] cantilevers, and it falls as h² (×1/4 per doubling of the substeps, the same relaxation steps
+and time: the relaxation's cost does not depend on h), so the static answer takes
+:data:`AUTO_SUBSTEPS_STATIC` substeps.
 """
 
 from __future__ import annotations
@@ -71,13 +78,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...explicit import (BLOWUP_FACTOR, RAMP_LAW, _divergence, find_bad, initial_state, plate_arrays,
-                         plate_reactions, ramp, simulate_explicit as _simulate_explicit)
+from ...explicit import (BLOWUP_FACTOR, RAMP_LAW, REST_RTOL, _divergence, find_bad, initial_state, plate_arrays,
+                         plate_reactions, ramp, rest_report, simulate_explicit as _simulate_explicit)
 from ...lattice import CORNERS
 from ...result import Result
 from ...scene import Material
 from ...solve.errors import StaticSolveError
-from ...stepper import Chunks, ParticleStepper, interruptible, timed
+from ...stepper import Chunks, ParticleStepper, interruptible, timed, with_dead_loads
 from ...system import System, build
 from ...terms import DeadLoad
 from ..base import ModelBase, Style, check
@@ -422,6 +429,20 @@ near ``H ω_max ≈ 1`` because XPBD's tetrahedra are stiffer than the Hex8 cell
 0.5 keeps a factor 2 from it."""
 
 
+RELAX_ROUNDING = 64.0
+"""The relaxation's motion test never asks for less motion than this many roundings of its update
+(:func:`rounding_floor`)."""
+
+
+def rounding_floor(system: System, over: float) -> float:
+    """The motion (m) that rounding alone leaves in :func:`relax_static`'s update
+    ``y + over (P_h(y) − y)``: positions of magnitude |x| carry ``eps |x|``, which the factor
+    ``over = (H/h)²`` multiplies; :data:`RELAX_ROUNDING` of it, for positions up to the body's
+    farthest point plus its size."""
+    extent = float(np.abs(system.X).max()) + max(system.scene.body.size)
+    return RELAX_ROUNDING * over * float(np.finfo(float).eps) * extent
+
+
 def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: float, ramp_time: float,
                  max_time: float, check_time: float, rest_tol: float, iterations: int = 1, coupled: bool = True,
                  kernel: str = "numba", damping_h: float | None = None) -> Result:
@@ -451,7 +472,9 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
     n_max = int(math.ceil(max_time / H))
     check = max(1, int(round(check_time / H)))
     rest_after = int(math.ceil(ramp_time / H))
-    rest_disp = rest_tol * system.scene.body.le
+    rest_disp = rest_tol * system.scene.body.le  # 0: no rest test (a fixed count of iterations)
+    if rest_disp > 0.0:
+        rest_disp = max(rest_disp, rounding_floor(system, over))
     limit = BLOWUP_FACTOR * max(system.scene.body.size)
     limit2 = limit * limit
     x, _ = initial_state(system, None, None, ramp_time)
@@ -520,7 +543,7 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
             "over_relaxation": over, "beta": beta, "steps": done, "iterations": iterations, "coupled": bool(coupled),
             "t_end": done * H, "damping": float(damping), "damping_h": c_h, "ramp_time": float(ramp_time),
             "load_factor": ramp(done * H, ramp_time), "model": term.name, "until_rest": True, "rest": rest,
-            "t_rest": done * H if rest else None, "rest_tol": rest_tol, "check_time": check * H,
+            "t_rest": done * H if rest else None, "rest_tol": rest_tol, "rest_disp": rest_disp, "check_time": check * H,
             "tet_split": "two complementary 5-tet splits at half weight"}
     return _rest_result(system, f"{term.name}-rest", x, v, term.forces(x), {"strain": term.energy(x)}, done, wall,
                         info)
@@ -547,22 +570,28 @@ def _rest_result(system: System, solver: str, x: np.ndarray, v: np.ndarray, f_in
                   converged=True, cell_volumes=vols, info=info)
 
 
-def solve_static(system: System, term: XpbdNH, dt: float | None = None, substeps: int = 10, iterations: int = 1,
-                 coupled: bool = True, rest_tol: float | None = None, damping: float | None = None, ramp_time: float | None = None,
-                 max_time: float | None = None, kernel: str = "numba", pseudo_step: float | None = None) -> Result:
-    """The rest state of the damped XPBD run with substep ``h = dt/substeps`` (the static answer of
-    an explicit-only model).
+def solve_static(system: System, term: XpbdNH, dt: float | None = None, substeps: int | None = None,
+                 iterations: int = 1, coupled: bool = True, rest_tol: float | None = None, damping: float | None = None,
+                 ramp_time: float | None = None, max_time: float | None = None, kernel: str = "numba",
+                 pseudo_step: float | None = None, damping_h: float | None = 0.0,
+                 rest_rtol: float = REST_RTOL) -> Result:
+    """The rest state of the XPBD substep ``h = dt/substeps`` (the static answer of an
+    explicit-only model), judged at rest by :func:`hybmss.explicit.rest_report` like every other
+    answer that reports ``converged``.
 
     Defaults from ``(ω₁, ω_max)`` of :func:`frequencies`: damping ``c = 2 ω₁`` (critical for the
     slowest mode; every other mode's amplitude decays as ``e^{−ω₁ t}``), ramp ``T = 2π/ω₁``, frame
-    ``dt = 1/ω_max`` (with 10 substeps ``h ω_max = 0.1``: the accuracy rule of the module
-    docstring), at most ``T + 40/ω₁`` of simulated time.  The state is reached by
-    :func:`relax_static` in pseudo-time steps ``H = pseudo_step / ω_max`` (default
-    :data:`RELAX_H_OMEGA`; never below h; ``pseudo_step = 0`` runs the XPBD dynamics itself, H = h):
-    same rest state, ``h/H`` of the substeps.  ``info['t_rest']`` and ``wall_time_s`` say how long it
-    took to get there; ``converged`` is False if the run ended before coming to rest (no node moving
-    more than ``rest_tol · le · rest_scale`` over 10 frames; default :data:`REST_TOL`,
-    :func:`rest_scale`)."""
+    ``dt = 1/ω_max`` with :data:`AUTO_SUBSTEPS_STATIC` substeps, at most ``T + 40/ω₁`` of
+    simulated time.  The state is reached by :func:`relax_static` in pseudo-time steps
+    ``H = pseudo_step / ω_max`` (default :data:`RELAX_H_OMEGA`; never below h; ``pseudo_step = 0``
+    runs the XPBD dynamics itself, H = h): same rest state, ``h/H`` of the substeps, whatever h.
+    ``damping_h``: the substep's own damping c_h (default 0: the undamped substep, whose rest state
+    feels the whole load; ``None``: c, the rest state of the damped run, whose substeps damp the
+    external accelerations by ``1/(1 + c h)``).  The relaxation stops once no node moves more than
+    ``rest_tol · le · rest_scale`` over :data:`RELAX_CHECK_FRAMES` frames (default
+    :data:`REST_TOL`, :func:`rest_scale`); ``converged`` is True only if it stopped so and the
+    state is at rest by ``rest_report`` with ``rest_rtol`` (``info['rest']``; the fixed point's
+    free force residual, of relative size ≈ (h ω)², is the substep bias: module docstring)."""
     w1, wmax = frequencies(system)
     if w1 <= 0.0:
         raise ValueError("the body has a zero-energy mode (not held by its plates): no rest state to reach")
@@ -571,16 +600,26 @@ def solve_static(system: System, term: XpbdNH, dt: float | None = None, substeps
     dt = 1.0 / wmax if dt is None else float(dt)
     t_max = T + 40.0 / w1 if max_time is None else float(max_time)
     rest_tol = REST_TOL if rest_tol is None else float(rest_tol)
-    h = dt / int(substeps)
+    substeps = AUTO_SUBSTEPS_STATIC if substeps is None else int(substeps)
+    h = dt / substeps
     q = RELAX_H_OMEGA if pseudo_step is None else float(pseudo_step)
     H = max(h, q / wmax)
     r = relax_static(system, term, h, H, c, T, t_max, RELAX_CHECK_FRAMES * dt, rest_tol * rest_scale(system),
-                     iterations=iterations, coupled=coupled, kernel=kernel)
-    info = dict(r.info, static_from="rest state of the damped XPBD run, by a relaxation in pseudo-time steps H (relax_static)", omega_1=w1, omega_max=wmax, load_steps=0,
-                dt=dt, substeps=int(substeps))
+                     iterations=iterations, coupled=coupled, kernel=kernel, damping_h=damping_h)
+    x = r.X + r.u
+    f_int = with_dead_loads(system, term.forces(x))  # every force but gravity; the relaxation applies loads whole
+    rest = rest_report(system, f_int, r.energy, float(r.info["load_factor"]), rest_rtol, x)
+    stopped = bool(r.info["rest"])
+    if not stopped:
+        why = f"the relaxation still moved more than {r.info['rest_disp']:.3g} m over its last check interval"
+        rest = dict(rest, at_rest=False,
+                    not_at_rest_because="; ".join(w for w in (rest["not_at_rest_because"], why) if w))
+    info = dict(r.info, static_from="rest state of the XPBD substep, by a relaxation in pseudo-time steps H "
+                "(relax_static), judged by rest_report", omega_1=w1, omega_max=wmax, load_steps=0, dt=dt,
+                substeps=substeps, stopped_at_rest=stopped, rest=rest)
     return Result(solver=r.solver, scene_digest=r.scene_digest, X=r.X, u=r.u, volume=r.volume,
                   volume0=r.volume0, reactions=r.reactions, energy=r.energy, iterations=r.iterations,
-                  wall_time_s=r.wall_time_s, converged=bool(r.info["rest"]), cell_volumes=r.cell_volumes,
+                  wall_time_s=r.wall_time_s, converged=bool(rest["at_rest"]), cell_volumes=r.cell_volumes,
                   info=info)
 
 
@@ -612,8 +651,15 @@ class XpbdParameters:
 
 H_OMEGA = 0.1
 """Largest ``h ω_max`` of the automatic substeps."""
-AUTO_SUBSTEPS_STATIC = 10
-"""Substeps of the rest-state run's frames ``dt = 1/ω_max``: ``h ω_max = 0.1``."""
+AUTO_SUBSTEPS_STATIC = 80
+"""Substeps of the static answer's frames ``dt = 1/ω_max``: ``h ω_max = 0.0125``.  The fixed
+point's free force residual (:func:`hybmss.explicit.rest_report`, relative to its force scale)
+on the 38 xpbd-nh static scenes of the quick reproduction and the three [B09] cantilevers is at
+most 2.6e-2 at 10 substeps, 1.6e-3 at 40, 4.0e-4 at 80 (a factor 2.5 inside the rest tolerance
+1e-3), falling as 1/substeps² with the same relaxation steps and time.  At 160 the rounding of the
+relaxation's update (``over = (H/h)²`` = 6400) reaches the motion test of small-strain scenes
+(:func:`rounding_floor`): E_eff of ``hybmss moduli`` at ν = 0.499 moved from −1.7e-5 to +8.6e-6,
+G_eff to −6.2e-5, against 3e-6 at lower ν."""
 
 
 def auto_substeps(system: System, dt: float) -> int:
@@ -663,12 +709,12 @@ def solve_scene(scene, options=None, system: System | None = None) -> Result:
     not come to rest in its time budget."""
     S = massless_static(system if system is not None else build(scene))
     p = scene.model.params
-    r = solve_static(S, xpbd_term(S), substeps=p.substeps or AUTO_SUBSTEPS_STATIC, iterations=p.iterations,
-                     coupled=not p.sequential)
+    r = solve_static(S, xpbd_term(S), substeps=p.substeps or None, iterations=p.iterations, coupled=not p.sequential)
     if not r.converged:
         raise StaticSolveError(
-            f"xpbd-nh scene {scene.name or '(unnamed)'}: the damped run did not come to rest within "
-            f"{r.info['t_end']:.4g} s (largest speed {r.info['max_speed']:.3g} m/s); raise the damping or the time budget",
+            f"xpbd-nh scene {scene.name or '(unnamed)'}: the relaxation did not reach rest within "
+            f"{r.info['t_end']:.4g} s of pseudo-time ({r.info['rest']['not_at_rest_because']}); raise the substeps "
+            f"(the fixed point's residual falls as 1/substeps²), the damping or the time budget",
             cause="rest-state", time=float(r.info['t_end']))
     return r
 
