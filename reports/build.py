@@ -19,6 +19,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from studies.claims import PROTOCOL_FAILURES
+
 from . import figures as figmod
 from . import palette
 from . import render as rendermod
@@ -319,7 +321,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                 s.items.append(("table", t))
         sections.append(s)
 
-    s = Section("failures", "Failures and instabilities")
+    s = Section("failures", "Failures and instabilities", PROTOCOL_FAILURES)
     s.items.append(("table", tables.failures_table(results)))
     t = tables.explicit_table(results)
     if t is not None:
