@@ -330,6 +330,7 @@ def build_parser() -> tuple[Parser, Options]:
     opts.add(q, "--scheduler", default=None, metavar="ADDRESS",
              help="address of a running dask scheduler, e.g. tcp://host:8786 (--executor dask)")
     opts.add(q, "--no-progress", action="store_true", help="no progress bar")
+    no_guard(q)
     return p, opts
 
 

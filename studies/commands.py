@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import signal
 import threading
 import time
@@ -459,6 +460,26 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt("SIGTERM")
 
 
+def sweep_estimate(names, quick: bool, store: Store, workers: int) -> sizing.Estimate:
+    """:func:`studies.sizing.sweep` of the pooled runs of the studies ``names`` (None: all) that
+    ``store`` does not hold yet, on ``workers`` workers (the extra studies' own computations, a
+    few minutes, are not counted)."""
+    import importlib
+
+    from .reproduce import tasks_for
+
+    listed = [n for n in (names or study_names()) if n in STUDIES]
+    tasks = tasks_for(listed, quick) if listed else []
+    for n in (names or study_names()):
+        if n in EXTRA_STUDIES:
+            module = importlib.import_module(EXTRA_STUDIES[n].split(":")[0])
+            tasks += module.tasks(quick) if hasattr(module, "tasks") else []
+    stored = set(store.keys())
+    pending = {t.key(): t for t in tasks}
+    todo = [sizing.task(t.scene, t.solver) for k, t in pending.items() if k not in stored]
+    return sizing.sweep(f"sweep of {len(todo)} runs not yet stored", todo, workers)
+
+
 def run(args):
     """The studies into ``--out``: 0 when the sweep finishes (failed runs are stored rows), 2 for
     options not allowed (checked before any work: the folder, the executor and its scheduler),
@@ -477,7 +498,13 @@ def run(args):
     if args.scheduler is not None and args.executor != "dask":
         raise InputError(f"--scheduler {args.scheduler!r} is given with --executor {args.executor}; a scheduler "
                          "address needs executor dask")
-    check_study_files(None if args.all else args.study)  # the study files' keys (StudyError: exit 2)
+    names = None if args.all else args.study
+    check_study_files(names)  # the study files' keys (StudyError: exit 2)
+    if args.executor == "local" or args.scheduler is None:  # this machine's workers (a scheduler's are not known)
+        workers = args.jobs or os.cpu_count() or 1
+        guard(sweep_estimate(names, args.quick, Store(args.out), workers),
+              f"run {'--all' if args.all or not args.study else ' '.join('--study ' + n for n in args.study)}"
+              + (" --quick" if args.quick else "") + f" on {workers} worker(s)", args=args)
     runner = Runner(args.executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(args.out).check_writable()
     main = threading.current_thread() is threading.main_thread()
@@ -486,7 +513,7 @@ def run(args):
     previous = signal.signal(signal.SIGTERM, _terminate) if main else None
     try:
         with runner:
-            run_studies(args.out, names=None if args.all else args.study, quick=args.quick, jobs=args.jobs,
+            run_studies(args.out, names=names, quick=args.quick, jobs=args.jobs,
                         progress=not args.no_progress, runner=runner)
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, exit_now)  # exiting; a second Ctrl-C exits at once

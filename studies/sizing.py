@@ -16,7 +16,8 @@ measured peak resident sizes and wall times of 5 % compressions of a cube (2 cor
   want of memory at 22.7 GB).
 
 They are meant to tell a run that fits from one that is off by orders of magnitude, not to
-predict to the percent.
+predict to the percent.  A sweep of runs (``hybmss run``) is their sum over its workers, scaled by
+what a whole sweep measured (:func:`sweep`, :data:`SWEEP_TIME_FACTOR`).
 """
 
 from __future__ import annotations
@@ -107,6 +108,33 @@ def total(what: str, estimates) -> Estimate:
     estimates = list(estimates)
     return Estimate(what, max((e.bytes for e in estimates), default=BASE_BYTES),
                     sum(e.seconds for e in estimates))
+
+
+SWEEP_TIME_FACTOR = 27.0 / 60.0
+"""Measured wall time of a sweep over the sum of its runs' estimates per worker.  The estimates of
+single solves overstate the studies' runs, many of them small or quick to converge: those of the
+1,512 pooled runs of the full reproduction come to 60 min per worker on two workers, where
+``make reproduce-paper`` measured 23–28 min in all (README); the factor takes 27 min."""
+
+
+def sweep(what: str, estimates, workers: int) -> Estimate:
+    """Runs shared by ``workers`` processes, each computing one at a time: the memory of every
+    worker at the largest run's peak, the sum of the times over the workers (times
+    :data:`SWEEP_TIME_FACTOR`)."""
+    estimates = list(estimates)
+    workers = max(1, int(workers))
+    peak = max((e.bytes for e in estimates), default=BASE_BYTES)
+    return Estimate(what, BASE_BYTES + workers * peak,
+                    SWEEP_TIME_FACTOR * sum(e.seconds for e in estimates) / workers)
+
+
+def task(spec, solver) -> Estimate:
+    """One run of a study: scene ``spec`` (:class:`hybmss.experiments.SceneSpec`) solved by
+    ``solver`` (:class:`studies.runner.SolverSpec`)."""
+    if solver.kind == "fem":
+        return fem(spec.mesh, solver.element, solver.refine, solver.law, spec.nu)
+    steps = getattr(solver, "steps", None) or 10_000
+    return mss(spec.mesh, solver.kind, steps, model_work(dict(spec.params), solver.kind))
 
 
 def limit() -> float:

@@ -130,3 +130,46 @@ def test_run_out_on_a_file_exits_2(tmp_path, cli_in_process):
     p = cli_in_process("run", "--quick", "--study", "bending", "--out", str(f), cwd=tmp_path)
     assert p.returncode == 2 and "is a file" in p.stderr and len(p.stderr.strip().splitlines()) == 1
     assert f.read_text() == "not a folder" and list(tmp_path.iterdir()) == [f]
+
+
+def test_run_guard_refuses_a_sweep_that_does_not_fit_before_any_work(cli_in_process, tmp_path):
+    """Every worker may hold the sweep's largest run (the full reproduction: a 1.9 GiB FEM solve),
+    so 10,000 workers would need about 19 TiB: exit 2, one line with the estimate, nothing
+    written; the full reproduction on 2 workers fits (its 1,512 runs about 27 min)."""
+    from studies import sizing
+    from studies.commands import sweep_estimate
+
+    out = tmp_path / "res"
+    r = cli_in_process("run", "--all", "--jobs", "10000", "--out", out, "--no-progress")
+    assert r.returncode == 2, r.stderr
+    line = r.stderr.strip()
+    assert "\n" not in line and "10000 worker(s)" in line and "TiB of memory" in line and "--no-guard" in line
+    assert not out.exists()
+    full = sweep_estimate(None, False, Store(out), 2)
+    assert sizing.fits(full) and 15 * 60 < full.seconds < 45 * 60
+
+
+def test_run_guard_counts_only_runs_not_stored_and_no_guard_insists(cli_in_process, tmp_path, monkeypatch):
+    """Over the time limit (here lowered to 1 ms) the sweep is refused; the runs already stored
+    are not counted (a stored study leaves nothing to estimate), and --no-guard runs it anyway."""
+    import studies.reproduce as reproduce
+    from studies import sizing
+    from studies.commands import sweep_estimate
+
+    out = tmp_path / "res"
+    store = Store(out)
+    est = sweep_estimate(["bending"], True, store, 1)
+    n = len({t.key() for t in reproduce.tasks_for(["bending"], True)})
+    assert est.seconds > 0 and est.what.startswith(f"sweep of {n} runs")
+    monkeypatch.setattr(sizing, "TIME_LIMIT_S", 1e-3)
+    r = cli_in_process("run", "--study", "bending", "--quick", "--jobs", "1", "--out", out, "--no-progress")
+    assert r.returncode == 2 and "too long" in r.stderr and "--no-guard" in r.stderr, r.stderr
+    calls = []
+    monkeypatch.setattr(reproduce, "run_studies", lambda *a, **k: calls.append(k))
+    r = cli_in_process("run", "--study", "bending", "--quick", "--jobs", "1", "--out", out, "--no-progress",
+                       "--no-guard")
+    assert r.returncode == 0 and len(calls) == 1, r.stderr
+    for t in reproduce.tasks_for(["bending"], True):  # as if stored: nothing left to estimate
+        store.runs.mkdir(parents=True, exist_ok=True)
+        (store.runs / f"{t.key()}.json").write_text("{}")
+    assert sweep_estimate(["bending"], True, store, 1).seconds == 0.0
