@@ -68,6 +68,12 @@ MAX_NODE_STEPS = 10_000_000
 16×16×96 beam (~3·10⁴ nodes) run 300 steps instead of 1,000, about 0.4 s on one thread (three
 rounds still span over 1 s)."""
 MAX_REPEATS = 25
+CALL_SECONDS = 0.5
+"""Seconds of stepping per kernel call of a timed run, at most about (:func:`check_steps`): a run
+longer than that is called in pieces, between which Ctrl-C stops it; a shorter one (most of
+them) is one call, as before.  Each further call costs a divergence check (one pass over the
+nodes) and, on two threads, a start of the threads."""
+MIN_CHECK_STEPS = 100
 
 
 # ------------------------------------------------------------------------------ bandwidth
@@ -180,6 +186,15 @@ def timed_steps(mesh, steps: int) -> int:
     return min(steps, max(100, 100 * (MAX_NODE_STEPS // (100 * nodes))))
 
 
+def check_steps(steps: int, step_s: float) -> int:
+    """Steps between the divergence checks of a timed run of ``steps`` steps of about ``step_s``
+    seconds each: the loop calls the kernel in whole multiples of them, so a run is one call when
+    it lasts under :data:`CALL_SECONDS`, else calls of about that long (at least
+    :data:`MIN_CHECK_STEPS` steps)."""
+    per_call = int(CALL_SECONDS / max(float(step_s), 1e-9))
+    return max(1, min(int(steps), max(MIN_CHECK_STEPS, per_call)))
+
+
 def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS,
               min_span: float = MIN_SPAN) -> list[dict]:
     """Best-of-``repeats`` wall time of ``steps`` steps for every variant and thread count on
@@ -196,15 +211,20 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
     rows = []
     for th in threads:
         times = {v: [] for v in timed}
+        step_s = {}
 
         def timed_run(v, th=th):
             scene, S = systems[v]
-            return simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S, compute_dt_crit=False,
-                                     check_every=steps, warm_up=WARM_UP_THREADS if th > 1 else 0.0).wall_time_s
+            t = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S, compute_dt_crit=False,
+                                  check_every=check_steps(steps, step_s[v]),
+                                  warm_up=WARM_UP_THREADS if th > 1 else 0.0).wall_time_s
+            step_s[v] = min(step_s[v], t / steps)  # the warm-up's 5 steps overstate a step up to 4x
+            return t
 
-        for v in timed:  # warm-up (loads the cached compiled kernels)
+        for v in timed:  # warm-up (loads the cached compiled kernels), a first figure of the step's time
             scene, S = systems[v]
-            simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S, compute_dt_crit=False)
+            step_s[v] = simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S,
+                                          compute_dt_crit=False).wall_time_s / 5
         for v in timed:  # the first round, whose longest run sets the number of rounds
             times[v].append(timed_run(v))
         t_est = max(ts[0] for ts in times.values())
