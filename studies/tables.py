@@ -48,8 +48,14 @@ from .store import Store
 SCENE_COLS = ["experiment", "mesh", "nu", "E", "deformation", "angle_deg"]
 
 
-def runs_frame(store: Store) -> pd.DataFrame:
+def runs_frame(store: Store, first=None) -> pd.DataFrame:
+    """Every stored run, one row each; the runs whose keys are in ``first`` come first, so that
+    the columns are in the order their rows give them (not in one that the keys' hashes of other
+    runs in the folder decide)."""
     rows = store.rows()
+    if first is not None:
+        first = set(first)
+        rows = [r for r in rows if r.get("key") in first] + [r for r in rows if r.get("key") not in first]
     if not rows:
         return pd.DataFrame()
     df = pd.DataFrame([{k: v for k, v in r.items() if k not in ("info", "traceback", "scene_fields")} for r in rows])
@@ -357,7 +363,7 @@ def write_tables(store: Store, keys=None) -> dict:
     """Build every table from the stored runs (and the cheap moduli tests); returns them.
     ``keys``: only the runs of these keys (the studies' tasks; None: every stored run), so that
     the tables do not change with what other studies stored in the same folder."""
-    df = runs_frame(store)
+    df = runs_frame(store, keys)
     if keys is not None and not df.empty:
         df = df[df["key"].isin(set(keys))].reset_index(drop=True)
     tables = {"models": models_table()}
