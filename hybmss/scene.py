@@ -42,6 +42,30 @@ def _vec3(name: str, value) -> tuple[float, float, float]:
 # --------------------------------------------------------------------------------------------
 # Body
 # --------------------------------------------------------------------------------------------
+def pieces(mask) -> tuple[np.ndarray, np.ndarray]:
+    """The face-connected pieces of a voxel ``mask`` (cells sharing a face belong to one piece;
+    cells touching along an edge or at a corner only do not: a hinge carries no load in a
+    lattice of cubes): ``(labels, sizes)``, ``labels`` of the mask's shape (0 outside, ``k`` in
+    piece ``k``), numbered by decreasing size, and ``sizes[k − 1]`` the cells of piece ``k``.
+    A caller checking that each piece is supported selects the particles of ``labels == k``."""
+    from scipy import ndimage
+
+    mask = np.asarray(mask, dtype=bool)
+    labels, n = ndimage.label(mask)  # the default structure of ndimage.label: face neighbours
+    if n == 0:
+        return labels, np.zeros(0, dtype=np.int64)
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    order = np.argsort(-sizes, kind="stable")  # old label order[k] + 1 becomes k + 1
+    relabel = np.zeros(n + 1, dtype=labels.dtype)
+    relabel[order + 1] = np.arange(1, n + 1)
+    return relabel[labels], sizes[order].astype(np.int64)
+
+
+def _pieces_text(sizes) -> str:
+    shown = ", ".join(str(int(v)) for v in sizes[:6]) + (", ..." if len(sizes) > 6 else "")
+    return f"{len(sizes)} pieces of {shown} cells"
+
+
 @dataclass(frozen=True)
 class Body:
     """A set of cubic cells of edge ``le`` on an ``nx × ny × nz`` grid.
@@ -80,7 +104,9 @@ class Body:
 
     @classmethod
     def from_mask(cls, mask, le: float, origin=(0.0, 0.0, 0.0)) -> "Body":
-        """A body from a boolean voxel array ``mask[i, j, k]`` (True = cell present)."""
+        """A body from a boolean voxel array ``mask[i, j, k]`` (True = cell present), refused
+        (``ValueError``) when its cells fall apart into several face-connected pieces
+        (:func:`pieces`): no plate or load of one piece would hold another."""
         mask = np.asarray(mask, dtype=bool)
         if mask.ndim != 3 or mask.size == 0:
             raise ValueError(f"mask must be a non-empty 3D boolean array, got shape {mask.shape}")
@@ -88,6 +114,10 @@ class Body:
             raise ValueError("body is empty: the voxel mask has no active cell (need at least 1)")
         if mask.all():
             return cls(mask.shape, le, origin)
+        _, sizes = pieces(mask)
+        if len(sizes) > 1:
+            raise ValueError(f"body falls apart into {_pieces_text(sizes)} (face-connected cells); "
+                             "allowed: one piece (join them, or make each its own body)")
         return cls(mask.shape, le, origin, np.packbits(mask.ravel()).tobytes())
 
     @property
