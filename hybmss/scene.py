@@ -25,18 +25,48 @@ from . import models as registry
 MOTIONS = ("clamped", "translate", "rotate", "slide", "affine")
 
 
+class SceneTypeError(TypeError, ValueError):
+    """A scene field given a value of the wrong type (a ``TypeError``, and a ``ValueError`` like
+    every other refusal of the constructors, so that one ``except ValueError`` catches both)."""
+
+
+def _typename(value) -> str:
+    return type(value).__name__
+
+
 def _finite(name: str, value: float) -> float:
-    value = float(value)
+    if isinstance(value, (str, bytes, bool)) or value is None:
+        raise SceneTypeError(f"{name} must be a finite number, got {value!r} ({_typename(value)})")
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise SceneTypeError(f"{name} must be a finite number, got {value!r} ({_typename(value)})") from None
     if not math.isfinite(value):
         raise ValueError(f"{name} must be a finite number, got {value!r}")
     return value
 
 
 def _vec3(name: str, value) -> tuple[float, float, float]:
-    arr = np.asarray(value, dtype=float).reshape(-1)
+    if isinstance(value, (str, bytes)) or value is None:
+        raise SceneTypeError(f"{name} must be 3 finite numbers, got {value!r} ({_typename(value)})")
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise SceneTypeError(f"{name} must be 3 finite numbers, got {value!r}") from None
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
     return (float(arr[0]), float(arr[1]), float(arr[2]))
+
+
+def _of_type(name: str, value, cls, convert=None):
+    """``value`` if it is a ``cls``; ``convert(value)`` for a string when ``convert`` is given (a
+    face name for a region, a kind for a motion); else :class:`SceneTypeError` naming ``name``."""
+    if isinstance(value, cls):
+        return value
+    if convert is not None and isinstance(value, str):
+        return convert(value)
+    also = " or its name (a string)" if convert is not None else ""
+    raise SceneTypeError(f"{name} must be a {cls.__name__}{also}, got {value!r} ({_typename(value)})")
 
 
 # --------------------------------------------------------------------------------------------
@@ -352,8 +382,17 @@ class Motion:
     gradient: tuple[float, ...] | None = None
 
     def __post_init__(self):
+        if not isinstance(self.kind, str):
+            raise SceneTypeError(f"motion kind must be one of {', '.join(MOTIONS)} (a string); got {self.kind!r} "
+                                 f"({_typename(self.kind)})")
         if self.gradient is not None:
-            g = np.asarray(self.gradient, dtype=float).reshape(-1)
+            if isinstance(self.gradient, (str, bytes)):
+                raise SceneTypeError(f"gradient must be 9 finite numbers (3x3 row-major), got {self.gradient!r}")
+            try:
+                g = np.asarray(self.gradient, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise SceneTypeError(f"gradient must be 9 finite numbers (3x3 row-major), got {self.gradient!r}") \
+                    from None
             if g.shape != (9,) or not np.all(np.isfinite(g)):
                 raise ValueError(f"gradient must be 9 finite numbers (3x3 row-major), got {self.gradient!r}")
             object.__setattr__(self, "gradient", tuple(float(v) for v in g))
@@ -369,7 +408,11 @@ class Motion:
         object.__setattr__(self, "axis", tuple(float(a) for a in axis / np.linalg.norm(axis)))
         if self.center is not None:
             object.__setattr__(self, "center", _vec3("center", self.center))
-        comps = tuple(sorted(set(int(c) for c in self.components)))
+        raw = self.components
+        if isinstance(raw, (str, bytes)) or not hasattr(raw, "__iter__") or not all(
+                isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in raw):
+            raise SceneTypeError(f"components must be a non-empty subset of (0, 1, 2) (integers), got {raw!r}")
+        comps = tuple(sorted(set(int(c) for c in raw)))
         if not comps or any(c not in (0, 1, 2) for c in comps):
             raise ValueError(f"components must be a non-empty subset of (0, 1, 2), got {self.components!r}")
         if self.kind != "slide":
@@ -430,6 +473,9 @@ class Region:
     hi: tuple[float, float, float] | None = None
 
     def __post_init__(self):
+        if self.face is not None and not isinstance(self.face, str):
+            raise SceneTypeError(f"face must be one of x-, x+, y-, y+, z-, z+ (a string) or None; got {self.face!r} "
+                                 f"({_typename(self.face)})")
         if self.face is not None and self.face not in {a + s for a in "xyz" for s in "+-"}:
             raise ValueError(f"face must be one of x-, x+, y-, y+, z-, z+; got {self.face!r}")
         if self.face is None and self.lo is None and self.hi is None:
@@ -458,15 +504,22 @@ class Region:
 
 @dataclass(frozen=True)
 class Plate:
-    """A named rigid plate: the particles of ``region`` follow ``motion``."""
+    """A named rigid plate: the particles of ``region`` follow ``motion``.
+
+    ``Plate("bottom", "z-")`` is ``Plate("bottom", Region(face="z-"))`` and
+    ``Plate("top", "z+", "clamped")`` gives the motion by its kind (the same scene and digest);
+    any other type is refused here, not at the solve."""
 
     name: str
     region: Region
     motion: Motion = field(default_factory=Motion)
 
     def __post_init__(self):
-        if not self.name:
-            raise ValueError("plate name must be a non-empty string")
+        if not isinstance(self.name, str) or not self.name:
+            raise SceneTypeError(f"plate name must be a non-empty string, got {self.name!r}")
+        object.__setattr__(self, "region", _of_type(f"plate {self.name!r}: region", self.region, Region,
+                                                     lambda face: Region(face=face)))
+        object.__setattr__(self, "motion", _of_type(f"plate {self.name!r}: motion", self.motion, Motion, Motion))
 
 
 @dataclass(frozen=True)
@@ -474,6 +527,7 @@ class Load:
     """A uniform dead traction ``traction`` (Pa: force per unit reference area, fixed direction)
     on the body's surface faces whose centre lies in ``region``.
 
+    ``region`` may be a face name (``Load("x+", (0, 0, -5))``).
     The mass-spring system gets the consistent load of bilinear faces (each selected cell face
     gives ``traction · le²/4`` to each of its 4 vertices); the FEM integrates ``∫ t · v dA``
     over the same faces.  The total force is ``traction × selected area``.
@@ -483,6 +537,7 @@ class Load:
     traction: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
+        object.__setattr__(self, "region", _of_type("load region", self.region, Region, lambda face: Region(face=face)))
         object.__setattr__(self, "traction", _vec3("traction", self.traction))
 
     def faces(self, body: Body) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -518,8 +573,19 @@ class Scene:
     so the digests of scenes without loads do not change."""
 
     def __post_init__(self):
-        object.__setattr__(self, "plates", tuple(self.plates))
-        object.__setattr__(self, "loads", tuple(self.loads))
+        _of_type("body", self.body, Body)
+        _of_type("material", self.material, Material)
+        object.__setattr__(self, "model", _of_type("model", self.model, Model, Model))
+        if not isinstance(self.name, str):
+            raise SceneTypeError(f"scene name must be a string, got {self.name!r} ({_typename(self.name)})")
+        for what, cls in (("plates", Plate), ("loads", Load)):
+            items = getattr(self, what)
+            if isinstance(items, (str, bytes, cls)) or not hasattr(items, "__iter__"):
+                raise SceneTypeError(f"{what} must be a sequence of {cls.__name__}, got {items!r}")
+            items = tuple(items)
+            for i, item in enumerate(items):
+                _of_type(f"{what}[{i}]", item, cls)
+            object.__setattr__(self, what, items)
         object.__setattr__(self, "gravity", _vec3("gravity", self.gravity))
         damping = _finite("damping", self.damping)
         if damping < 0:

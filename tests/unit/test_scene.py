@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from hybmss.scene import Body, Material, Model, Motion, Plate, Region, Scene, parse_mesh
+from hybmss.scene import Body, Load, Material, Model, Motion, Plate, Region, Scene, parse_mesh
 from hybmss.solve import ImplicitOptions
 
 
@@ -39,6 +39,7 @@ def _scene(**kw):
         (lambda: ImplicitOptions(dt=-1e-3), ["dt", "> 0"]),
         (lambda: Motion("wiggle"), ["motion", "clamped"]),
         (lambda: Region("w+"), ["face"]),
+        (lambda: Plate("bottom", "w-"), ["face", "x-, x+"]),
         (lambda: _scene(damping=-1.0), ["damping", ">= 0"]),
         (lambda: parse_mesh("10x10"), ["mesh", "NXxNYxNZ"]),
     ],
@@ -78,3 +79,56 @@ def test_slide_prescribes_only_its_components():
     m = Motion("slide", (1.0, 2.0, 3.0), components=(2,))
     assert m.constrained.tolist() == [False, False, True]
     np.testing.assert_allclose(m.displacement_at(np.zeros((1, 3)), 0.5), [[0, 0, 1.5]])
+
+
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda: Plate("bottom", 3), ["plate 'bottom'", "region", "Region", "3 (int)"]),
+        (lambda: Plate("bottom", ("z-",)), ["region", "Region"]),
+        (lambda: Plate("top", "z+", 1.0), ["plate 'top'", "motion", "Motion", "(float)"]),
+        (lambda: Plate(3, "z-"), ["plate name", "string"]),
+        (lambda: Region(face=2), ["face", "(int)"]),
+        (lambda: Region(face=["z-"]), ["face", "(list)"]),
+        (lambda: Region(lo="abc", hi=(1, 1, 1)), ["lo", "3 finite numbers"]),
+        (lambda: Motion(kind=None), ["motion kind", "(NoneType)"]),
+        (lambda: Motion("translate", "up"), ["displacement", "3 finite numbers"]),
+        (lambda: Motion("rotate", angle="90"), ["angle", "finite number", "(str)"]),
+        (lambda: Motion("slide", components="z"), ["components", "integers"]),
+        (lambda: Motion("slide", components=(2.0,)), ["components", "integers"]),
+        (lambda: Motion("affine", gradient="eye"), ["gradient", "9 finite"]),
+        (lambda: Load(Region("x+"), traction="down"), ["traction", "3 finite numbers"]),
+        (lambda: Load(None, (0, 0, 1)), ["load region", "Region"]),
+        (lambda: _scene(plates=(Region("z-"),)), ["plates[0]", "Plate"]),
+        (lambda: _scene(plates=Plate("bottom", "z-")), ["plates", "sequence of Plate"]),
+        (lambda: _scene(loads=("x+",)), ["loads[0]", "Load"]),
+        (lambda: _scene(body=(2, 2, 2)), ["body", "Body"]),
+        (lambda: _scene(material=1e4), ["material", "Material"]),
+        (lambda: _scene(model=3), ["model", "Model"]),
+        (lambda: _scene(name=None), ["scene name", "string"]),
+        (lambda: Material("1e4", 0.3), ["E", "(str)"]),
+    ],
+)
+def test_wrong_types_are_refused_at_construction(make, words):
+    """A wrong type is refused where it is given (a TypeError, and a ValueError like every
+    refusal), never later in a solver as an AttributeError."""
+    with pytest.raises(TypeError) as err:
+        make()
+    assert isinstance(err.value, ValueError)
+    for w in words:
+        assert w in str(err.value)
+
+
+def test_face_and_kind_names_are_the_same_plate():
+    """``Plate("bottom", "z-")`` is the plate of ``Region(face="z-")``: equal, same digest."""
+    a = _scene(plates=(Plate("bottom", "z-"), Plate("top", "z+", "clamped")), loads=(Load("x+", (0, 0, -1.0)),),
+               model="hybmss")
+    b = _scene(plates=(Plate("bottom", Region("z-")), Plate("top", Region(face="z+"), Motion("clamped"))),
+               loads=(Load(Region("x+"), (0.0, 0.0, -1.0)),), model=Model("hybmss"))
+    assert a == b and a.digest() == b.digest()
+    assert isinstance(a.plates[0].region, Region) and isinstance(a.plates[1].motion, Motion)
+    from hybmss.solve import solve_static
+
+    r = solve_static(_scene(plates=(Plate("bottom", "z-"), Plate("top", "z+", Motion("translate", (0, 0, -0.01))))))
+    top, bottom = r.reactions["top"].force[2], r.reactions["bottom"].force[2]
+    assert r.converged and abs(top) > 0 and top == pytest.approx(-bottom, rel=1e-6)
