@@ -770,8 +770,9 @@ def _divergence(system, x, particle, step, dt, limit, dt_c, check_every, model=N
     if not np.all(np.isfinite(u)):
         what = "has a non-finite position"
     else:
-        what = (f"moved {unorm:.3g} m, more than {BLOWUP_FACTOR:g}× the body size "
-                f"({limit:.3g} m)")
+        size = max(system.scene.body.size)  # the bound ``limit`` is BLOWUP_FACTOR body sizes
+        what = (f"moved {unorm:.3g} m, more than {BLOWUP_FACTOR:g}× the body size of {size:.3g} m "
+                f"(the bound {limit:.3g} m)")
     if dt_c is None and model.explicit_limit:
         try:
             dt_c = dt_crit(system)

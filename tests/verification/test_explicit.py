@@ -142,6 +142,21 @@ def test_run_beyond_the_stability_limit_raises_naming_step_and_particle(kernel, 
     assert err.dt_crit == pytest.approx(dc, rel=1e-9)
 
 
+def test_divergence_message_quotes_the_body_size():
+    """A 2 x 3 x 4 box of 0.05 m cells is 0.2 m at its largest: the message names that size and
+    the bound of 10 body sizes, 2 m (it once quoted the bound as the body size)."""
+    scene = Scene(Body.box(2, 3, 4, 0.05), Material(1e4, 0.3, 1000.0), Model("hybmss"),
+                  plates=(Plate("bottom", Region("z-")),))
+    system = build(scene)
+    dc = dt_crit(system)
+    with pytest.raises(DivergenceError) as info:
+        simulate_explicit(scene, dt=1.2 * dc, steps=10_000, kernel="numpy", system=system,
+                          x0=_perturbed(system), compute_dt_crit=False, check_every=1)
+    msg = str(info.value)
+    assert np.isfinite(info.value.displacement) and info.value.displacement > 2.0
+    assert "more than 10× the body size of 0.2 m (the bound 2 m)" in msg
+
+
 def test_a_particle_far_beyond_the_overflow_of_its_square_is_reported_without_warning():
     """A run that ran away to 1e200 m (|u|² overflows) names the distance, finite, with no
     floating-point warning on the way (the message of a diverged dt bisection)."""
