@@ -752,6 +752,93 @@ def _kind(v) -> str:
     return f"{json.dumps(v)[:40]}"
 
 
+RIGID_MODES = ("translation along x", "translation along y", "translation along z",
+               "rotation about x", "rotation about y", "rotation about z")
+
+
+def _corner_nodes(mask: np.ndarray) -> np.ndarray:
+    """Grid indices (n, 3) of the particles of a voxel mask: every corner of an active cell."""
+    corners = np.zeros(tuple(n + 1 for n in mask.shape), dtype=bool)
+    for di in (0, 1):
+        for dj in (0, 1):
+            for dk in (0, 1):
+                corners[di:di + mask.shape[0], dj:dj + mask.shape[1], dk:dk + mask.shape[2]] |= mask
+    return np.argwhere(corners)
+
+
+def _free_modes(X: np.ndarray, held: np.ndarray, size: float) -> list[str]:
+    """The rigid motions of particles ``X`` (n, 3) that the held components ``held`` (n, 3) do
+    not prevent: the null space of the rigid modes (3 translations, 3 rotations about the held
+    particles' centroid, scaled by ``size``) restricted to the held components.  Returns the
+    names of the coordinate modes in it, and for the rest of its dimension how many other
+    combinations."""
+    rows = np.argwhere(held)
+    if len(rows) == 0:
+        return list(RIGID_MODES)
+    c = X[np.any(held, axis=1)].mean(axis=0)
+    r = (X[rows[:, 0]] - c) / size
+    comp = rows[:, 1]
+    R = np.zeros((len(rows), 6))
+    R[np.arange(len(rows)), comp] = 1.0
+    for k in range(3):  # (e_k × r)_comp
+        e = np.zeros(3)
+        e[k] = 1.0
+        R[:, 3 + k] = np.cross(e, r)[np.arange(len(rows)), comp]
+    sv = np.linalg.svd(R, compute_uv=False)
+    tol = 1e-9 * max(1.0, float(sv[0]))
+    dim = 6 - int(np.sum(sv > tol))
+    if dim == 0:
+        return []
+    named = [RIGID_MODES[i] for i in range(6) if np.linalg.norm(R[:, i]) <= tol]
+    if len(named) < dim:
+        n = dim - len(named)
+        named.append(f"{n} other combination{'s' if n > 1 else ''} of translation and rotation")
+    return named
+
+
+def free_rigid_modes(scene: Scene) -> list[tuple[int, list[str]]]:
+    """The rigid-body motions the plates of ``scene`` do not prevent, per face-connected piece of
+    its body (:func:`pieces`): ``[(cells of the piece, [mode names]), ...]`` for the pieces that
+    are not held, empty when every piece is.  Rotations are about axes through the held
+    particles' centroid (a plate's rotation about any other parallel axis is the same mode plus a
+    translation).  A static equilibrium of a body with a free mode is not unique (and under a load
+    along it does not exist): the static solver refuses it before any work."""
+    body = scene.body
+    mask = body.mask
+    labels, sizes = pieces(mask) if not body.is_box else (mask.astype(np.int64), np.array([mask.size]))
+    out = []
+    for k, n_cells in enumerate(sizes, start=1):
+        ijk = _corner_nodes(labels == k)
+        X = np.asarray(body.origin) + ijk * body.le
+        held = np.zeros(X.shape, dtype=bool)
+        for p in scene.plates:
+            sel = p.region.select(X, body)
+            held[np.ix_(np.flatnonzero(sel), np.flatnonzero(p.motion.constrained))] = True
+        free = _free_modes(X, held, max(body.size))
+        if free:
+            out.append((int(n_cells), free))
+    return out
+
+
+def unsupported(scene: Scene) -> str | None:
+    """Why ``scene`` cannot have a static equilibrium because its plates leave it free to move as
+    a rigid body (:func:`free_rigid_modes`), in one line; ``None`` when every piece is held."""
+    free = free_rigid_modes(scene)
+    if not free:
+        return None
+    n_pieces = 1 if scene.body.is_box else len(pieces(scene.body.mask)[1])
+    where = []
+    for n_cells, modes in free:
+        piece = f"the piece of {n_cells} cells" if n_pieces > 1 else "the body"
+        where.append(f"{piece} is free in {', '.join(modes)}")
+    plates = (f"its plates {', '.join(repr(p.name) for p in scene.plates)} do not hold {'it' if len(where) == 1 else 'them'}"
+              if scene.plates else "it has no plate")
+    return (f"scene {scene.name or '(unnamed)'} is not supported (rigid-body motion not prevented): "
+            f"{'; '.join(where)} ({plates}), so a static equilibrium is not unique or does not exist; allowed: "
+            "plates that hold every rigid-body mode, e.g. Plate('base', 'z-', 'clamped'), or slide plates with pins "
+            "as the uniaxial test has")
+
+
 PLATE_PATH_SAMPLES = 65
 """Load factors at which :func:`plates_cross` compares the plates' positions (0 to 1)."""
 

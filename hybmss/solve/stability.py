@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from ..forces import cell_volumes, energy_forces
-from ..scene import Scene
+from ..scene import Scene, unsupported
 from ..system import System
 from .errors import StaticSolveError
 from .linalg import CholeskyFactor, Factorizer, cholmod, factor, not_definite, positive_definite, \
@@ -213,6 +213,8 @@ def fold_error(S: System, scene: Scene, x: np.ndarray, guess: np.ndarray, s: flo
 
 def _fold_cause(S: System, x: np.ndarray, s: float, lam: float, lam_next: float) -> tuple[str, str]:
     """``(cause, the message's tail)`` of :func:`fold_error`."""
+    if s == 0.0 and lam < 0 and unsupported(S.scene):  # a zero-energy rigid mode, not a negative modulus
+        return "indefinite-at-rest", "; " + unsupported(S.scene)
     if s == 0.0 and lam < 0:
         return "indefinite-at-rest", ("; the model is not positive definite even at rest (its effective bulk or "
                                       "shear modulus is negative for these constants): no stable equilibrium exists")

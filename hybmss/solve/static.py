@@ -35,7 +35,7 @@ import numpy as np
 
 from ..forces import cell_volumes, energy_forces
 from ..result import Result
-from ..scene import Scene, check_nu
+from ..scene import Scene, check_nu, unsupported
 from ..system import System, build
 from .common import force_floor, force_scale, make_result, norm
 from .errors import StaticSolveError
@@ -299,10 +299,14 @@ def solve_static(scene: Scene, options: StaticOptions | None = None, system: Sys
     terms (``baudet2009``).  Energy mode then certifies stability from the inertia of the
     constrained Hessian and leaves saddles; residual mode returns the equilibrium without that
     certificate.  Raises :class:`StaticSolveError` (with its numbers as fields) when the load
-    cannot be applied."""
+    cannot be applied, and ``ValueError`` before any work when the plates leave a rigid-body
+    motion free (:func:`hybmss.scene.unsupported`)."""
     model = scene.model.spec
     if "static" not in model.solvers:
         raise ValueError(f"model {model.name} has no static solver (its solvers: {', '.join(model.solvers)})")
+    why = unsupported(scene)
+    if why:  # free rigid-body modes: no unique equilibrium to look for (refused before any work)
+        raise ValueError(why)
     if model.solve_static is not None:  # a model with its own static solver (hybmss.models.base)
         return model.solve_static(scene, options, system)
     opts = options or StaticOptions()

@@ -132,3 +132,52 @@ def test_face_and_kind_names_are_the_same_plate():
     r = solve_static(_scene(plates=(Plate("bottom", "z-"), Plate("top", "z+", Motion("translate", (0, 0, -0.01))))))
     top, bottom = r.reactions["top"].force[2], r.reactions["bottom"].force[2]
     assert r.converged and abs(top) > 0 and top == pytest.approx(-bottom, rel=1e-6)
+
+
+@pytest.mark.parametrize("plates, free", [
+    ((), ["translation along x", "translation along y", "translation along z", "rotation about x",
+          "rotation about y", "rotation about z"]),
+    # a frictionless floor holds z, and the rotations that lift an edge of it
+    ((Plate("floor", "z-", Motion("slide", components=(2,))),),
+     ["translation along x", "translation along y", "rotation about z"]),
+    # one clamped corner: the body turns about it
+    ((Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0))),), ["rotation about x", "rotation about y", "rotation about z"]),
+    # a clamped line of particles along x: a hinge
+    ((Plate("hinge", Region(lo=(0, 0, 0), hi=(1.0, 0, 0))),), ["rotation about x"]),
+    # the uniaxial test's floor and two pins hold everything
+    ((Plate("floor", "z-", Motion("slide", components=(2,))),
+      Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0)), Motion("slide", components=(0, 1))),
+      Plate("pin_x", Region(lo=(1.0, 0, 0), hi=(1.0, 0, 0)), Motion("slide", components=(1,)))), []),
+    ((Plate("base", "z-"),), []),
+])
+def test_free_rigid_modes_are_named(plates, free):
+    from hybmss.scene import free_rigid_modes, unsupported
+
+    scene = _scene(plates=plates, gravity=(0, 0, -9.81))
+    found = free_rigid_modes(scene)
+    assert (found[0][1] if found else []) == free
+    assert (unsupported(scene) is None) == (not free)
+
+
+def test_static_solve_refuses_an_unsupported_body_before_work():
+    """Without plates the constrained Hessian is singular at rest: once reported as a negative
+    bulk or shear modulus; now refused up front, naming the free modes."""
+    from hybmss.solve import solve_static
+
+    for plates in ((), (Plate("floor", "z-", Motion("slide", components=(2,))),)):
+        with pytest.raises(ValueError, match="not supported .rigid-body motion not prevented.") as err:
+            solve_static(_scene(plates=plates, gravity=(0, 0, -9.81)))
+        assert "translation along x" in str(err.value) and "modulus" not in str(err.value)
+
+
+def test_each_piece_must_be_held():
+    """Two pieces (a body built from its bits, past the mask check): the one without a plate is named."""
+    from hybmss.scene import free_rigid_modes
+
+    mask = np.zeros((4, 1, 2), bool)
+    mask[:1, :, :] = True  # 2 cells on x = 0
+    mask[2:, :, :1] = True  # 2 cells at the bottom of x = 2..3, a cell away
+    body = Body(mask.shape, 1.0, (0, 0, 0), np.packbits(mask.ravel()).tobytes())
+    scene = Scene(body, Material(1e4, 0.3), plates=(Plate("wall", "x-"),))
+    assert free_rigid_modes(scene) == [(2, ["translation along x", "translation along y", "translation along z",
+                                            "rotation about x", "rotation about y", "rotation about z"])]

@@ -251,8 +251,11 @@ def test_vbd_refuses_sliding_plates():
 
     sc = Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=0.3, rho=1000.0), model=Model("newton-vbd"),
                plates=(Plate("bottom", Region("z-"), Motion("slide", components=(2,))),
-                       Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, 1e-3), components=(2,)))))
-    with pytest.raises(ValueError, match="plates"):
+                       Plate("top", Region("z+"), Motion("slide", (0.0, 0.0, 1e-3), components=(2,))),
+                       # the pins of the uniaxial test: held as a rigid body, so it is SolverVBD that refuses
+                       Plate("pin", Region(lo=(0, 0, 0), hi=(0, 0, 0)), Motion("slide", components=(0, 1))),
+                       Plate("pin_x", Region(lo=(N * LE, 0, 0), hi=(N * LE, 0, 0)), Motion("slide", components=(1,)))))
+    with pytest.raises(ValueError, match="newton-vbd cannot represent"):
         solve_static(sc)
     with pytest.raises(StaticSolveError, match="plates"):
         measure_moduli(Model("newton-vbd"), Material(E=E, nu=0.3, rho=1000.0))
