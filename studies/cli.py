@@ -53,6 +53,20 @@ exit status and output:
 """
 
 
+COMPARE_UNITS = """\
+units of compare:
+  volume changes and relative errors are fractions in the text and in --json alike
+  (dV/V0 = -0.0135 is a 1.35 % loss; a relative error 0.02 is 2 %); lengths m, forces N,
+  torques N m, times s.  Two volume formulas, each named: the MSS's averaged-edge volume
+  (sum over cells of a.(b x c), a, b, c the cell's averaged edge vectors), also evaluated on
+  the FEM's displacements at the lattice particles, and the FEM's integral of det F (under
+  --law linear the FEM's own volume is the linearized integral of 1 + div u, shown apart).  The
+  relative errors compare like with like: the MSS volume change against the FEM's through the
+  same averaged-edge formula (and, named apart, against its integral of det F), the plate
+  forces as |F_mss - F_fem| / |F_fem|, the displacements as relative L2 and relative max
+  over the lattice particles (the FEM's solution evaluated there).
+"""
+
 CHOICES = {"model": model_choices}
 """Allowed values of the scene's text parameters."""
 
@@ -135,7 +149,7 @@ class Options:
 
     def add(self, parser, *flags, **kw):
         action = parser.add_argument(*flags, **kw)
-        self.flags.update(flags)
+        self.flags.update(action.option_strings)  # with the --no-X of a BooleanOptionalAction
         if kw.get("action") in (None, "store", "append"):
             self.valued.update(flags)
         return action
@@ -213,8 +227,8 @@ def add_model_options(parser, opts: Options) -> None:
         doc = f.metadata.get("help", name)
         doc = f"{doc}; parameter of {', '.join(owners)} (default: the model's)".replace("%", "%%")
         kw = dict(dest=name, default=None, help=doc)
-        if isinstance(default, bool):
-            opts.add(group, flag(name), action="store_const", const=True, **kw)
+        if isinstance(default, bool):  # --X sets it, --no-X clears it, neither: the model's default
+            opts.add(group, flag(name), action=argparse.BooleanOptionalAction, **kw)
         elif f.metadata.get("choices"):
             opts.add(group, flag(name), choices=tuple(f.metadata["choices"]), **kw)
         elif isinstance(default, (int, float)):
@@ -309,10 +323,17 @@ def build_parser() -> tuple[Parser, Options]:
 
     q = command("compare", "one scene on the mass-spring system and the FEM reference, side by side",
                 commands.compare)
-    opts.add(q, "scene", choices=SCENES, help="experiment")
+    q.epilog = COMPARE_UNITS + "\n" + CONTRACT
+    opts.add(q, "scene", nargs="?", choices=SCENES, default=None, help="experiment (or --scene-json)")
+    opts.add(q, "--scene-json", default=None, metavar="FILE",
+             help="compare on a stored Scene (Scene.to_dict JSON) instead of an experiment; the FEM law "
+                  "defaults to linear")
     add_scene_options(q, opts)
     add_model_options(q, opts)
     add_mss_options(q, opts)
+    opts.add(q, "--load-steps", type=positive_int, default=None,
+             help="load steps of the mass-spring static solver: at least N, each at most 1/N of the load "
+                  "(integer >= 1; default: adaptive from one step)")
     add_fem_options(q, opts)
     no_guard(q)
 

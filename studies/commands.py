@@ -19,12 +19,12 @@ import time
 
 from hybmss import models
 from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
-from hybmss.scene import Material, Model, Scene, plates_cross, scene_dict_error
+from hybmss.scene import Material, Model, Scene, plates_cross, scene_dict_error, unsupported
 
 from . import roles, sizing
 from .compare import default_law, diff_metrics
 from .reproduce import EXTRA_STUDIES, STUDIES
-from .runner import Runner, SolverSpec, Task, exit_now, measure, solve
+from .runner import Runner, SolverSpec, exit_now, measure
 from .store import Store
 
 SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
@@ -337,7 +337,7 @@ def fem(args):
         guard(sizing.fem(scene.body.shape, args.element, r, law, nu), _settings(spec, scene.body.shape, r),
               lambda shape, r=r: sizing.fem(shape, args.element, r, law, nu), args)
     if args.scene_json:
-        why = plates_cross(scene)
+        why = unsupported(scene) or plates_cross(scene)
         if why:
             raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}; allowed: plates that "
                              "do not cross")
@@ -367,59 +367,192 @@ def fem(args):
 
 
 # ------------------------------------------------------------------------------- compare
-def _side(spec: SceneSpec, result) -> dict:
-    row = measure(spec, result)
-    plate = "bottom" if spec.experiment == "bending" else "top"
+VOLUME_FORMULAS = {
+    "avg_edges": "averaged-edge volume: sum over cells of a.(b x c), a, b, c the cell's averaged edge vectors "
+                 "(the MSS's own volume)",
+    "det_F": "integral of det(I + grad u) over the reference body (the exact volume of the FEM's field)",
+    "div_u": "integral of (1 + div u) over the reference body (the linear law's linearized volume, the FEM's "
+             "own volume under --law linear)",
+}
+"""The two volume formulas ``compare`` names (its JSON's ``volume_formulas``)."""
+
+UNITS = {"volume_change": "fraction dV/V0", "relative errors": "fraction", "length": "m", "force": "N",
+         "torque": "N m", "time": "s"}
+"""Units of ``compare``'s output, the same in its text and JSON (:data:`studies.cli.COMPARE_UNITS`)."""
+
+
+def _side(result, spec: SceneSpec | None, fem: bool) -> dict:
+    """One solver's column: its volume change under each formula it has (named), the plate
+    reactions, the scalar outputs of :func:`studies.runner.measure` for an experiment."""
+    avg = (result.info["volume_mss_formula"] / result.volume0 - 1.0) if fem else float(result.volume_change)
+    own = "avg_edges"
+    if fem:  # the linear law's volume is ∫(1 + div u), the finite-strain laws' ∫det F (fem_reference.solve)
+        det_f = result.info["volume_detF"] / result.volume0 - 1.0
+        own = "det_F" if float(result.volume) == float(result.info["volume_detF"]) else "div_u"
     out = {
         "solver": result.solver,
-        "volume_change": row["volume_change"],
-        "max_displacement": row["max_displacement"],
-        "wall_time_s": row["wall_time_s"],
-        "converged": row["converged"],
+        "volume_change": float(result.volume_change),
+        "volume_formula": own,
+        "volume_change_avg_edges": float(avg),
+        "max_displacement": float(result.max_displacement),
+        "wall_time_s": float(result.wall_time_s),
+        "converged": bool(result.converged),
+        "reactions": {name: {"force": [float(v) for v in r.force], "torque": [float(v) for v in r.torque]}
+                      for name, r in result.reactions.items()},
     }
-    if plate in result.reactions:
-        out["reaction_force"] = list(result.reactions[plate].force)
-        out["reaction_torque"] = list(result.reactions[plate].torque)
-    if spec.experiment == "bending":
-        out["tip_deflection"] = row["tip_deflection"]
+    if fem:
+        out["volume_change_det_F"] = float(det_f)
+    if spec is not None:
+        row = measure(spec, result)
+        plate = "bottom" if spec.experiment == "bending" else "top"
+        if plate in result.reactions:
+            out["reaction_plate"] = plate
+            out["reaction_force"] = list(result.reactions[plate].force)
+            out["reaction_torque"] = list(result.reactions[plate].torque)
+        if spec.experiment == "bending":
+            out["tip_deflection"] = row["tip_deflection"]
     for k in ("inverted_cells", "volume_avg_edges", "volume_lnJ", "dt_crit", "at_rest", "kinetic_energy",
-              "residual"):
+              "residual", "load_steps"):
         if k in result.info:
             out[k] = result.info[k]
     return out
 
 
-def check_solver(spec: SceneSpec, solver: str) -> None:
+def _relative(a: float, b: float, scale: float | None = None) -> float | None:
+    """``(a − b)/|b|`` (``scale`` instead of |b| when given); ``None`` when the reference is zero
+    (a relative error of nothing is no number)."""
+    ref = abs(b) if scale is None else scale
+    return float((a - b) / ref) if ref > 0 and math.isfinite(ref) else None
+
+
+def relative_errors(mss: dict, fem: dict, u_mss, u_fem) -> dict:
+    """The MSS against the FEM, relative (fractions, :data:`UNITS`): the volume change through the
+    same averaged-edge formula and against the FEM's ∫det F; each plate's force ``|F_mss − F_fem|
+    / |F_fem|``; the displacements' relative L2 and relative max over the lattice particles."""
+    import numpy as np
+
+    tiny = 1e-12  # a volume change below this is round-off of an isochoric state: no relative error
+    dv = fem["volume_change_avg_edges"]
+    out = {
+        "volume_change_avg_edges": _relative(mss["volume_change_avg_edges"], dv) if abs(dv) > tiny else None,
+        "volume_change_vs_det_F": (_relative(mss["volume_change_avg_edges"], fem["volume_change_det_F"])
+                                   if abs(fem["volume_change_det_F"]) > tiny else None),
+        "force": {},
+    }
+    for name, r in fem["reactions"].items():
+        if name in mss["reactions"]:
+            Ff, Fm = np.asarray(r["force"]), np.asarray(mss["reactions"][name]["force"])
+            n = float(np.linalg.norm(Ff))
+            out["force"][name] = float(np.linalg.norm(Fm - Ff) / n) if n > 0 else None
+    du = np.linalg.norm(np.asarray(u_mss) - np.asarray(u_fem), axis=1)
+    uf = np.linalg.norm(np.asarray(u_fem), axis=1)
+    out["displacement_l2"] = float(np.sqrt((du**2).sum() / (uf**2).sum())) if uf.any() else None
+    out["displacement_max"] = float(du.max() / uf.max()) if uf.any() else None
+    return out
+
+
+def check_solver(model_name: str, solver: str) -> None:
     """Refuse a solver kind the scene's model does not support (its ``solvers``)."""
-    model = models.get(spec.model)
+    model = models.get(model_name)
     if not model.supports(solver):
         raise InputError(f"--solver = {solver} is not allowed: model {model.name} does not support it; "
                          f"allowed: {', '.join(model.solvers)}")
 
 
-def compare(args):
+def _compare_scene(args):
+    """The scene of ``compare`` and its experiment spec (``None`` for ``--scene-json``), checked."""
+    if args.scene_json:
+        given = given_scene_options(args)
+        if args.scene or given:
+            extra = ", ".join([f"the experiment {args.scene}"] * bool(args.scene) + [flag(n) for n in given])
+            raise InputError(f"--scene-json is not allowed with {extra}: the stored scene defines them")
+        scene = load_scene(args.scene_json)
+        check_solver(scene.model.name, args.solver)
+        if args.solver in ("static", "implicit"):
+            why = unsupported(scene)
+            if why:
+                raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}")
+        why = plates_cross(scene)
+        if why:
+            raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}; allowed: plates that "
+                             "do not cross")
+        return scene, None
+    if not args.scene:
+        raise InputError(f"compare needs an experiment ({', '.join(SCENES)}) or --scene-json FILE; none was given")
     spec = scene_spec(args, args.scene, (args.solver, "fem"))
-    check_solver(spec, args.solver)
+    check_solver(spec.model, args.solver)
+    return None, spec
+
+
+def _static_options(args, model_name: str):
+    """The static solver's options of ``--load-steps`` (None: its defaults), refused where unused."""
+    n = getattr(args, "load_steps", None)
+    if n is None:
+        return None
+    if args.solver != "static":
+        raise InputError(f"--load-steps = {n} is not allowed: the {args.solver} solver does not use it; "
+                         "used by: --solver static")
+    model = models.get(model_name)
+    if model.solve_static is not None:
+        raise InputError(f"--load-steps = {n} is not allowed: model {model.name} has its own static solver, "
+                         "without load steps; allowed with the models solved by the Newton load stepping")
+    from hybmss.solve import StaticOptions
+
+    return StaticOptions(initial_steps=n, max_step=1.0 / n)
+
+
+def solve_scene(scene: Scene, solver: SolverSpec, static_options=None):
+    """One solve of ``scene`` (:func:`studies.runner.solve` for a scene without an experiment spec;
+    ``static_options`` for the MSS static solver)."""
+    if solver.kind == "static":
+        from hybmss.solve import solve_static
+
+        return solve_static(scene, static_options)
+    if solver.kind == "implicit":
+        from hybmss.solve import ImplicitOptions, simulate_implicit
+
+        return simulate_implicit(scene, ImplicitOptions(dt=solver.dt, steps=solver.steps, ramp_time=solver.ramp_time))
+    if solver.kind == "explicit":
+        from hybmss.explicit import simulate_explicit
+
+        return simulate_explicit(scene, dt=solver.dt, steps=solver.steps, kernel=solver.kernel,
+                                 ramp_time=solver.ramp_time)
+    from fem_reference.solve import solve as fem_solve
+
+    return fem_solve(scene, element=solver.element, law=solver.law, refine=solver.refine)
+
+
+def _fmt(v, spec: str = ".5g") -> str:
+    return "—" if v is None else format(v, spec)
+
+
+def compare(args):
+    scene, spec = _compare_scene(args)
+    model_name = spec.model if spec is not None else scene.model.name
     dyn = {"dt": args.dt, "steps": args.steps, "ramp_time": args.ramp_time}
     if args.solver == "static":
         for name, v in dyn.items():
             if v is not None:
                 raise InputError(f"{flag(name)} = {show(v)} is not allowed: the static solver does not use it; "
                                  "used by: --solver explicit, implicit")
+    static_options = _static_options(args, model_name)
     dyn = {k: SOLVER_DEFAULTS[k] if v is None else v for k, v in dyn.items()}
-    law = args.law or default_law(spec)
+    law = args.law or (default_law(spec) if spec is not None else "linear")
     refine = SOLVER_DEFAULTS["refine"] if args.refine is None else args.refine
     mss_solver = SolverSpec(kind=args.solver, **dyn)
     fem_solver = SolverSpec(kind="fem", element=args.element, law=law, refine=refine)
     work = _work(args, args.solver)
+    shape = spec.mesh if spec is not None else scene.body.shape
+    nu = spec.nu if spec is not None else scene.material.nu
     steps = f" --steps {dyn['steps']}" if args.solver != "static" else ""
-    guard(sizing.mss(spec.mesh, args.solver, dyn["steps"], work), _settings(spec, spec.mesh) + steps + _work_flags(args),
-          lambda shape: sizing.mss(shape, args.solver, dyn["steps"], work), args)
-    guard(sizing.fem(spec.mesh, args.element, refine, law, spec.nu), _settings(spec, spec.mesh, refine),
-          lambda shape: sizing.fem(shape, args.element, refine, law, spec.nu), args)
-    scene = spec.build()
+    guard(sizing.mss(shape, args.solver, dyn["steps"], work), _settings(spec, shape) + steps + _work_flags(args),
+          lambda sh: sizing.mss(sh, args.solver, dyn["steps"], work), args)
+    guard(sizing.fem(shape, args.element, refine, law, nu), _settings(spec, shape, refine),
+          lambda sh: sizing.fem(sh, args.element, refine, law, nu), args)
+    if scene is None:
+        scene = spec.build()
     t0 = time.perf_counter()
-    mss = solve(Task(spec, mss_solver))
+    mss = solve_scene(scene, mss_solver, static_options)
     check_result(mss, f"mass-spring {args.solver} solve")
     if args.solver == "static" and not scene.has_gravity and not scene.loads:
         from hybmss.moduli import EQUILIBRIUM_TOL, equilibrium_error
@@ -429,30 +562,52 @@ def compare(args):
             raise SolveFailure(f"the mass-spring static solve ({mss.solver}) stopped away from equilibrium: net "
                                f"forces on free particles {100 * err:.3g} % of the plate forces (allowed <= "
                                f"{100 * EQUILIBRIUM_TOL:g} %); check the model's parameters (substeps, iterations)")
-    fem_res = solve(Task(spec, fem_solver))
+    fem_res = solve_scene(scene, fem_solver)
     check_result(fem_res, "FEM solve")
     d = diff_metrics(mss.X, mss.u, fem_res.u)
-    out = {"scene": spec.to_dict(), "scene_digest": scene.digest(), "mss": _side(spec, mss),
-           "fem": _side(spec, fem_res), "diff": d}
-    if spec.experiment == "bending":
+    m, f = _side(mss, spec, fem=False), _side(fem_res, spec, fem=True)
+    out = {"scene": spec.to_dict() if spec is not None else scene.to_dict(), "scene_digest": scene.digest(),
+           "mss": m, "fem": f, "diff": d, "relative_errors": relative_errors(m, f, mss.u, fem_res.u),
+           "volume_formulas": VOLUME_FORMULAS, "units": UNITS}
+    if spec is not None and spec.experiment == "bending":
         out["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
     out["wall_time_s"] = time.perf_counter() - t0
-    m, f = out["mss"], out["fem"]
-    lines = [f"{spec.label}   (FEM: {fem_res.solver})", f"{'':24}{'MSS':>14}{'FEM':>14}",
-             f"{'volume change (%)':24}{100 * m['volume_change']:>14.4f}{100 * f['volume_change']:>14.4f}"]
-    if "reaction_force" in m and "reaction_force" in f:
+    return out, format_compare(out, spec.label if spec is not None else f"scene {scene.name or args.scene_json}",
+                               fem_res.solver)
+
+
+def format_compare(out: dict, label: str, fem_solver: str) -> str:
+    """The text of ``compare``: the same numbers as its JSON, in the same units (fractions)."""
+    m, f, e, d = out["mss"], out["fem"], out["relative_errors"], out["diff"]
+    w = 34
+    lines = [f"{label}   (FEM: {fem_solver}; volume changes and relative errors as fractions)",
+             f"{'':{w}}{'MSS':>14}{'FEM':>14}{'rel. error':>12}",
+             f"{'volume change, averaged-edge':{w}}{m['volume_change_avg_edges']:>14.6g}"
+             f"{f['volume_change_avg_edges']:>14.6g}{_fmt(e['volume_change_avg_edges'], '.3g'):>12}",
+             f"{'volume change, FEM ∫det F':{w}}{'':>14}{f['volume_change_det_F']:>14.6g}"
+             f"{_fmt(e['volume_change_vs_det_F'], '.3g'):>12}   (MSS averaged-edge against it)"]
+    if f["volume_formula"] == "div_u":
+        lines.append(f"{'volume change, FEM ∫(1 + div u)':{w}}{'':>14}{f['volume_change']:>14.6g}"
+                     f"{'':>12}   (the linear law's own, linearized)")
+    for name, r in f["reactions"].items():
+        if name not in m["reactions"]:
+            continue
+        rm = m["reactions"][name]
         for i, c in enumerate("xyz"):
-            lines.append(f"{'reaction F' + c + ' (N)':24}{m['reaction_force'][i]:>14.5g}{f['reaction_force'][i]:>14.5g}")
-        lines.append(f"{'reaction Tz (N m)':24}{m['reaction_torque'][2]:>14.5g}{f['reaction_torque'][2]:>14.5g}")
-    if spec.experiment == "bending":
-        lines.append(f"{'tip deflection (m)':24}{m['tip_deflection']:>14.5g}{f['tip_deflection']:>14.5g}"
-                     f"   Euler-Bernoulli {out['euler_bernoulli_tip']:.5g}")
-    lines.append(f"{'max |u| (m)':24}{m['max_displacement']:>14.5g}{f['max_displacement']:>14.5g}")
-    lines.append(f"{'wall time (s)':24}{m['wall_time_s']:>14.3f}{f['wall_time_s']:>14.3f}")
+            lines.append(f"{'plate ' + name + ' F' + c + ' (N)':{w}}{rm['force'][i]:>14.5g}{r['force'][i]:>14.5g}")
+        lines.append(f"{'plate ' + name + ' Tz (N m)':{w}}{rm['torque'][2]:>14.5g}{r['torque'][2]:>14.5g}")
+        lines.append(f"{'plate ' + name + ' force':{w}}{'':>28}{_fmt(e['force'].get(name), '.3g'):>12}"
+                     "   (|F_mss - F_fem| / |F_fem|)")
+    if "tip_deflection" in m:
+        lines.append(f"{'tip deflection (m)':{w}}{m['tip_deflection']:>14.5g}{f['tip_deflection']:>14.5g}"
+                     f"{'':>12}   Euler-Bernoulli {out['euler_bernoulli_tip']:.5g}")
+    lines.append(f"{'max |u| (m)':{w}}{m['max_displacement']:>14.5g}{f['max_displacement']:>14.5g}"
+                 f"{_fmt(e['displacement_max'], '.3g'):>12}   (max |u_mss - u_fem| / max |u_fem|)")
+    lines.append(f"{'wall time (s)':{w}}{m['wall_time_s']:>14.3f}{f['wall_time_s']:>14.3f}")
     lines.append(f"|u_mss - u_fem|: mean {d['mean']:.4g} m, max {d['max']:.4g} m, rel L2 {d['rel_l2']:.4g}, "
                  f"middle layer mean {d['mid_layer_mean']:.4g} m")
     lines.append(f"scene digest {out['scene_digest']}")
-    return out, "\n".join(lines)
+    return "\n".join(lines)
 
 
 # ------------------------------------------------------------------------------- run

@@ -228,7 +228,8 @@ def _fold_cause(S: System, x: np.ndarray, s: float, lam: float, lam_next: float)
     if min(lam, lam_next) < 0:
         return "unstable-path", ("; the Hessian becomes indefinite: the equilibrium path is unstable (buckling or "
                                  "zero-energy modes)")
-    return "newton", "; the Hessian stays positive definite: Newton failed to converge (try more load steps)"
+    return "newton", ("; the Hessian stays positive definite: Newton failed to converge; remedy: more load steps "
+                      "(StaticOptions(initial_steps=N, max_step=1/N), --load-steps N of hybmss compare)")
 
 
 def residual_error(scene: Scene, s: float, s_new: float, rnorm: float) -> StaticSolveError:
@@ -237,5 +238,6 @@ def residual_error(scene: Scene, s: float, s_new: float, rnorm: float) -> Static
         f"static solve of scene {scene.name or '(unnamed)'} (model {scene.model.name}) failed at load "
         f"factor s={s_new:.6g} (last converged s={s:.6g}); residual {rnorm:.3g} N: its non-conservative "
         "forces have no energy to certify a stable state, so the equilibrium path may be lost; "
-        "remedy: a smaller load (or more initial load steps)",
+        "remedy: a smaller load, or more load steps (StaticOptions(initial_steps=N, max_step=1/N), --load-steps N of "
+        "hybmss compare)",
         cause="residual", load_factor=float(s), next_load_factor=float(s_new), residual=float(rnorm))

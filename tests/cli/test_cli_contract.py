@@ -159,7 +159,7 @@ REFUSED = [
     (["info", "--scene", "cylinder"], "invalid choice: 'cylinder'"),
     (["info", "--mesh", "3x3"], "--mesh"),
     (["info", "--le", "0"], "--le = 0"),
-    (["compare"], "required: scene"),
+    (["compare"], "compare needs an experiment (compression"),
     (["compare", "uniaxial"], "invalid choice: 'uniaxial'"),
     (["compare", "compression", "--element", "hex3"], "invalid choice: 'hex3'"),
     (["fem", "--law", "hooke", "--json"], "invalid choice: 'hooke'"),
