@@ -39,14 +39,33 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Constants:
-    """Family spring constants (N/m) for a full interior spring, and the volume stiffness κ (Pa)."""
+    """What a model's ``constants(params, material, le)`` returns: the spring constant of each
+    family of the cubic lattice and the volume stiffness, for cells of edge ``le``.
+
+    - ``ke`` (N/m): an edge spring (length ``le``) shared by four cells, as in the interior.
+      Each cell gives each of its 12 edges ``ke/4`` (Kirchhoff's law, :mod:`hybmss.lattice`):
+      an edge on a flat free face gets ``ke/2``, on a free lattice edge ``ke/4``.
+    - ``kf`` (N/m): a face-diagonal spring (length ``√2 le``) shared by two cells; each cell gives
+      each of its 12 face diagonals ``kf/2``, so a diagonal on a free face gets ``kf/2``.  0: none.
+    - ``kc`` (N/m): an inner-diagonal spring (length ``√3 le``), one cell's own; each cell has 4.
+      A family whose constant is 0 has no spring at all (it is left out of the system).
+    - ``kappa`` (Pa): volume stiffness κ of the per-cell volume energy, ``W_v = Vc κ/2 J²`` with
+      ``J = (V' − Vc)/Vc`` (``volume_energy="quadratic"``; ``"squared"`` takes ``J = (V'² −
+      Vc²)/(2 Vc²)``), V' the averaged-edge volume ``a·(b×c)``; it adds κ to λ.  Negative for
+      ν < 1/4 (the hybrid model's κ = G(4ν − 1)/(1 − 2ν)); 0: no volume term.
+    - ``G_springs`` (Pa): the small-strain shear modulus the springs alone give a box of these
+      cells, recorded for checks (:func:`hybrid_springs`: ``(4/3 kc + kf)/le``); no force reads
+      it; NaN when the lattice has no such closed form (:func:`b09_springs`).
+
+    ``by_family`` orders the spring constants as the lattice's families (edge, face, inner).
+    :func:`hybrid_springs` builds the isotropic hybrid set for a shear modulus and ``A = kf/kc``.
+    """
 
     ke: float
     kf: float
     kc: float
     kappa: float
     G_springs: float
-    """Shear modulus carried by the springs alone (Pa)."""
 
     @property
     def by_family(self) -> tuple[float, float, float]:

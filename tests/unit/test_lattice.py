@@ -78,3 +78,34 @@ def test_cell_volume_of_affine_map_is_det():
     lat = Lattice.from_body(Body.box(2, 2, 2, 0.5))
     F = np.array([[1.1, 0.2, 0.0], [0.0, 0.9, 0.1], [0.05, 0.0, 1.2]])
     np.testing.assert_allclose(lat.cell_volumes(lat.X @ F.T), np.linalg.det(F) * 0.125, rtol=1e-13)
+
+
+def test_constants_fields_mean_what_their_documentation_says():
+    """The shares the Constants docstring and the README's plug-in section state, on two cells
+    side by side (2 x 1 x 1): an edge of the shared face belongs to 2 cells (k = 2 · ke/4), one on
+    the outside to 1 (ke/4); the shared face's diagonals get 2 · kf/2 = kf, the others kf/2; inner
+    diagonals kc.  Every field is documented in both places."""
+    import dataclasses
+    from pathlib import Path
+
+    from hybmss.calibrate import Constants
+
+    mat = Material(1e4, 0.3)
+    sc = Scene(Body.box(2, 1, 1, 0.5), mat, Model("hybmss", A=1.5))
+    c = constants(sc.model, mat, 0.5)
+    S = build(sc)
+    length = np.linalg.norm(S.X[S.spring_b] - S.X[S.spring_a], axis=1)
+    mid = np.isclose(S.X[S.spring_a, 0], 0.5) & np.isclose(S.X[S.spring_b, 0], 0.5)  # in the plane x = le
+    for fam, l0, n, n_shared, k_in, k_out in ((0, 0.5, 20, 4, c.ke / 2, c.ke / 4),
+                                              (1, 0.5 * np.sqrt(2), 22, 2, c.kf, c.kf / 2)):
+        sel = S.spring_family == fam
+        assert sel.sum() == n and (sel & mid).sum() == n_shared and np.allclose(length[sel], l0)
+        assert np.allclose(S.spring_k[sel & mid], k_in) and np.allclose(S.spring_k[sel & ~mid], k_out)
+    inner = S.spring_family == 2
+    assert inner.sum() == 8 and np.allclose(S.spring_k[inner], c.kc)
+    assert c.G_springs == pytest.approx((4 / 3 * c.kc + c.kf) / 0.5) == pytest.approx(mat.G)
+    assert S.kappa == c.kappa == pytest.approx(mat.G * (4 * 0.3 - 1) / (1 - 2 * 0.3))
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    plugin = readme[readme.index("## Add a model"):]
+    for f in dataclasses.fields(Constants):
+        assert f"``{f.name}``" in Constants.__doc__ and f"`{f.name}`" in plugin, f.name
