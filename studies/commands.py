@@ -468,10 +468,9 @@ def _compare_scene(args):
             raise InputError(f"--scene-json is not allowed with {extra}: the stored scene defines them")
         scene = load_scene(args.scene_json)
         check_solver(scene.model.name, args.solver)
-        if args.solver in ("static", "implicit"):
-            why = unsupported(scene)
-            if why:
-                raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}")
+        why = unsupported(scene)  # the FEM reference is a static solve, whatever the MSS solver
+        if why:
+            raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}")
         why = plates_cross(scene)
         if why:
             raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}; allowed: plates that "

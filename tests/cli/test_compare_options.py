@@ -135,6 +135,7 @@ def test_compare_refusals(cli_in_process, tmp_path):
     _refused(run("compare", "--scene-json", path, "--E", "5"), "--scene-json is not allowed with --E")
     _refused(run("compare", "--scene-json", free), "not supported (rigid-body motion not prevented)")
     _refused(run("compare", "--scene-json", free, "--json"), "translation along x, translation along y, rotation about z")
+    _refused(run("compare", "--scene-json", free, "--solver", "explicit"), "not supported (rigid-body motion")
     _refused(run("fem", "--scene-json", free), "not supported (rigid-body motion not prevented)")
     _refused(run("compare", "--scene-json", str(tmp_path / "missing.json")), "cannot read it")
     _refused(run("compare", "compression", "--solver", "explicit", "--load-steps", "3"),
