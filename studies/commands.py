@@ -306,8 +306,10 @@ def format_fem(res) -> str:
     lines = [
         f"{res.solver}  ({res.info['n_dofs']:,} dofs, {res.info['n_elements']:,} elements, "
         f"{res.iterations} Newton iteration(s), {res.wall_time_s:.2f} s)",
-        f"  volume change  ∫det F: {100 * res.volume_change:+.4f} %   "
-        f"averaged-edge (MSS formula): {100 * (res.info['volume_mss_formula'] / res.volume0 - 1):+.4f} %",
+        f"  volume change (fraction dV/V0)  ∫det F: {res.info['volume_detF'] / res.volume0 - 1:+.6g}   "
+        f"averaged-edge (MSS formula): {res.info['volume_mss_formula'] / res.volume0 - 1:+.6g}"
+        + ("" if res.volume == res.info["volume_detF"] else
+           f"   ∫(1 + div u) (the linear law's own): {res.volume_change:+.6g}"),
         f"  max |u| = {res.max_displacement:.6g} m   strain energy = {res.energy['strain']:.6g} J",
     ]
     for name, r in res.reactions.items():

@@ -92,6 +92,11 @@ def test_scene_json_compare_of_a_uniaxial_block_against_closed_forms(cli_in_proc
     t = cli_in_process("compare", "--scene-json", path, "--element", "hex1", "--law", "linear", cwd=tmp_path)
     assert t.returncode == 0 and "volume change, averaged-edge" in t.stdout and "∫det F" in t.stdout
     assert f"{f['volume_change_det_F']:.6g}" in t.stdout and "%" not in t.stdout.split("\n", 2)[1]
+    # fem names the same formulas, in the same unit (it once labelled the linear law's div u as det F, in %)
+    t = cli_in_process("fem", "--scene-json", path, "--element", "hex1", "--law", "linear", cwd=tmp_path)
+    assert t.returncode == 0 and "%" not in t.stdout
+    assert f"∫det F: {dv:+.6g}" in t.stdout and f"∫(1 + div u) (the linear law's own): {eps * (1 - 2 * nu):+.6g}" \
+        in t.stdout
 
 
 def test_scene_json_compare_is_the_experiment_compare(cli_in_process, tmp_path):
