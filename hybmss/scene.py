@@ -409,8 +409,11 @@ class Motion:
         if self.center is not None:
             object.__setattr__(self, "center", _vec3("center", self.center))
         raw = self.components
-        if isinstance(raw, (str, bytes)) or not hasattr(raw, "__iter__") or not all(
-                isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in raw):
+        if isinstance(raw, (str, bytes)) or not hasattr(raw, "__iter__"):
+            raise SceneTypeError(f"components must be a non-empty subset of (0, 1, 2) (integers), got {raw!r}")
+        raw = tuple(raw)
+        if not all(isinstance(c, (int, float, np.integer, np.floating)) and not isinstance(c, bool)
+                   and float(c).is_integer() for c in raw):
             raise SceneTypeError(f"components must be a non-empty subset of (0, 1, 2) (integers), got {raw!r}")
         comps = tuple(sorted(set(int(c) for c in raw)))
         if not comps or any(c not in (0, 1, 2) for c in comps):
