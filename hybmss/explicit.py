@@ -37,7 +37,8 @@ with two kernels that give the same trajectory: ``'numba'`` (the stencil kernel 
 :mod:`hybmss._stencil_gen`, helpers in :mod:`hybmss._kernels`; a force term it does not generate
 contributes a :class:`StencilStage`) and ``'numpy'`` (the readable twin built on
 :mod:`hybmss.forces`).  The models with dynamics of their own keep their steppers in their
-folders (:mod:`hybmss.models.corot_hex8`, :mod:`hybmss.models.xpbd_nh`).  :func:`dt_crit` is the
+folders (:mod:`hybmss.models.corot_hex8`, :mod:`hybmss.models.xpbd_nh`), and so do the engines
+(:mod:`hybmss.models._engine_body`: their nodes, forces and volumes are the engine's own).  :func:`dt_crit` is the
 one stability limit: a model's own when it declares one, else the lattice's.
 """
 
@@ -61,7 +62,8 @@ from .terms import DeadLoad
 SOLVER = "mss-explicit"
 KERNELS = ("numba", "numpy", "engine")
 """Explicit kernels: the Numba stencil kernel, its NumPy twin, and ``engine``: the own compiled step
-of an engine a model wraps (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`)."""
+of an engine a model wraps (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`,
+:mod:`hybmss.models.pbd`), whose stepper runs in this loop like any other."""
 RAMP_LAW = "s(t) = 0.5 (1 - cos(pi t / T)) for t < T, then 1"
 REST_RTOL = 1e-3
 """Default tolerance of the rest criterion of an explicit run (:func:`rest_report`)."""
@@ -957,37 +959,34 @@ def simulate_explicit(
     _check_options(model, kernel, precision, warm_up)
     if damping is not None:
         scene, system = _with_damping(scene, system, damping)
-    own = getattr(model, "simulate_explicit", None)
-    if own is not None:  # an engine model that still runs its own loop (hybmss.models._engine_model)
-        return own(scene, dt=dt, steps=steps, kernel=kernel, ramp_time=ramp_time, threads=threads,
-                   record_every=record_every, system=system, x0=x0, v0=v0, dt_crit_value=dt_crit_value,
-                   compute_dt_crit=compute_dt_crit, check_every=check_every, precision=precision)
     dt, steps, threads = _check_run(kernel, precision, dt, steps, ramp_time, threads)
     t_setup = time.perf_counter()
     run = _prepare(scene, system, model, dt, ramp_time, check_every)
-    x, v = initial_state(run.system, x0, v0, ramp_time)
-    if dt_crit_value is None and compute_dt_crit and model.explicit_limit:
-        t0 = time.perf_counter()
-        dt_crit_value = dt_crit(run.system)
-        run.dt_crit_s = time.perf_counter() - t0
-    run.dt_c = dt_crit_value
     kw = dict(ramp_time=float(ramp_time), kernel=kernel, precision=precision, threads=threads)
     st = stepper if stepper is not None else model.stepper(run.system, dt, **kw)
     if st is None:  # the model is a variant of the lattice
         st = LatticeStepper(run.system, dt, **kw)
+    run.nodes = _nodes(run.system, st, x0, v0)
+    x, v = initial_state(run.nodes, x0, v0, ramp_time)
+    if dt_crit_value is None and compute_dt_crit and model.explicit_limit:
+        t0 = time.perf_counter()
+        own = getattr(st, "dt_crit", None)  # a stepper that knows its own limit (an engine's)
+        dt_crit_value = own() if own is not None else dt_crit(run.system)
+        run.dt_crit_s = time.perf_counter() - t0
+    run.dt_c = dt_crit_value
     st.load(x, v)
     if compile_first:  # compile (or load from the cache) outside the timed span: a 0-step call
         st.advance(0, 0, run.check_every, run.limit2)
     warm_s = _warm_up(st, x, v, warm_up, run.limit2) if warm_up > 0.0 else 0.0
     setup_s = time.perf_counter() - t_setup - run.dt_crit_s - warm_s
-    history = _History(run.system, st, dt) if record_every > 0 else None
+    history = _History(run.nodes, st, dt) if record_every > 0 else None
     done, wall, cpu = _march(run, st, steps, int(record_every), history)
     t_post = time.perf_counter()
     xs, vs = st.state()
     energy = st.energy(xs, vs)
     f_int = st.internal_forces(xs)
     s_end = ramp(done * dt, ramp_time)
-    rest = rest_report(run.system, f_int, energy, s_end, rest_rtol, xs)
+    rest = stepper_rest(run.nodes, st, f_int, energy, s_end, rest_rtol, xs)
     info = dict(st.info)
     info.update(_run_info(run, done, ramp_time, s_end, rest))
     info.update({"cpu_time_s": cpu, "setup_s": setup_s, "warm_up_s": warm_s, "dt_crit_s": run.dt_crit_s})
@@ -1007,6 +1006,8 @@ class _Run:
     check_every: int
     dt_c: float | None = None
     dt_crit_s: float = 0.0
+    nodes: System | None = None
+    """The system on the stepper's nodes (:func:`_nodes`): ``system`` unless the stepper has its own."""
 
 
 def _check_options(model, kernel: str, precision: str, warm_up: float) -> None:
@@ -1035,7 +1036,7 @@ def _with_damping(scene: Scene, system: System | None, damping: float):
 
 def _check_run(kernel: str, precision: str, dt, steps, ramp_time, threads) -> tuple[float, int, int]:
     """``dt``, ``steps`` and ``threads`` as numbers the loop can run, else a :class:`ValueError`."""
-    if precision != "f64" and kernel != "numba":
+    if precision != "f64" and kernel == "numpy":
         raise ValueError(f"precision {precision} needs kernel='numba' (the NumPy twin runs in f64)")
     dt = float(dt)
     if not (dt > 0 and math.isfinite(dt)):
@@ -1059,6 +1060,41 @@ def _prepare(scene: Scene, system: System | None, model, dt: float, ramp_time: f
         raise ValueError("explicit dynamics needs rho > 0 (every particle must have mass)")
     limit = BLOWUP_FACTOR * max(scene.body.size)
     return _Run(sys_, model, dt, limit, limit * limit, max(1, int(check_every)))
+
+
+def _nodes(system: System, st, x0, v0) -> System:
+    """The system on the stepper's nodes: its ``node_system()`` when it has one (an engine whose
+    nodes are not the lattice particles, e.g. 27-node cells), else ``system``.  A start state
+    ``x0``/``v0`` is given on the lattice particles: refused for a stepper with other nodes."""
+    own = getattr(st, "node_system", None)
+    if own is None:
+        return system
+    nodes = own()
+    if (x0 is not None or v0 is not None) and nodes.n != system.n:
+        raise ValueError(f"x0, v0: {system.scene.model.spec.name} has nodes that are not lattice particles "
+                         f"({nodes.n} nodes, {system.n} particles); start from rest")
+    return nodes
+
+
+def particles(st, x: np.ndarray) -> np.ndarray:
+    """The lattice particles' positions at the stepper's node positions ``x``: its
+    ``vertices(x)`` when it has nodes of its own, else ``x``."""
+    own = getattr(st, "vertices", None)
+    return x if own is None else own(x)
+
+
+def stepper_rest(nodes: System, st, f_int: np.ndarray, energy: dict, load_factor: float, rtol: float,
+                 x: np.ndarray | None = None) -> dict:
+    """:func:`rest_report` of a stepper's state on its nodes; a stepper with a force resolution
+    (``force_resolution_N`` > 0: a float32 engine, whose state cannot have a smaller residual)
+    is judged with a tolerance of at least that resolution over the force scale (reported as
+    ``resolution_N``)."""
+    rest = rest_report(nodes, f_int, energy, load_factor, rtol, x)
+    res = float(getattr(st, "force_resolution_N", 0.0))
+    if res > 0.0:
+        rest = rest_report(nodes, f_int, energy, load_factor, max(rtol, res / rest["force_scale_N"]), x)
+        rest["resolution_N"] = res
+    return rest
 
 
 def _warm_up(st, x, v, seconds: float, limit2: float) -> float:
@@ -1114,8 +1150,8 @@ def _march(run: _Run, st, steps: int, record_every: int, history: _History | Non
                 cpu += c
                 if bad >= 0:
                     xs, _ = st.state()
-                    raise _divergence(run.system, xs, bad, done + k, run.dt, run.limit, run.dt_c, run.check_every,
-                                      run.model)
+                    raise _divergence(run.system, particles(st, xs), min(bad, run.system.n - 1), done + k, run.dt,
+                                      run.limit, run.dt_c, run.check_every, run.model)
                 done += k
                 if k < n:  # the stepper stopped by its own rule
                     stopped = True
@@ -1148,9 +1184,16 @@ def _result(run: _Run, st, scene: Scene, xs, vs, f_int, energy: dict, info: dict
     the stepper's own forces, ``converged`` = at rest."""
     sys_ = run.system
     lat = sys_.lattice
-    vols = lat.cell_volumes(xs)
-    V0 = float(lat.cell_volumes(sys_.X).sum())
-    reactions = plate_reactions(sys_, xs, f_int)
+    xp = particles(st, xs)
+    vols = lat.cell_volumes(xp)
+    volume, V0 = float(vols.sum()), float(lat.cell_volumes(sys_.X).sum())
+    reactions = plate_reactions(run.nodes, xs, f_int)
+    readout = getattr(st, "readout", None)  # the stepper's own figures of the state (an engine's)
+    own = readout(xs, vs, f_int, reactions, info["rest"]) if readout is not None else {}
+    if "volume" in own:  # its own volume of the deformed body (e.g. an engine's elements)
+        info["volume_cells"] = volume
+        volume, V0 = float(own.pop("volume")), float(own.pop("volume0"))
+    info.update(own)
     info.update({
         "postprocess_s": time.perf_counter() - t_post,
         "max_speed": float(np.linalg.norm(vs, axis=1).max()) if len(vs) else 0.0,
@@ -1163,8 +1206,8 @@ def _result(run: _Run, st, scene: Scene, xs, vs, f_int, energy: dict, info: dict
         solver=getattr(st, "solver", SOLVER),
         scene_digest=scene.digest(),
         X=sys_.X.copy(),
-        u=xs - sys_.X,
-        volume=float(vols.sum()),
+        u=xp - sys_.X,
+        volume=volume,
         volume0=V0,
         reactions=reactions,
         energy=energy,

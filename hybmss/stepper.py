@@ -26,6 +26,20 @@ lattice, :class:`hybmss.explicit.LatticeStepper`).  It returns an object with
 - ``info``: a dict of what the run reports about the stepper (``kernel``, ``precision``,
   ``threads``, and its own parameters); a ``solver`` attribute names the result's solver.
 
+Optional, for a stepper whose state is not the lattice's (an engine's: :mod:`hybmss.models._engine_body`):
+
+- ``node_system() -> System``: the system on its own nodes (positions, masses, prescribed
+  components, plates): the loop's initial state, plate reactions, rest test, history and
+  divergence checks use it (``x0``/``v0`` on other nodes than the particles are refused);
+- ``vertices(x) -> (n, 3)``: the lattice particles' positions at node positions ``x`` (the
+  result's displacements and cell volumes);
+- ``dt_crit() -> float``: its own stability limit (``info['dt_crit']``), from its own forces;
+- ``force_resolution_N``: the force its state resolves (a float32 engine): the rest test's
+  tolerance is at least that over the force scale (:func:`hybmss.explicit.stepper_rest`);
+- ``readout(x, v, f, reactions, rest) -> dict``: figures of its own for ``info`` (e.g. the
+  balance of the reactions), with ``volume``/``volume0`` replacing the averaged-edge cell volume
+  (kept as ``info['volume_cells']``).
+
 A model with its own dynamics (a position-based integrator, an external engine) plugs in here and
 gets the harness's checks for free; ``converged`` of every explicit run means at rest by
 :func:`hybmss.explicit.rest_report`.

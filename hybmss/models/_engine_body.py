@@ -1,13 +1,21 @@
 """What the engine models share: the engine's nodes of a scene, its plates on them, and the
-readouts of a state (reactions, mean stress, rest report, the balance of the reactions, the
-:class:`~hybmss.result.Result`), whatever engine steps it (:mod:`hybmss.models.mujoco`,
-:mod:`hybmss.models.newton`, :mod:`hybmss.models.pbd`).
+stepper protocol of :mod:`hybmss.stepper` on them, so that an engine's explicit run (and its
+static answer, the rest state of a damped run) is a run of the one loop
+:func:`hybmss.explicit.simulate_explicit` (ramp, plates' reactions, damping's parameter,
+divergence and rest checks, history, timing, Ctrl-C and the :class:`~hybmss.result.Result`),
+whatever engine steps it (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`,
+:mod:`hybmss.models.pbd`).
 
 A subclass builds its engine in ``__init__`` (after :meth:`EngineBody.setup`) and provides
-``load(x, v)``, ``advance(step0, n) -> (done, bad)``, ``state() -> (x, v)``,
-``internal_forces(x)`` (the engine's own force on each node), ``vertices(x=None)`` (the lattice
-particles' positions as the engine places them), ``tets`` (the engine's tetrahedra on the lattice
-particles, for the volume) and ``describe()`` (what ``info`` says about the engine).
+``load(x, v)``, ``_steps(step0, n)`` (``n`` engine steps from the global step ``step0``, the
+plates at their targets after each), ``state() -> (x, v)``, ``internal_forces(x)`` (the engine's
+own force on each node), ``vertices(x)`` (the lattice particles' positions at node positions
+``x``, as the engine places them), ``tets`` (the engine's tetrahedra on the lattice particles,
+for the volume) and ``describe()`` (what ``info`` says about the engine).  What the loop needs
+beyond the protocol: ``node_system()`` (the system on the engine's nodes: the 27-node cells have
+nodes that are not lattice particles), ``force_resolution_N`` (a float32 engine's floor of the
+rest test), ``dt_crit()`` (from the engine's own forces) and ``readout(...)`` (the engine's
+element volumes, the balance of the reactions, the step and compile times).
 """
 
 from __future__ import annotations
@@ -17,8 +25,8 @@ import math
 
 import numpy as np
 
-from ..explicit import BLOWUP_FACTOR, ramp, rest_report
-from ..result import Result, reaction_from_nodal
+from ..explicit import BLOWUP_FACTOR, ramp
+from ..result import reaction_from_nodal
 from ..system import PlateSet, System
 
 
@@ -93,6 +101,7 @@ class EngineBody:
         self.damping = float(system.scene.damping if damping is None else damping)
         self.nodes = engine_nodes(system, order, rho)
         self.fixed_dofs = np.flatnonzero(self.nodes.fixed.ravel())
+        self._held: dict = {}
         self.step = 0
         self.step_time_s = 0.0
         self.compile_time_s = 0.0
@@ -114,20 +123,67 @@ class EngineBody:
         """Displacements and velocities (flat, on :attr:`fixed_dofs`) of the prescribed
         components at ``step``: the target ``u(s(t))`` and its change over the last step / dt."""
         t = step * self.dt
-        now = (self.prescribed(ramp(t, self.ramp_time)) - self.nodes.X).ravel()[self.fixed_dofs]
-        before = (self.prescribed(ramp(t - self.dt, self.ramp_time)) - self.nodes.X).ravel()[self.fixed_dofs]
+        now = self._held_displacement(ramp(t, self.ramp_time))
+        before = self._held_displacement(ramp(t - self.dt, self.ramp_time))
         return now, (now - before) / self.dt
 
-    def bad_node(self) -> int:
+    def _held_displacement(self, s: float) -> np.ndarray:
+        """``prescribed(s) − X`` on :attr:`fixed_dofs`, kept for the last two load factors (a
+        step's target is the next step's start; after the ramp s = 1 throughout): the same
+        numbers, computed once (read only)."""
+        hit = self._held.get(s)
+        if hit is None:
+            if len(self._held) > 1:
+                self._held.pop(next(iter(self._held)))
+            hit = self._held[s] = (self.prescribed(s) - self.nodes.X).ravel()[self.fixed_dofs]
+        return hit
+
+    # ------------------------------------------------------------------ stepper protocol
+    solver = "engine-explicit"
+    """Name of the result's solver (the model sets ``<model>-explicit`` or ``<model>-rest``)."""
+
+    def advance(self, step0: int, n: int, check_every: int = 0, limit2: float | None = None) -> tuple[int, int]:
+        """``n`` engine steps from the global step ``step0`` (:meth:`_steps`), checking every
+        ``check_every`` steps (0: at the end only) that no node is non-finite or moved more than
+        ``√limit2`` (default :data:`hybmss.explicit.BLOWUP_FACTOR` body sizes).  Returns
+        ``(steps done, first bad node or −1)``; stops at the check that finds one."""
+        check = n if check_every <= 0 else int(check_every)
+        done = 0
+        while done < n:
+            k = min(check, n - done)
+            self._steps(step0 + done, k)
+            done += k
+            bad = self.bad_node(limit2)
+            if bad >= 0:
+                return done, bad
+        return done, -1
+
+    def _steps(self, step0: int, n: int) -> None:
+        raise NotImplementedError
+
+    @property
+    def force_resolution_N(self) -> float:
+        """:attr:`resolution_N`, under the name the loop reads (:func:`hybmss.explicit.stepper_rest`)."""
+        return self.resolution_N
+
+    def dt_crit(self) -> float:
+        """The explicit stability limit ``2/ω_max`` of the engine's own forces (:meth:`omega_max`)."""
+        w = self.omega_max()
+        return 2.0 / w if w > 0 else math.inf
+
+    def bad_node(self, limit2: float | None = None) -> int:
+        """The first node with a non-finite displacement, else the one that moved farthest if that
+        is more than ``√limit2`` (default :data:`hybmss.explicit.BLOWUP_FACTOR` body sizes), else −1."""
         x, _ = self.state()
         u = x - self.nodes.X
         u2 = np.einsum("ij,ij->i", u, u)
         bad = np.flatnonzero(~np.isfinite(u2))
         if len(bad):
             return int(bad[0])
-        limit = BLOWUP_FACTOR * max(self.system.scene.body.size)
+        if limit2 is None:
+            limit2 = (BLOWUP_FACTOR * max(self.system.scene.body.size)) ** 2
         i = int(np.argmax(u2))
-        return i if u2[i] > limit * limit else -1
+        return i if u2[i] > limit2 else -1
 
     def energy(self, x: np.ndarray, v: np.ndarray) -> dict:
         """Kinetic energy of the nodes (MuJoCo exposes no flex strain energy)."""
@@ -161,16 +217,6 @@ class EngineBody:
         return dataclasses.replace(self.system, X=self.nodes.X, mass=self.nodes.mass, fixed=self.nodes.fixed,
                                    plates=self.nodes.plates, gravity=self.gravity, terms=())
 
-    def reactions(self, x: np.ndarray, f: np.ndarray) -> dict:
-        """Plate reactions ``−Σ (f + m g)`` over each plate's nodes, prescribed components only."""
-        out = {}
-        for ps in self.nodes.plates:
-            r = -f[ps.particles]
-            if self.gravity is not None:
-                r = r - self.nodes.mass[ps.particles, None] * np.asarray(self.gravity)[None, :]
-            out[ps.name] = reaction_from_nodal(x[ps.particles], r * ps.constrained[None, :])
-        return out
-
     def mean_stress(self, x: np.ndarray, f: np.ndarray) -> list:
         """Mean stress (3×3, Pa) from the forces on the held nodes (average-stress theorem for a
         body in equilibrium, ``σ̄ = (1/V) Σ_a R_a ⊗ x_a``, R = −f on the nodes with a prescribed
@@ -179,48 +225,26 @@ class EngineBody:
         sig = np.einsum("ai,aj->ij", -f[held], x[held]) / self.system.scene.body.volume
         return sig.tolist()
 
-    def rest(self, x: np.ndarray, v: np.ndarray, f: np.ndarray, rtol: float) -> dict:
-        """:func:`hybmss.explicit.rest_report` of the state on the engine's nodes; for an engine
-        with a force resolution (:attr:`resolution_N`) the tolerance is at least that resolution
-        over the force scale (``resolution_N`` in the report)."""
-        S = self.node_system()
-        energy = self.energy(x, v)
-        load = ramp(self.step * self.dt, self.ramp_time)
-        rest = rest_report(S, f, energy, load, rtol)
-        if self.resolution_N > 0.0:
-            rest = rest_report(S, f, energy, load, max(rtol, self.resolution_N / rest["force_scale_N"]))
-            rest["resolution_N"] = self.resolution_N
-        return rest
-
-    def result(self, solver: str, steps: int, rest_rtol: float, info: dict) -> Result:
-        """The :class:`~hybmss.result.Result` of the current state: displacements at the lattice
-        particles, the engine's reactions, the flex's deformed volume, the rest report and the
-        balance of the plate reactions against the weight."""
-        x, v = self.state()
-        f = self.internal_forces(x)
-        xv = self.vertices()
-        energy = self.energy(x, v)
-        rest = self.rest(x, v, f, rest_rtol)
-        reactions = self.reactions(x, f)
+    def readout(self, x: np.ndarray, v: np.ndarray, f: np.ndarray, reactions: dict, rest: dict) -> dict:
+        """The engine's own figures of the state at node positions ``x`` with its forces ``f``
+        (for the loop's :class:`~hybmss.result.Result`): the volume of its deformed tetrahedra
+        (``volume``, ``volume0``; the loop keeps the harness's averaged-edge cell formula as
+        ``volume_cells``), the balance of the plate reactions against the weight, the mean stress,
+        inverted tetrahedra, the engine's description, compile and step times, warnings."""
+        xv = self.vertices(x)
         total = sum(np.asarray(r.force) for r in reactions.values())
         weight = (self.nodes.mass.sum() * np.asarray(self.gravity)) if self.gravity is not None else np.zeros(3)
         imbalance = float(np.linalg.norm(total + weight))
-        lat = self.system.lattice
         vol = tet_volumes(xv, self.tets)
-        info = dict(info)
-        info.update({
+        return {
+            "volume": float(vol.sum()), "volume0": float(tet_volumes(self.system.X, self.tets).sum()),
+            "volume_from": "the engine's deformed tetrahedra",
             **self.describe(), "nodes": int(len(self.nodes.X)),
             "compile_time_s": self.compile_time_s, "step_time_s": self.step_time_s,
-            "rest": rest, "converged_criterion": "hybmss.explicit.rest_report",
+            "converged_criterion": "hybmss.explicit.rest_report",
             "reaction_balance": {"imbalance_N": imbalance, "force_scale_N": rest["force_scale_N"],
                                  "relative": imbalance / rest["force_scale_N"]},
             "mean_stress": self.mean_stress(x, f) if self.gravity is None else None,
             "inverted_tets": int(np.count_nonzero(vol <= 0.0)),
-            "max_speed": float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0,
             "engine_warnings": list(self.warnings),
-        })
-        X = self.system.X
-        return Result(solver=solver, scene_digest=self.system.scene.digest(), X=X.copy(), u=xv - X,
-                      volume=float(vol.sum()), volume0=float(tet_volumes(X, self.tets).sum()), reactions=reactions,
-                      energy=energy, iterations=int(steps), wall_time_s=float(self.step_time_s),
-                      converged=bool(rest["at_rest"]), cell_volumes=lat.cell_volumes(xv), info=info)
+        }

@@ -1,8 +1,17 @@
 """What the engine models share (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`,
-:mod:`hybmss.models.pbd`): the
-explicit run and the static answer (the rest state of the engine's damped run) on the protocol of
-:mod:`hybmss.models.base`, the refusals common to every engine, and the engine imported only when
-a run needs it (:meth:`EngineModel.make_body`)."""
+:mod:`hybmss.models.pbd`): the engine's body as the stepper of the one explicit loop
+(:meth:`EngineModel.stepper`, :func:`hybmss.explicit.simulate_explicit`), the static answer (the
+rest state of the engine's damped run, in the same loop: :class:`UntilRest`), the refusals common
+to every engine, and the engine imported only when a run needs it (:meth:`EngineModel.make_body`).
+
+What the loop does for an engine and what it cannot: the ramp, the plates' targets after every
+step, the mass-proportional damping ``v/(1 + c h)`` after the engine's step (MuJoCo refuses joint
+damping on a flex; Newton's and the library's own damping are not mass-proportional), the
+divergence and rest checks, the history (energies: kinetic only, no engine exposes its strain
+energy), the timing and Ctrl-C (between calls of about 0.1 s, whole check intervals) are the
+loop's; the engine steps the free nodes, and the plates are set by the harness on the engine's
+state after each step (no engine here has a kinematic plate that follows the scene's ramp).
+``kernel`` is ``"engine"``, ``threads`` 1, ``precision`` the engine's; others are refused."""
 
 from __future__ import annotations
 
@@ -35,7 +44,13 @@ def models_if_installed(module: str, packages: tuple[str, ...], make, missing: s
 class SceneNotRepresentable(ValueError, StaticSolveError):
     """What an engine cannot represent, refused before any work: a :class:`ValueError` naming the
     parameter (exit 2 of a command), and a :class:`hybmss.solve.StaticSolveError` for a sweep
-    that records a failed solve as a row (the studies' moduli table runs every model at ν < 0)."""
+    that records a failed solve as a row (the studies' moduli table runs every model at ν < 0),
+    whose ``row_status`` is ``"not-representable"``."""
+
+    row_status = "not-representable"
+
+    def __init__(self, message: str):
+        StaticSolveError.__init__(self, message)
 
 
 SETTLE = 20.0
@@ -82,53 +97,24 @@ class EngineModel(ModelBase):
             raise ValueError(f"precision must be {' or '.join(self.precisions)} for {self.name} ({self.engine} "
                              f"computes in it), got {precision!r}")
 
-    def simulate_explicit(self, scene, dt: float = 1e-3, steps: int = 10_000, kernel: str = "engine",
-                          ramp_time: float = 1.0, threads: int = 1, record_every: int = 0, system=None, *,
-                          x0=None, v0=None, dt_crit_value=None, compute_dt_crit: bool = True, check_every: int = 10,
-                          precision: str = "f64", rest_rtol: float | None = None):
-        """``steps`` engine steps of ``dt`` with the scene's plates, ramp, damping and gravity;
-        ``converged`` by :func:`hybmss.explicit.rest_report`."""
-        from ..explicit import REST_RTOL
-        from ..system import build
-        from ..explicit import BLOWUP_FACTOR, _divergence
+    def stepper(self, system, dt: float, *, ramp_time: float, kernel: str = "engine", precision: str = "f64",
+                threads: int = 1):
+        """The engine's body of ``system`` (:class:`hybmss.models._engine_body.EngineBody`) as the
+        stepper of the one explicit loop, after the refusals of what the engine cannot represent
+        (:meth:`check_scene`, surface loads, threads, precision, a massless body)."""
+        scene = system.scene
         self._check(scene, threads, precision)
-        if record_every:
-            raise ValueError(f"record_every must be 0 for {self.name} (no trajectory recording)")
         if scene.material.rho <= 0:
             raise ValueError(f"rho must be > 0 for an explicit {self.name} run (the engine's nodes need mass), "
                              f"got {scene.material.rho:g}")
-        dt, steps, check_every = float(dt), int(steps), max(1, int(check_every))
-        S = system if system is not None else build(scene)
-        body = self.make_body(S, dt, ramp_time)
-        X = body.nodes.X
-        if (x0 is not None or v0 is not None) and len(X) != S.n:
-            raise ValueError(f"x0, v0: {self.name} has nodes that are not lattice particles; start from rest")
-        x = X if x0 is None else x0
-        v = 0.0 * X if v0 is None else v0
-        body.load(x, v)
-        dt_c = None
-        if dt_crit_value is not None:
-            dt_c = float(dt_crit_value)
-        elif compute_dt_crit:
-            w = body.omega_max()
-            dt_c = 2.0 / w if w > 0 else math.inf
-        done = 0
-        while done < steps:
-            k = min(check_every, steps - done)
-            _, bad = body.advance(done, k)
-            done += k
-            if bad >= 0:
-                xs, _ = body.state()
-                raise _divergence(S, body.vertices(), min(bad, S.n - 1), done, dt,
-                                  BLOWUP_FACTOR * max(scene.body.size), dt_c, check_every, self)
-        r = body.result(f"{self.name}-explicit", done, REST_RTOL if rest_rtol is None else rest_rtol,
-                        {"dt": dt, "steps": done, "dt_crit": dt_c, "damping": float(scene.damping),
-                         "ramp_time": float(ramp_time), "kernel": "engine", "engine_name": self.engine,
-                         "until_rest": False})
-        return r
+        body = self.make_body(system, dt, ramp_time)
+        body.solver = f"{self.name}-explicit"
+        body.info = {"kernel": "engine", "engine_name": self.engine, "until_rest": False}
+        return body
 
     def solve_static(self, scene, options=None, system=None):
-        """The rest state of the engine's damped run (defaults from the body's frequencies: step
+        """The rest state of the engine's damped run in the one loop
+        (:func:`hybmss.explicit.simulate_explicit`; defaults from the body's frequencies: step
         :attr:`cfl` × 2/ω_max with ω_max of the engine's own forces, damping 2 ω₁, ramp 2π/ω₁,
         ω₁ of the linear Hex8 stiffness of the same grid), stopped when
         :func:`hybmss.explicit.rest_report` finds it at rest with ``rtol`` :attr:`static_rest_rtol`
@@ -136,6 +122,7 @@ class EngineModel(ModelBase):
         checked every 1/ω₁; :class:`hybmss.solve.StaticSolveError` if it is not within
         ``T + 60/ω₁``.  A massless body (ρ = 0) runs with unit density and no weight (the rest
         state does not depend on a uniform density)."""
+        from ..explicit import DivergenceError, simulate_explicit
         from ..system import build
         from .corot_hex8 import CorotHex8, frequency_range
         self._check(scene)
@@ -154,35 +141,58 @@ class EngineModel(ModelBase):
         c = 2.0 * w1
         body = self.make_body(S1, dt, T, damping=c, density=density, gravity=S1.gravity)
         body.compile_time_s += probe.compile_time_s
-        body.load(body.nodes.X, 0.0 * body.nodes.X)
+        body.solver = f"{self.name}-rest"
+        body.info = {"kernel": "engine", "engine_name": self.engine, "until_rest": True}
         check = max(1, int(round(1.0 / (w1 * dt))))
         n_max = int(math.ceil((T + 60.0 / w1) / dt))
-        done, rest = 0, None
-        while done < n_max:
-            _, bad = body.advance(done, check)
-            done += check
-            if bad >= 0:
-                raise StaticSolveError(f"{self.name} scene {scene.name or '(unnamed)'}: the damped run diverged "
-                                       f"(node {bad}); the step {dt:.3g} s is too long for this scene")
-            if done * dt >= T:
-                x, v = body.state()
-                rest = body.rest(x, v, body.internal_forces(x), self.static_rest_rtol)
-                # within the force resolution of a float32 engine only once the slowest mode has
-                # decayed by e^-20 (critical damping 2 ω₁): the residual has reached that floor
-                floor = rest.get("resolution_N", 0.0) > 0.0 or self.settles
-                settled = not floor or done * dt >= T + SETTLE / w1
-                if rest["at_rest"] and settled:
-                    break
-        r = body.result(f"{self.name}-rest", done, self.static_rest_rtol,
-                        {"dt": dt, "omega_1": w1, "omega_max": wmax, "damping": c, "ramp_time": T,
-                         "t_end": done * dt, "kernel": "engine", "engine_name": self.engine, "until_rest": True,
-                         "load_steps": 0,
-                         "static_from": f"rest state of {self.engine}'s damped run (rest_report)"})
+        st = UntilRest(body, self.static_rest_rtol, T, T + SETTLE / w1, self.settles)
+        try:
+            r = simulate_explicit(S1.scene, dt=dt, steps=n_max, kernel="engine", ramp_time=T, system=S1,
+                                  dt_crit_value=2.0 / wmax, check_every=check, precision=self.precisions[0],
+                                  rest_rtol=self.static_rest_rtol, stepper=st)
+        except DivergenceError as e:
+            raise StaticSolveError(f"{self.name} scene {scene.name or '(unnamed)'}: the damped run diverged "
+                                   f"(node {e.particle}); the step {dt:.3g} s is too long for this scene") from None
+        r.info.update({"damping": c, "omega_1": w1, "omega_max": wmax, "load_steps": 0, "until_rest": True,
+                       "static_from": f"rest state of {self.engine}'s damped run (rest_report)"})
         if not r.converged:
             raise StaticSolveError(
                 f"{self.name} scene {scene.name or '(unnamed)'}: the damped run did not come to rest within "
-                f"{done * dt:.4g} s ({r.info['rest']['not_at_rest_because']}); raise the damping or the time budget",
-                cause="rest-state", time=float(done * dt))
+                f"{r.info['t_end']:.4g} s ({r.info['rest']['not_at_rest_because']}); raise the damping or the time "
+                "budget", cause="rest-state", time=float(r.info["t_end"]))
         return r
 
 
+class UntilRest:
+    """An engine body's stepper that stops at the first check (every ``check_every`` steps of the
+    loop) from time ``T`` on at which :func:`hybmss.explicit.stepper_rest` finds it at rest with
+    ``rtol``; a float32 engine (a force resolution) or one whose rest state leaves a residual
+    floor under its forces' law (``always_settle``) counts as at rest only from time ``settled``
+    on.  Everything else is the body's."""
+
+    def __init__(self, body, rtol: float, T: float, settled: float, always_settle: bool):
+        self.body, self.rtol, self.T, self.settled = body, float(rtol), float(T), float(settled)
+        self.always_settle = bool(always_settle)
+        self.at_rest = False
+
+    def __getattr__(self, name):
+        return getattr(self.body, name)
+
+    def advance(self, step0: int, n: int, check_every: int, limit2: float) -> tuple[int, int]:
+        from ..explicit import ramp, stepper_rest
+        body = self.body
+        done = 0
+        while done < n and not self.at_rest:
+            k, bad = body.advance(step0 + done, min(check_every, n - done), check_every, limit2)
+            done += k
+            if bad >= 0:
+                return done, bad
+            t = (step0 + done) * body.dt
+            if t < self.T:
+                continue
+            x, v = body.state()
+            rest = stepper_rest(body.node_system(), body, body.internal_forces(x), body.energy(x, v),
+                                ramp(t, body.ramp_time), self.rtol, x)
+            floor = rest.get("resolution_N", 0.0) > 0.0 or self.always_settle
+            self.at_rest = bool(rest["at_rest"] and (not floor or t >= self.settled))
+        return done, -1

@@ -149,9 +149,6 @@ class ModelBase:
     kernels: ClassVar[tuple[str, ...]] = KERNELS
     order: ClassVar[int] = 100
     solve_static: ClassVar[Callable | None] = None
-    simulate_explicit: ClassVar[Callable | None] = None
-    """A whole explicit run of its own (the engine models, :mod:`hybmss.models._engine_model`, until
-    they supply a ``stepper``): :func:`hybmss.explicit.simulate_explicit` hands the scene to it."""
 
     # ------------------------------------------------------------------ parameters
     def parameter_names(self) -> tuple[str, ...]:

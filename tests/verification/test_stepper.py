@@ -218,13 +218,16 @@ def test_a_plugged_in_stepper_runs_in_compare_and_in_a_study(chain, cli_in_proce
 
 
 # ------------------------------------------------------------------------------ calls
-@pytest.mark.parametrize("model, kernel", [("hybmss", "numba"), ("corot-hex8", "numba"), ("hybmss-fd", "numpy")])
+@pytest.mark.parametrize("model, kernel", [("hybmss", "numba"), ("corot-hex8", "numba"), ("hybmss-fd", "numpy"),
+                                           ("mujoco-trilinear", "engine")])
 def test_the_calls_of_the_loop_do_not_change_the_answer(monkeypatch, model, kernel):
     """Calls of one check interval each (no time budget) and calls of up to 10 s: the same
     positions, bit for bit, with a record every 35 steps (not a multiple of the check interval)."""
     import hybmss.stepper as stepper
 
     scene = SceneSpec.default("shear", mesh=(3, 3, 3), model=model, damping=2.0).build()
+    if kernel == "engine":
+        pytest.importorskip("mujoco")
     kw = dict(dt=2e-3, steps=230 if kernel == "numba" else 40, ramp_time=0.1, kernel=kernel, check_every=10,
               record_every=35)
     monkeypatch.setattr(stepper, "CHUNK_SECONDS", 10.0)
@@ -279,14 +282,34 @@ def _as_from_a_shell():
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-@pytest.mark.parametrize("script", ["explicit run", "xpbd-nh relaxation"])
+ENGINE_RUN = textwrap.dedent("""
+    import sys
+    from hybmss.experiments import SceneSpec
+    from hybmss.explicit import simulate_explicit
+    scene = SceneSpec.default("compression", mesh=(6, 6, 6), damping=1.0, model="mujoco-tet").build()
+    simulate_explicit(scene, dt=1e-3, steps=20, compute_dt_crit=False, kernel="engine")
+    print("stepping", flush=True)
+    try:
+        simulate_explicit(scene, dt=1e-3, steps=10**9, compute_dt_crit=False, kernel="engine")
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+        sys.exit(42)
+""")
+
+SCRIPTS = {"explicit run": LONG_RUN, "xpbd-nh relaxation": LONG_RELAXATION, "mujoco-tet explicit run": ENGINE_RUN}
+
+
+@pytest.mark.parametrize("script", list(SCRIPTS))
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_a_long_run_within_seconds(sig, script):
-    """An exit check, not a speed test: an explicit run of 10⁹ steps, or the XPBD static
-    relaxation of 10⁹ iterations (hours), stops within 3 s of the signal (the calls take about
-    0.1 s) with KeyboardInterrupt."""
+    """An exit check, not a speed test: an explicit run of 10⁹ steps (of the lattice, or of
+    MuJoCo's flex: an engine's steps run in the same loop), or the XPBD static relaxation of 10⁹
+    iterations (hours), stops within 3 s of the signal (the calls take about 0.1 s) with
+    KeyboardInterrupt."""
+    if script.startswith("mujoco"):
+        pytest.importorskip("mujoco")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    code = LONG_RUN if script == "explicit run" else LONG_RELAXATION
+    code = SCRIPTS[script]
     p = subprocess.Popen([sys.executable, "-c", code], env=env, preexec_fn=_as_from_a_shell, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True)
     try:

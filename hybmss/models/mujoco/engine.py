@@ -150,10 +150,9 @@ class MujocoBody(EngineBody):
         self.data.time = self.step * self.dt
         mujoco.mj_forward(self.model, self.data)
 
-    def advance(self, step0: int, n: int) -> tuple[int, int]:
-        """``n`` steps from ``step0``: MuJoCo's ``mj_step``, then the plates at the new time.
-        Returns ``(steps done, first bad node or −1)``; stops at a node beyond
-        :data:`hybmss.explicit.BLOWUP_FACTOR` body sizes or not finite (checked at the end)."""
+    def _steps(self, step0: int, n: int) -> None:
+        """``n`` steps from ``step0``: MuJoCo's ``mj_step``, the scene's damping, then the plates
+        at the new time."""
         m, d = self.model, self.data
         damp = 1.0 / (1.0 + self.damping * self.dt)
         spent = 0.0
@@ -168,7 +167,6 @@ class MujocoBody(EngineBody):
             self._set_plates(k + 1)
         self.step_time_s += spent
         self.step = step0 + n
-        return n, self.bad_node()
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Node positions and velocities (N, 3)."""

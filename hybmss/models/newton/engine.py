@@ -163,13 +163,13 @@ class NewtonBody(EngineBody):
         self.model.particle_grid = None
         if vbd:
             self.iterations = int(iterations)
-            self.solver = newton.solvers.SolverVBD(self.model, iterations=self.iterations)
+            self.engine_solver = newton.solvers.SolverVBD(self.model, iterations=self.iterations)
         else:
-            self.solver = newton.solvers.SolverSemiImplicit(self.model)
+            self.engine_solver = newton.solvers.SolverSemiImplicit(self.model)
         self.control = self.model.control()
         self.s0, self.s1, self.probe = self.model.state(), self.model.state(), self.model.state()
         self.internal_forces(self.nodes.X)  # compiles the force kernel
-        self.solver.step(self.probe, self.model.state(), self.control, None, float(dt))  # and the step's
+        self.engine_solver.step(self.probe, self.model.state(), self.control, None, float(dt))  # and the step's
         self.compile_time_s = time.perf_counter() - t0
         self.k_mu, self.k_lambda = k_mu, k_lambda
         self.resolution_N = self.force_resolution()
@@ -197,7 +197,7 @@ class NewtonBody(EngineBody):
         self.s0.particle_q.assign(np.asarray(x, dtype=np.float32))
         self.s0.particle_qd.assign(np.asarray(v, dtype=np.float32))
 
-    def advance(self, step0: int, n: int) -> tuple[int, int]:
+    def _steps(self, step0: int, n: int) -> None:
         damp = 1.0 / (1.0 + self.damping * self.dt)
         spent = 0.0
         fx = self.fixed_dofs
@@ -209,7 +209,7 @@ class NewtonBody(EngineBody):
                 q[fx] = (self.nodes.X.ravel()[fx] + u).astype(np.float32)
             t0 = time.perf_counter()
             self.s0.clear_forces()
-            self.solver.step(self.s0, self.s1, self.control, None, self.dt)
+            self.engine_solver.step(self.s0, self.s1, self.control, None, self.dt)
             spent += time.perf_counter() - t0
             self.s0, self.s1 = self.s1, self.s0
             q = self.s0.particle_q.numpy().reshape(-1)  # views of the CPU arrays
@@ -223,7 +223,6 @@ class NewtonBody(EngineBody):
             qd[fx] = v.astype(np.float32)
         self.step_time_s += spent
         self.step = step0 + n
-        return n, self.bad_node()
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         return (self.s0.particle_q.numpy().astype(np.float64).reshape(-1, 3),

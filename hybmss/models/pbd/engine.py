@@ -185,7 +185,7 @@ class PbdBody(EngineBody):
             self.pd.setPosition(i, np.asarray(x[i], dtype=float))
             self.pd.setVelocity(i, np.asarray(v[i], dtype=float))
 
-    def advance(self, step0: int, n: int) -> tuple[int, int]:
+    def _steps(self, step0: int, n: int) -> None:
         self._current()
         damp = 1.0 / (1.0 + self.damping * self.dt)
         ts, pd, kick = self.sim.getTimeStep(), self.pd, self.kick
@@ -211,7 +211,6 @@ class PbdBody(EngineBody):
                     pd.setVelocity(i, w)
         self.step_time_s += spent
         self.step = step0 + n
-        return n, self.bad_node()
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         x = np.array(np.asarray(self.pd.getVertices()), dtype=float)
