@@ -24,6 +24,7 @@ from studies.claims import PROTOCOL_FAILURES
 from . import figures as figmod
 from . import palette
 from . import render as rendermod
+from . import engines as enginemod
 from . import findings, summary, tables, vtu
 from .data import Results
 
@@ -46,7 +47,7 @@ HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability"
                 "study_limit_stretch", "study_b09"}
 OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
-                "differences", "eform_check", "moduli", "headline", "claims", *OPTIONAL_TABLES}
+                "differences", "eform_check", "moduli", "headline", "claims", *OPTIONAL_TABLES, *enginemod.TABLES}
 
 
 @dataclass
@@ -335,6 +336,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             s.items.append(("table", t))
     if s.items:
         sections.append(s)
+
+    eng = enginemod.section(results)  # the engines' findings (reports/engines.py)
+    if eng is not None:
+        sections.append(Section("engines", *eng))
 
     t = tables.runs_table(results, vtu_files)
     if t is not None:

@@ -57,9 +57,11 @@ from . import roles
 MODELS = tuple(sorted(roles.in_role("b09"), key=lambda m: models.get(m).conservative))
 """The models of the moduli and volume tables (the non-conservative first: baudet2009, hybmss)."""
 def error_models() -> tuple[str, ...]:
-    """Every model that takes part in the studies (:func:`studies.roles.studied`), in [B09]'s two
-    experiments."""
-    return roles.studied()
+    """Every model that takes part in the studies (:func:`studies.roles.studied`) on the
+    publications' meshes, in [B09]'s two experiments: not the engines, whose parts run them on
+    coarse meshes of their own (:attr:`studies.roles.Part.meshes`; [B09]'s sweep refines to
+    16×4×4 and 8×8×8)."""
+    return tuple(m for m in roles.studied() if not roles.part(m).meshes)
 E, NU = 1000.0, 0.3
 CANTILEVER_RHO, GRAVITY = 0.0125, 9.81
 CANTILEVER_SIZE = (0.4, 0.1, 0.1)

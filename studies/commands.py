@@ -23,8 +23,8 @@ from hybmss.scene import Material, Model, Scene, plates_cross, scene_dict_error,
 
 from . import roles, sizing
 from .compare import default_law, diff_metrics
-from .reproduce import EXTRA_STUDIES, STUDIES
-from .runner import Runner, SolverSpec, exit_now, measure
+from .reproduce import EXTRA_STUDIES, ON_REQUEST_STUDIES, STUDIES
+from .runner import Runner, SolverSpec, Task, exit_now, measure, solve
 from .store import Store
 
 SCENES = tuple(e for e in EXPERIMENTS if e != "uniaxial")
@@ -56,7 +56,7 @@ def model_parameters() -> dict[str, tuple[dataclasses.Field, tuple[str, ...]]]:
 
 
 def study_names() -> tuple[str, ...]:
-    return tuple(STUDIES) + tuple(EXTRA_STUDIES)
+    return tuple(STUDIES) + tuple(EXTRA_STUDIES) + tuple(ON_REQUEST_STUDIES)
 
 
 def flag(name: str) -> str:
@@ -257,6 +257,8 @@ def bench(args):
         n = len(default_variants()) * (1 if args.quick else 4) * repeats
         guard(sizing.total("benchmark", [timed(m) for m in meshes for _ in range(n)]),
               f"--steps {args.steps}" if args.steps else "bench", args=args)
+    if one["model"] is not None and models.get(one["model"]).kernels == ("engine",):
+        return _bench_engine(args, one, repeats)
     if any(v is not None for v in one.values()):  # time one configuration
         row = time_config(model=one["model"], nu=NU if one["nu"] is None else one["nu"],
                           mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
@@ -265,6 +267,55 @@ def bench(args):
     else:
         d = run_bench(steps=args.steps, quick=args.quick, static_models=roles.in_role("performance"))
     return d, format_bench(d)
+
+
+def _bench_engine(args, one: dict, repeats: int):
+    """``bench --model <engine>``: the engine's time per explicit step as a ratio to hybmss's on
+    the same compression cube (ν = 1/4 unless ``--nu``: every engine represents it), and the wall
+    time of both static answers (the engine's: the rest state of its damped run; hybmss's:
+    Newton), with the 1-minute load average (:func:`studies.engines.step_ratios`).  What the engine
+    cannot represent, a thread count or precision it does not have, is refused before any work."""
+    from hybmss.bench import MESH, QUICK_MESH, compression_scene, load_average
+    from hybmss.solve import StaticSolveError, solve_static
+
+    from .engines import TIMED_NU, step_ratios
+
+    name = one["model"]
+    nu = TIMED_NU if one["nu"] is None else float(one["nu"])
+    mesh = tuple(one["mesh"] or (QUICK_MESH if args.quick else MESH))
+    spec = models.get(name)
+    scene = compression_scene(name, nu, mesh=mesh)
+    try:
+        spec._check(scene, one["threads"] or 1, one["precision"] or spec.precisions[0])
+    except ValueError as exc:
+        raise InputError(f"--model = {name} is not allowed for this scene: {exc}") from None
+    rows = step_ratios([name], mesh=mesh, nu=nu, steps=args.steps, repeats=repeats,
+                       target_s=0.05 if args.quick else 0.5)
+    static = []
+    for m in ("hybmss", name):
+        sc = compression_scene(m, nu, mesh=mesh)
+        t0 = time.perf_counter()
+        try:
+            r = solve_static(sc)
+        except StaticSolveError as exc:
+            raise SolveFailure(f"{m}: static answer failed: {' '.join(str(exc).split())}") from None
+        static.append({"model": m, "mesh": "x".join(map(str, mesh)), "nu": nu, "wall_time_s": time.perf_counter() - t0,
+                       "solver": r.solver, "steps_or_iterations": int(r.iterations), "load_avg": load_average()})
+    ratio = rows[1]["ratio_to_hybmss"]
+    d = {"model": name, "mesh": "x".join(map(str, mesh)), "nu": nu, "explicit": rows, "static": static,
+         "step_ratio_to_hybmss": ratio, "static_ratio_to_hybmss": static[1]["wall_time_s"] / static[0]["wall_time_s"],
+         "cores": os.cpu_count()}
+    lines = [f"{name} against hybmss, compression cube {d['mesh']}, nu = {nu:g}",
+             f"{'model':<18} {'steps':>6} {'s/step':>10} {'ratio':>8} {'engine calls s/step':>20} {'load':>5}"]
+    for r in rows:
+        eng = r["engine_calls_s_per_step"]
+        lines.append(f"{r['model']:<18} {r['steps']:>6} {r['s_per_step']:>10.3e} {r['ratio_to_hybmss']:>8.2f} "
+                     f"{(f'{eng:.3e}' if eng is not None else '-'):>20} {r['load_avg'] or float('nan'):>5.2f}")
+    lines.append("static answer (wall time, s): " + ", ".join(
+        f"{r['model']} {r['wall_time_s']:.3g} ({r['solver']}, {r['steps_or_iterations']} steps/iterations, "
+        f"load {r['load_avg'] or float('nan'):.2f})" for r in static))
+    lines.append(f"(1-min load average on {os.cpu_count()} cores: above the core count, times are not the code's)")
+    return d, "\n".join(lines)
 
 
 # ------------------------------------------------------------------------------- fem
@@ -679,5 +730,5 @@ def run(args):
         if main:
             signal.signal(signal.SIGTERM, previous)
     s = runner.summary
-    names = list(study_names()) if args.all or not args.study else list(args.study)
+    names = list(STUDIES) + list(EXTRA_STUDIES) if args.all or not args.study else list(args.study)
     return {"out": str(args.out), "studies": names, **s.as_dict()}, f"{args.out}: {s.line()}"

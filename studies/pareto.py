@@ -154,8 +154,13 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
     for f in mss_factors:
         s = _scaled(spec, f)
         for model in pareto_models():
+            engine = bool(roles.part(model).meshes)  # its static answer at the base resolution only
+            if engine and f != 1:
+                continue
             sm = s.replace(model=model)
             add("candidate", f, sm, STATIC, f"{model} static")
+            if engine:
+                continue
             if f < finest or model in roles.in_role("explicit-tables") or quick:
                 add("candidate", f, sm.replace(damping=DAMPING), PROTOCOL, f"{model} explicit")
             if f == 1 and model == pareto_models()[0] and models.get(model).supports("implicit"):

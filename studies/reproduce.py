@@ -102,6 +102,12 @@ where the function is ``run(store: Store, quick: bool, jobs: int | None, progres
 (``runner``: the :class:`studies.runner.Runner` its runs go to, or ``None``) and writes its own
 tables into ``store`` (e.g. performance, speed against error, stability)."""
 
+ON_REQUEST_STUDIES: dict[str, str] = {
+    "engines": "studies.engines:run",  # the engines on the 10³ cube against the FEM: the closing table
+}
+"""Studies with their own driver that ``--all`` (``make reproduce-paper``) leaves out for their
+cost, run when named (``--study engines``); the signature of :data:`EXTRA_STUDIES`' drivers."""
+
 
 def tasks_for(names=None, quick: bool = False) -> list[Task]:
     names = list(STUDIES) if not names else list(names)
@@ -122,26 +128,27 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
 
     store = Store(Path(out))
     names = list(STUDIES) + list(EXTRA_STUDIES) if not names else list(names)
-    unknown = [n for n in names if n not in STUDIES and n not in EXTRA_STUDIES]
+    drivers = {**EXTRA_STUDIES, **ON_REQUEST_STUDIES}
+    unknown = [n for n in names if n not in STUDIES and n not in drivers]
     if unknown:
-        raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(list(STUDIES) + list(EXTRA_STUDIES))}")
+        raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(list(STUDIES) + list(drivers))}")
     # one pool for every task list, the extra studies' pooled runs included (their ``tasks``), so
     # that no core idles at the end of a study's slowest run; each extra study then finds its
     # runs stored
     listed = [n for n in names if n in STUDIES]
     pooled = tasks_for(listed, quick) if listed else []
     n_listed = len(pooled)
-    extra = [n for n in names if n in EXTRA_STUDIES]
+    extra = [n for n in names if n in drivers]
     for name in extra:
-        module = importlib.import_module(EXTRA_STUDIES[name].split(":")[0])
+        module = importlib.import_module(drivers[name].split(":")[0])
         if hasattr(module, "tasks"):
             pooled += module.tasks(quick)
     rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
                      runner=runner)[:n_listed] if pooled else []
     write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None)
     for name in names:
-        if name in EXTRA_STUDIES:
-            module, func = EXTRA_STUDIES[name].split(":")
+        if name in drivers:
+            module, func = drivers[name].split(":")
             getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress,
                                                            runner=runner)
     write_claims(store)  # the verdicts, from every table the studies just wrote

@@ -13,7 +13,11 @@ table of the registered models' parts.  Each model's :class:`Part`:
   publication's data file of models (``studies/data/<key>_models.csv``) says what part the name
   plays in the publication's claims (:mod:`studies.publications`);
 - ``run_cost(scene, kind) -> float``: a rough cost per cell of a run, only to order a sweep's runs
-  (longest first; :func:`default_run_cost` unless the model's own differs).
+  (longest first; :func:`default_run_cost` unless the model's own differs);
+- ``meshes``: the meshes its rows run on in place of the publication's, by body kind
+  (``{"cube": (4, 4, 4), "beam": (2, 2, 12)}``; empty: the publication's), each with the FEM on
+  the same mesh: the engines', whose damped runs to rest cost far more than a Newton solve
+  (:func:`mesh_for`).
 
 A model of another package takes the default part (every role its solvers allow, no publication,
 the default cost) unless its package declares one: an entry point of the group
@@ -79,9 +83,12 @@ class Part:
     roles: tuple[str, ...] = STUDY_ROLES
     published: dict[str, str] = field(default_factory=dict)
     run_cost: Callable[..., float] = default_run_cost
+    meshes: dict = field(default_factory=dict)
 
     def __post_init__(self):
         object.__setattr__(self, "roles", tuple(self.roles))
+        if set(self.meshes) - {"cube", "beam"}:
+            raise ValueError(f"meshes must be keyed by cube or beam; got {sorted(self.meshes)}")
         bad = [r for r in self.roles if r not in STUDY_ROLES]
         if bad:
             raise ValueError(f"study roles must be among {', '.join(STUDY_ROLES)}; got {bad[0]!r}")
@@ -99,6 +106,18 @@ against getting worse; the corotational hexahedra and XPBD are pinned tighter by
 Neo-Hookean stretch, the Lamé map at small strain, the substep bias), which fail on any change a
 baseline would catch, and XPBD's rest runs would add the longest cases to CI."""
 
+_ENGINE_ROLES = ("pareto",)
+_ENGINE_MESHES = {"cube": (4, 4, 4), "beam": (2, 2, 12)}
+_ENGINE_MESHES_SMALL = {"cube": (2, 2, 2), "beam": (1, 1, 6)}
+
+
+def _engine_cost(scene, kind: str) -> float:
+    """An engine's damped run to rest: its steps grow as ω_max/ω₁ ∝ √((λ + 2μ)/μ) (the volumetric
+    waves against the slowest mode); 4³ cube at ν = 1/4: a few seconds."""
+    nu = min(float(scene.nu), 0.4999)
+    return 4.0 * math.sqrt(2.0 * (1.0 - nu) / (1.0 - 2.0 * nu))
+
+
 IN_TREE = {
     "hybmss": Part(STUDY_ROLES, {"G20": "hybmss"}),
     "hybmss-fd": Part(tuple(r for r in STUDY_ROLES if r != "b09"), {"G20": "hybmss-fd"}, _no_face_diagonals_cost),
@@ -107,16 +126,22 @@ IN_TREE = {
     "corot-hex8": Part(_ALL_BUT_REGRESSION),
     "corot-hex8-sri": Part(_ALL_BUT_REGRESSION),
     "xpbd-nh": Part(_ALL_BUT_REGRESSION, run_cost=_xpbd_cost),
-    # the engines' models (hybmss/models/mujoco, newton, pbd): no study role yet, so that
-    # installing an engine leaves the studies' sweeps as they were (they still appear where a study
-    # runs every registered model: the moduli table and the [B09] error tables)
-    "mujoco-tet": Part(()),
-    "mujoco-trilinear": Part(()),
-    "mujoco-quadratic": Part(()),
-    "newton-semi": Part(()),
-    "newton-vbd": Part(()),
-    "newton-xpbd": Part(()),
-    "pbd-xpbd-fem": Part(()),
+    # the engines (hybmss/models/mujoco, newton, pbd): static rows of the five experiments
+    # (``tables``, ``bending``) and of the speed-against-error study (``pareto``: the base
+    # resolution only), on coarse meshes chosen so that
+    # they add at most a fifth to ``make reproduce-paper``'s compute (studies/engines.py measures
+    # it); no explicit protocol (their stable step at ν = 0.499 is below its 1 ms), no stability
+    # bisection.  The moduli table and the [B09] tables run every studied model.  newton-vbd and
+    # pbd-xpbd-fem step 10-50x slower (Gauss-Seidel colours; per-node Python calls of the
+    # library's bindings): the smallest meshes, tables only; newton-xpbd is refused by every scene
+    # (no small-strain shear stiffness): its failure rows say so.
+    "mujoco-tet": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
+    "mujoco-trilinear": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
+    "mujoco-quadratic": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "newton-semi": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
+    "newton-vbd": Part(("tables", "bending"), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "newton-xpbd": Part(("tables", "bending"), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "pbd-xpbd-fem": Part(("tables", "bending"), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
 }
 """The part of each in-tree model (a model not listed here, or declared by its package, takes the
 default :class:`Part`)."""
@@ -194,6 +219,15 @@ def studied() -> tuple[str, ...]:
     engine whose study resolutions are not chosen yet, is left out of every study), in the
     registry's order."""
     return tuple(n for n in models.names() if part(n).roles)
+
+
+def mesh_for(model: str, spec):
+    """The scene spec ``spec`` on the mesh the model's part gives its body kind (:attr:`Part.meshes`),
+    or ``spec`` itself (no override, or a publication mesh coarser than it)."""
+    own = part(model).meshes.get("beam" if spec.is_beam else "cube")
+    if own is None or all(a <= b for a, b in zip(spec.mesh, own)):
+        return spec
+    return spec.replace(mesh=tuple(own))
 
 
 def published(model: str) -> dict[str, str]:

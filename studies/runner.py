@@ -110,7 +110,10 @@ def solve(task: Task):
     if s.kind == "explicit":
         from hybmss.explicit import simulate_explicit
 
-        return simulate_explicit(scene, dt=s.dt, steps=s.steps, kernel=s.kernel, ramp_time=s.ramp_time)
+        spec = scene.model.spec  # an engine computes in its own precision (Newton: float32)
+        precision = spec.precisions[0] if s.kernel == "engine" else "f64"
+        return simulate_explicit(scene, dt=s.dt, steps=s.steps, kernel=s.kernel, ramp_time=s.ramp_time,
+                                 precision=precision)
     from fem_reference.solve import solve as fem_solve
 
     return fem_solve(scene, element=s.element, law=s.law, refine=s.refine)
@@ -189,15 +192,16 @@ def base_row(task: Task, key: str | None = None) -> dict:
 def failure_row(exc: Exception) -> dict:
     """The fields of a failed run's row: its ``status`` by the exception's type ("diverged": an
     explicit run left the physical range, :class:`hybmss.explicit.DivergenceError`; "unstable": a
-    Newton solve lost the equilibrium, :class:`hybmss.solve.StaticSolveError`; else "error"), its
+    Newton solve lost the equilibrium, :class:`hybmss.solve.StaticSolveError`; an exception's own
+    ``row_status``, e.g. "not-representable": a scene an engine cannot represent; else "error"), its
     ``message`` (the type's name and the message on one line) and, for a solver error, its numbers
     (``failure_<name>`` for each field of :meth:`hybmss.solve.StaticSolveError.fields`, None where
     it does not apply: top-level scalars, so the store keeps a non-finite one)."""
     from hybmss.explicit import DivergenceError
     from hybmss.solve import StaticSolveError
 
-    row = {"status": "diverged" if isinstance(exc, DivergenceError) else (
-               "unstable" if isinstance(exc, StaticSolveError) else "error"),
+    row = {"status": getattr(exc, "row_status", None) or ("diverged" if isinstance(exc, DivergenceError) else (
+               "unstable" if isinstance(exc, StaticSolveError) else "error")),
            "message": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
     if isinstance(exc, StaticSolveError):
         row.update({f"failure_{k}": v for k, v in exc.fields().items()})

@@ -272,8 +272,9 @@ def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
                 # it is stable only if -1 < nu_eff < 1/2 and G_eff > 0
                 stable = admissible_nu(m["nu_eff"]) and m["G_eff"] > 0 and m["E_eff"] > 0
                 status = "ok" if stable else "unstable material (nu_eff outside (-1, 1/2))"
-            except StaticSolveError as exc:
-                m, status = {"E_eff": np.nan, "nu_eff": np.nan, "G_eff": np.nan}, f"unstable: {exc}"[:160]
+            except StaticSolveError as exc:  # a scene an engine cannot represent says so
+                why = getattr(exc, "row_status", None) or "unstable"
+                m, status = {"E_eff": np.nan, "nu_eff": np.nan, "G_eff": np.nan}, f"{why}: {exc}"[:160]
             rows.append({"variant": name, "nu": nu, "E_eff_over_E": m["E_eff"] / mat.E, "nu_eff": m["nu_eff"],
                          "G_eff_over_G": m["G_eff"] / mat.G, "status": status, "model": model.name,
                          **{k: v for k, v in model.to_dict().items() if k != "name"}})

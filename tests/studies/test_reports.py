@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import roles
+from studies import baudet
 
 NUS = (0.0, 0.25, 0.499)
 
@@ -346,9 +346,9 @@ def test_new_tables_have_their_rows_and_published_columns(report):
     expect = {"table4_g20": len(load("g20_table4_shear")), "table5_g20": len(load("g20_table5_torsion")),
               "table_middle_layer": len(load("g20_middle_layer")),
               # [B09]: every model of the studies on the cantilever 4x1x1 and the L-shape 2x2x2
-              "table_b09": 2 * len(roles.studied())}
+              "table_b09": 2 * len(baudet.error_models())}
     assert expect == {"table4_g20": 2, "table5_g20": 2, "table_middle_layer": 6,
-                      "table_b09": 2 * len(roles.studied())}
+                      "table_b09": 2 * len(baudet.error_models())}
     for tid, n in expect.items():
         assert page.tables[tid]["rows"] == n, tid
     t4 = res.tables["table4_g20"]
