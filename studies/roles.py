@@ -17,7 +17,10 @@ table of the registered models' parts.  Each model's :class:`Part`:
 - ``meshes``: the meshes its rows run on in place of the publication's, by body kind
   (``{"cube": (4, 4, 4), "beam": (2, 2, 12)}``; empty: the publication's), each with the FEM on
   the same mesh: the engines', whose damped runs to rest cost far more than a Newton solve
-  (:func:`mesh_for`).
+  (:func:`mesh_for`); in the quick mode (the tests') such a model runs the first case of each
+  experiment only (ν = 1/4, 5 %, 1°: :func:`studies.reproduce.quick_case`);
+- ``quick``: whether it runs in the quick mode at all (False: a model whose runs take minutes
+  even on the quick meshes).
 
 A model of another package takes the default part (every role its solvers allow, no publication,
 the default cost) unless its package declares one: an entry point of the group
@@ -84,6 +87,7 @@ class Part:
     published: dict[str, str] = field(default_factory=dict)
     run_cost: Callable[..., float] = default_run_cost
     meshes: dict = field(default_factory=dict)
+    quick: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "roles", tuple(self.roles))
@@ -131,17 +135,19 @@ IN_TREE = {
     # resolution only), on coarse meshes chosen so that
     # they add at most a fifth to ``make reproduce-paper``'s compute (studies/engines.py measures
     # it); no explicit protocol (their stable step at ν = 0.499 is below its 1 ms), no stability
-    # bisection.  The moduli table and the [B09] tables run every studied model.  newton-vbd and
-    # pbd-xpbd-fem step 10-50x slower (Gauss-Seidel colours; per-node Python calls of the
-    # library's bindings): the smallest meshes, tables only; newton-xpbd is refused by every scene
-    # (no small-strain shear stiffness): its failure rows say so.
+    # bisection.  The moduli table runs every studied model, the [B09] tables those on the
+    # publications' meshes.  newton-vbd and pbd-xpbd-fem step 10-50x slower (Gauss-Seidel
+    # colours; per-node Python calls of the library's bindings): the smallest meshes, the
+    # experiments' tables only (pbd-xpbd-fem not in the quick mode: about a minute a run there);
+    # newton-xpbd is refused by every scene (no small-strain shear stiffness): its failure rows
+    # say so.
     "mujoco-tet": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
     "mujoco-trilinear": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
     "mujoco-quadratic": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
     "newton-semi": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
-    "newton-vbd": Part(("tables", "bending"), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
-    "newton-xpbd": Part(("tables", "bending"), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
-    "pbd-xpbd-fem": Part(("tables", "bending"), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "newton-vbd": Part(("tables",), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "newton-xpbd": Part(("tables",), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "pbd-xpbd-fem": Part(("tables",), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost, quick=False),
 }
 """The part of each in-tree model (a model not listed here, or declared by its package, takes the
 default :class:`Part`)."""
