@@ -85,8 +85,8 @@ def closing_table(specs_, rows: list[dict]) -> pd.DataFrame:
         Ff, dVf = fem.get(col), fem.get("volume_change")
         for m in engine_models() + CONTEXT:
             r = by.get((spec.experiment, float(spec.nu), m))
-            if r is None:
-                continue
+            if r is None:  # a run not (yet) in the store: said, not left out
+                r = {"status": "not run", "message": "not computed in this results folder"}
             ok = r.get("status", "ok") == "ok"
             F, dV = (r.get(col), r.get("volume_change")) if ok else (None, None)
             out.append({
@@ -160,6 +160,17 @@ def step_ratios(names, mesh=MESH, nu: float = TIMED_NU, steps: int | None = None
                      "engine_version": info.get("engine_version") if info else None,
                      "load_avg": load, "cores": os.cpu_count()})
     return rows
+
+
+def stored_rows(store: Store, ts: list[Task]) -> list[dict]:
+    """The stored rows of the tasks ``ts`` that are in ``store`` (of this code version), none computed."""
+    keys = set(store.keys())
+    out = []
+    for t in ts:
+        k = t.key()
+        if k in keys:
+            out.append(store.row(k))
+    return out
 
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *, runner=None,

@@ -130,24 +130,27 @@ IN_TREE = {
     "corot-hex8": Part(_ALL_BUT_REGRESSION),
     "corot-hex8-sri": Part(_ALL_BUT_REGRESSION),
     "xpbd-nh": Part(_ALL_BUT_REGRESSION, run_cost=_xpbd_cost),
-    # the engines (hybmss/models/mujoco, newton, pbd): static rows of the five experiments
-    # (``tables``, ``bending``) and of the speed-against-error study (``pareto``: the base
-    # resolution only), on coarse meshes chosen so that
-    # they add at most a fifth to ``make reproduce-paper``'s compute (studies/engines.py measures
-    # it); no explicit protocol (their stable step at ν = 0.499 is below its 1 ms), no stability
-    # bisection.  The moduli table runs every studied model, the [B09] tables those on the
-    # publications' meshes.  newton-vbd and pbd-xpbd-fem step 10-50x slower (Gauss-Seidel
-    # colours; per-node Python calls of the library's bindings): the smallest meshes, the
-    # experiments' tables only (pbd-xpbd-fem not in the quick mode: about a minute a run there);
-    # newton-xpbd is refused by every scene (no small-strain shear stiffness): its failure rows
-    # say so.
+    # the engines (hybmss/models/mujoco, newton, pbd): static rows of four of the five experiments
+    # (``tables``: compression, tension, shear, torsion) and of the speed-against-error study
+    # (``pareto``: the base resolution only, no beam under gravity), on coarse meshes of their own
+    # with the FEM of the same mesh, chosen for cost (studies/engines.py; measured on the quick
+    # reproduction: a damped run to rest of the cantilever under its weight takes about 3,000
+    # engine steps, 12-13 s for mujoco-quadratic and newton-semi on the quick beam, so no
+    # ``bending`` role); no explicit protocol (their stable step at ν = 0.499 is below its 1 ms), no
+    # stability bisection.  The moduli table runs every studied model, the [B09] tables those on
+    # the publications' meshes.  newton-vbd (0.18 s a step on the 1×1×6 beam: Gauss-Seidel
+    # colours; its 30 table runs were estimated at 3,500 s, more than the rest of the
+    # reproduction) and pbd-xpbd-fem (per-node Python calls of the library's bindings: 0.06 s a
+    # step on the 2³ cube, ~1,600 steps to rest) have no role in make reproduce-paper: they run in
+    # the closing study (--study engines); newton-xpbd is refused by every scene (no small-strain
+    # shear stiffness): its failure rows say so.
     "mujoco-tet": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
     "mujoco-trilinear": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
     "mujoco-quadratic": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
     "newton-semi": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
-    "newton-vbd": Part(("tables",), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
-    "newton-xpbd": Part(("tables",), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
-    "pbd-xpbd-fem": Part(("tables",), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost, quick=False),
+    "newton-vbd": Part((), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost, quick=False),
+    "newton-xpbd": Part((), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),
+    "pbd-xpbd-fem": Part((), meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost, quick=False),
 }
 """The part of each in-tree model (a model not listed here, or declared by its package, takes the
 default :class:`Part`)."""
