@@ -18,7 +18,7 @@ import pandas as pd
 
 from .tables import Table, fmt, frame_table, grade
 
-TABLES = ("engines_closing", "engines_timing")
+TABLES = ("engines_closing", "engines_timing", "engines_cost")
 """The stored tables this section shows (the build leaves them out of its other sections)."""
 
 ENGINE_MODELS = ("mujoco-tet", "mujoco-trilinear", "mujoco-quadratic", "newton-semi", "newton-vbd", "newton-xpbd",
@@ -190,5 +190,15 @@ def section(results) -> tuple[str, str, list] | None:
         items.append(("table", timing_table(timing)))
     if moduli is not None:
         items.append(("table", moduli))
+    cost = results.table("engines_cost")
+    if cost is not None:
+        tab = frame_table(cost, "table_engines_cost", "The engines' share of make reproduce-paper",
+                          "The engine runs of the studies (their rows in the tables and the speed-against-error "
+                          "study): measured on the quick reproduction, estimated for the full one from the "
+                          "measured time per step and steps to rest (∝ √((λ+2μ)/μ)); times measured on a loaded "
+                          "machine are brought to the reproduction's conditions by the factor between the same "
+                          "non-engine runs then and now.")
+        tab.csv = "tables/engines_cost.csv"
+        items.append(("table", tab))
     return ("The engines people run: MuJoCo, Newton, PositionBasedDynamics", html.escape(findings(closing, timing)),
             items)
