@@ -16,51 +16,16 @@ import math
 
 import pandas as pd
 
+from studies import roles
+
 from .tables import Table, fmt, frame_table, grade
 
 TABLES = ("engines_closing", "engines_timing", "engines_cost")
 """The stored tables this section shows (the build leaves them out of its other sections)."""
 
-ENGINE_MODELS = ("mujoco-tet", "mujoco-trilinear", "mujoco-quadratic", "newton-semi", "newton-vbd", "newton-xpbd",
-                 "pbd-xpbd-fem")
-
-LAWS = (
-    ("mujoco-tet", "MuJoCo 4.0.1 flex, dof=\"full\": linear tetrahedra (6 per voxel, MuJoCo's grid split)",
-     "St Venant–Kirchhoff: edge Green strains l² − l0² contracted with the element metric "
-     "(engine_elasticity.h: mj_stretchElongation, mj_stretchTension); young, poisson → μ = E/(2(1+ν)), "
-     "λ = Eν/((1+ν)(1−2ν)) as documented, no shift",
-     "joint damping on a flex (refused by MuJoCo: the loop applies −c m v after mj_step); surface tractions; ν < 0"),
-    ("mujoco-trilinear", "MuJoCo 4.0.1 flex, dof=\"trilinear\": 8-node cells = the voxels",
-     "constant cell stiffness (flex_stiffness) applied in the cell's rotated frame (engine_passive.c, "
-     "flex_interp branch): corotational linear Hex8 in E, ν",
-     "a body that is not a box (its interpolation grid spans the bounding box); as mujoco-tet"),
-    ("mujoco-quadratic", "MuJoCo 4.0.1 flex, dof=\"quadratic\": 27-node cells",
-     "corotational linear Hex27; masses ρVc/64 per node of each cell eighth (row-sum lumping of the 27-node "
-     "mass matrix has negative corner masses)", "as mujoco-trilinear"),
-    ("newton-semi", "Newton 1.8.0 on Warp 1.19.0 (cpu, float32), SolverSemiImplicit, tetrahedra",
-     "stable Neo-Hookean whose small-strain Lamé parameters are (3 k_mu/4, k_lambda − 5 k_mu/8) "
-     "(newton/_src/solvers/semi_implicit kernels, eval_tetrahedra): the builder's k_mu, k_lambda are not μ, λ; "
-     "the model passes k_mu = 4μ/3, k_lambda = λ + 5μ/6",
-     "the builder's documented Lamé mapping (k_mu = μ) gives μ 25 % low; ν ≤ −5/14 (k_lambda ≤ 0); float32 "
-     "resolves forces to ~1e-4 of the plate force (the rest test's floor)"),
-    ("newton-vbd", "Newton 1.8.0, SolverVBD (vertex block descent, 3×3 block per vertex)",
-     "μ/2 (I_C − 3) + (λ+μ)/2 (J − α)², builder Lamé as they are",
-     "slide plates (a node held in some components is off equilibrium in the others: 6 % residual "
-     "measured), hence no moduli measurement"),
-    ("newton-xpbd", "Newton 1.8.0, SolverXPBD", "constraints tr(FᵀF) − 3 and det F − 1 (solve_tetrahedra)",
-     "linear elasticity: an energy quadratic in tr(FᵀF) − 3 is quartic in a shear strain, μ_eff = 1.9e-6 μ "
-     "measured with its own kernel; every scene refused; tetrahedra with k_lambda ≤ 0 silently skipped"),
-    ("pbd-xpbd-fem", "PositionBasedDynamics (pypbd 2.2.2), XPBD_FEMTetConstraint, 1 substep, 1 iteration",
-     "St Venant–Kirchhoff with textbook Lamé, compliance 1/E",
-     "ν < 0 or ν > 0.49: the constraint silently makes no correction (refused here); an absolute threshold of "
-     "1e-6 on the constraint switches every tetrahedron off at small strain in SI units (the model runs in a "
-     "1e12 kg mass unit)"),
-)
-
-
 def laws_table() -> Table:
     """What each engine model's parameters mean, from the engine's source (model docstrings)."""
-    rows = [[(m, ""), (eng, ""), (law, ""), (cannot, "")] for m, eng, law, cannot in LAWS]
+    rows = [[(m, ""), (eng, ""), (law, ""), (cannot, "")] for m, (eng, law, cannot) in roles.ENGINE_LAWS.items()]
     return Table("table_engine_laws", "The engines' laws and what each cannot do",
                  "Each engine's own code runs (its package, imported only when used); the law and the (E, ν) "
                  "mapping are derived from its source and checked by the verification tests "
@@ -125,7 +90,7 @@ def moduli_rows(moduli: pd.DataFrame | None) -> Table | None:
     """The engines' rows of the stored ``moduli`` table."""
     if moduli is None or "model" not in moduli:
         return None
-    t = moduli[moduli["model"].isin(ENGINE_MODELS)]
+    t = moduli[moduli["model"].isin(list(roles.ENGINE_LAWS))]
     if t.empty:
         return None
 
@@ -168,7 +133,7 @@ def findings(closing: pd.DataFrame | None, timing: pd.DataFrame | None) -> str:
                 f"{m} ({', '.join(sorted({f'ν = {n:g}' for n in g['nu']}))})" for m, g in refused.groupby("model"))
                 + ".")
     if timing is not None and not timing.empty:
-        eng = timing[timing["model"] != "hybmss"]
+        eng = timing.iloc[1:]  # the first row is the reference model the ratios are to
         if not eng.empty:
             loads = timing["load_avg"].dropna()
             out.append("Time per step against hybmss on the " + str(timing["mesh"].iloc[0]) + " cube: " + ", ".join(

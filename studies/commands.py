@@ -292,7 +292,7 @@ def _bench_engine(args, one: dict, repeats: int):
     rows = step_ratios([name], mesh=mesh, nu=nu, steps=args.steps, repeats=repeats,
                        target_s=0.05 if args.quick else 0.5)
     static = []
-    for m in ("hybmss", name):
+    for m in (models.default_name(), name):
         sc = compression_scene(m, nu, mesh=mesh)
         t0 = time.perf_counter()
         try:

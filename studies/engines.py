@@ -28,6 +28,7 @@ import pandas as pd
 from hybmss import models
 from hybmss.experiments import SceneSpec
 
+from . import roles
 from .runner import SolverSpec, Task, run_tasks
 from .store import Store
 
@@ -36,8 +37,8 @@ NUS = (0.25, 0.45, 0.499)
 DEFORMATION = 0.05
 MESH = (10, 10, 10)
 QUICK_MESH = (2, 2, 2)
-CONTEXT = ("hybmss", "corot-hex8")
-"""Models shown beside the engines for context."""
+CONTEXT = roles.ENGINE_CONTEXT
+"""Models shown beside the engines for context (:data:`studies.roles.ENGINE_CONTEXT`)."""
 FORCE = {"compression": "force_z", "shear": "force_x"}
 STATIC = SolverSpec("static")
 FEM = SolverSpec("fem", element="auto", law="linear")
@@ -105,7 +106,7 @@ def closing_table(specs_, rows: list[dict]) -> pd.DataFrame:
 
 def step_ratios(names, mesh=MESH, nu: float = TIMED_NU, steps: int | None = None, repeats: int = 3,
                 target_s: float = 0.5) -> list[dict]:
-    """Time per explicit step of each model of ``names`` and of hybmss (Numba, float64, one thread)
+    """Time per explicit step of each model of ``names`` and of the registry's default model, hybmss (Numba, float64, one thread)
     on the compression cube ``mesh`` at ν, best of ``repeats`` runs of ``steps`` steps (default:
     as many as fit in ``target_s`` after a probe, at least 20), interleaved model by model;
     ``ratio_to_hybmss`` per row, the 1-minute load average of each best run.  An engine steps at
@@ -115,7 +116,8 @@ def step_ratios(names, mesh=MESH, nu: float = TIMED_NU, steps: int | None = None
     from hybmss.system import build
 
     cfgs = []
-    for name in ("hybmss",) + tuple(n for n in names if n != "hybmss"):
+    ref = models.default_name()
+    for name in (ref,) + tuple(n for n in names if n != ref):
         spec = models.get(name)
         scene = compression_scene(name, nu, mesh=mesh)
         system = build(scene)

@@ -115,6 +115,48 @@ _ENGINE_MESHES = {"cube": (4, 4, 4), "beam": (2, 2, 12)}
 _ENGINE_MESHES_SMALL = {"cube": (2, 2, 2), "beam": (1, 1, 6)}
 
 
+ENGINE_CONTEXT = ("hybmss", "corot-hex8")
+"""Models shown beside the engines in their closing study (:mod:`studies.engines`): the mass-spring
+model and the corotational Hex8 FEM on the same cube."""
+
+
+ENGINE_LAWS = {
+    "mujoco-tet": ("MuJoCo 4.0.1 flex, dof=\"full\": linear tetrahedra (6 per voxel, MuJoCo's grid split)",
+     "St Venant–Kirchhoff: edge Green strains l² − l0² contracted with the element metric "
+     "(engine_elasticity.h: mj_stretchElongation, mj_stretchTension); young, poisson → μ = E/(2(1+ν)), "
+     "λ = Eν/((1+ν)(1−2ν)) as documented, no shift",
+     "joint damping on a flex (refused by MuJoCo: the loop applies −c m v after mj_step); surface tractions; ν < 0"),
+    "mujoco-trilinear": ("MuJoCo 4.0.1 flex, dof=\"trilinear\": 8-node cells = the voxels",
+     "constant cell stiffness (flex_stiffness) applied in the cell's rotated frame (engine_passive.c, "
+     "flex_interp branch): corotational linear Hex8 in E, ν",
+     "a body that is not a box (its interpolation grid spans the bounding box); as mujoco-tet"),
+    "mujoco-quadratic": ("MuJoCo 4.0.1 flex, dof=\"quadratic\": 27-node cells",
+     "corotational linear Hex27; masses ρVc/64 per node of each cell eighth (row-sum lumping of the 27-node "
+     "mass matrix has negative corner masses)", "as mujoco-trilinear"),
+    "newton-semi": ("Newton 1.8.0 on Warp 1.19.0 (cpu, float32), SolverSemiImplicit, tetrahedra",
+     "stable Neo-Hookean whose small-strain Lamé parameters are (3 k_mu/4, k_lambda − 5 k_mu/8) "
+     "(newton/_src/solvers/semi_implicit kernels, eval_tetrahedra): the builder's k_mu, k_lambda are not μ, λ; "
+     "the model passes k_mu = 4μ/3, k_lambda = λ + 5μ/6",
+     "the builder's documented Lamé mapping (k_mu = μ) gives μ 25 % low; ν ≤ −5/14 (k_lambda ≤ 0); float32 "
+     "resolves forces to ~1e-4 of the plate force (the rest test's floor)"),
+    "newton-vbd": ("Newton 1.8.0, SolverVBD (vertex block descent, 3×3 block per vertex)",
+     "μ/2 (I_C − 3) + (λ+μ)/2 (J − α)², builder Lamé as they are",
+     "slide plates (a node held in some components is off equilibrium in the others: 6 % residual "
+     "measured), hence no moduli measurement"),
+    "newton-xpbd": ("Newton 1.8.0, SolverXPBD", "constraints tr(FᵀF) − 3 and det F − 1 (solve_tetrahedra)",
+     "linear elasticity: an energy quadratic in tr(FᵀF) − 3 is quartic in a shear strain, μ_eff = 1.9e-6 μ "
+     "measured with its own kernel; every scene refused; tetrahedra with k_lambda ≤ 0 silently skipped"),
+    "pbd-xpbd-fem": ("PositionBasedDynamics (pypbd 2.2.2), XPBD_FEMTetConstraint, 1 substep, 1 iteration",
+     "St Venant–Kirchhoff with textbook Lamé, compliance 1/E",
+     "ν < 0 or ν > 0.49: the constraint silently makes no correction (refused here); an absolute threshold of "
+     "1e-6 on the constraint switches every tetrahedron off at small strain in SI units (the model runs in a "
+     "1e12 kg mass unit)"),
+}
+"""What the report says of each engine model (reports/engines.py): engine and element, its law and (E, ν)
+mapping as derived from the engine's source in the model's folder, and what it cannot represent
+(refused before any work), each measured by tests/verification/test_engine_*.py."""
+
+
 def _engine_cost(scene, kind: str) -> float:
     """An engine's damped run to rest: its steps grow as ω_max/ω₁ ∝ √((λ + 2μ)/μ) (the volumetric
     waves against the slowest mode); 4³ cube at ν = 1/4: a few seconds."""

@@ -66,3 +66,7 @@ def test_closing_table_on_the_small_cube(tmp_path):
             F, Ff = r.loc[m, "force_N"], r.loc[m, "force_fem_N"]
             assert r.loc[m, "force_rel_error"] == pytest.approx(abs(F - Ff) / abs(Ff), rel=1e-12)
             assert r.loc[m, "status"] == "ok"
+
+
+def test_the_report_says_what_each_registered_engine_is():
+    assert set(roles.ENGINE_LAWS) == set(engines.engine_models())
