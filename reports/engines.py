@@ -127,6 +127,13 @@ def findings(closing: pd.DataFrame | None, timing: pd.DataFrame | None) -> str:
                        f"{100 * float(best['force_rel_error']):.2g} % ({best['model']}, {best['experiment']}, "
                        f"ν = {best['nu']:g}) to {100 * float(worst['force_rel_error']):.2g} % ({worst['model']}, "
                        f"{worst['experiment']}, ν = {worst['nu']:g}) of the FEM.")
+        top = closing[(closing["nu"] == closing["nu"].max()) & closing["engine"].astype(bool)
+                      & (closing["experiment"] == "compression")]
+        if not top.empty:  # locking as ν → ½: the force error of each engine at the largest ν
+            out.append(f"Compression at ν = {closing['nu'].max():g}: " + ", ".join(
+                f"{r['model']} " + (f"{100 * float(r['force_rel_error']):.3g} %" if r["status"] == "ok"
+                                    and _num(r["force_rel_error"]) is not None else str(r["status"]))
+                for _, r in top.iterrows()) + " (force error against the FEM).")
         refused = closing[closing["status"] == "not-representable"]
         if not refused.empty:
             out.append("Not representable: " + "; ".join(
