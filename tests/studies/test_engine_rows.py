@@ -6,42 +6,17 @@ from __future__ import annotations
 
 import pytest
 
-from studies import engines, pareto, reproduce, roles
+from studies import engines, pareto, roles
 from studies.runner import SolverSpec, Task, compute
 from studies.store import Store
 
 pytest.importorskip("mujoco")
 
 
-def _engine_tasks(ts):
-    return [t for t in ts if roles.part(t.scene.model).meshes and t.solver.kind != "fem"]
-
-
-def test_engine_rows_run_on_their_meshes_beside_the_fem_of_it():
-    ts = reproduce.tasks_for(None, quick=False)
-    eng = _engine_tasks(ts)
-    assert {t.scene.model for t in eng} == set(engines.engine_models()) - {"newton-vbd", "pbd-xpbd-fem"}
-    fem = {(t.scene.experiment, t.scene.mesh, t.scene.nu, t.scene.deformation, t.scene.angle_deg, t.scene.E)
-           for t in ts if t.solver.kind == "fem"}
-    for t in eng:
-        s = t.scene
-        own = roles.part(s.model).meshes["beam" if s.is_beam else "cube"]
-        assert s.mesh == own, (s.model, s.mesh)
-        assert (s.experiment, s.mesh, s.nu, s.deformation, s.angle_deg, s.E) in fem, t.scene.label
-    assert all(t.solver.kind == "static" for t in eng)  # no explicit protocol for the engines
-
-
-def test_quick_mode_runs_one_case_per_experiment_and_leaves_slow_engines_out():
-    eng = _engine_tasks(reproduce.tasks_for(None, quick=True))
-    assert eng and all(reproduce.quick_case(t.scene) for t in eng)
-    assert not [t for t in eng if not roles.part(t.scene.model).quick]
-    per_model = {}
-    for t in eng:
-        per_model.setdefault(t.scene.model, set()).add(t.scene.experiment)
-    assert per_model["mujoco-tet"] == {"compression", "tension", "shear", "torsion"}
-    assert "pbd-xpbd-fem" not in per_model and "newton-vbd" not in per_model
+def test_pareto_runs_the_engines_static_answer_at_the_base_resolution_only():
     pq = [t for t in pareto.tasks(quick=True) if t.scene.model in engines.engine_models()]
     assert pq and all(t.solver.kind == "static" for t in pq)
+    assert not [t for t in pq if t.scene.experiment == "bending"]
 
 
 def test_a_scene_an_engine_cannot_represent_is_a_failure_row_that_says_so():
