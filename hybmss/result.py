@@ -10,6 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+VTK_HEX_ORDER = np.array([0, 1, 3, 2, 4, 5, 7, 6])
+"""VTK's hexahedron corner order from the lattice's (corner c = di + 2 dj + 4 dk)."""
+
 
 @dataclass(frozen=True)
 class Reaction:
@@ -86,3 +89,22 @@ class Result:
             "converged": bool(self.converged),
             "info": self.info,
         }
+
+    def to_pyvista(self, cells: np.ndarray | None = None):
+        """The reference configuration as a pyvista mesh: hexahedra of the lattice ``cells``
+        (m, 8), corner c = di + 2 dj + 4 dk (``Lattice.cells``), or the points alone without
+        them; point data ``displacement`` (m) and ``|u|`` (m), field data ``solver``,
+        ``scene_digest`` and ``units``.  Warp by ``displacement`` to see the deformed state."""
+        import pyvista as pv
+
+        X = np.asarray(self.X, dtype=float)
+        if cells is None:
+            grid = pv.PolyData(X)
+        else:
+            grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: np.asarray(cells)[:, VTK_HEX_ORDER]}, X)
+        grid.point_data["displacement"] = np.asarray(self.u, dtype=float)
+        grid.point_data["|u|"] = np.linalg.norm(self.u, axis=1)
+        grid.field_data["solver"] = [self.solver]
+        grid.field_data["scene_digest"] = [self.scene_digest]
+        grid.field_data["units"] = ["SI: m, N, Pa, s"]
+        return grid

@@ -462,6 +462,11 @@ def rotation_matrix(axis, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * (K @ K)
 
 
+REGION_EXTRAS = ("cells", "patch")
+"""Region fields added after the first ones: left out of a scene's JSON form (and so of its digest)
+when unset, so the digests of scenes whose regions are faces and boxes do not change."""
+
+
 @dataclass(frozen=True)
 class Region:
     """Particles selected by reference position.
@@ -469,11 +474,20 @@ class Region:
     ``face`` selects a face of the body's bounding box, e.g. ``"z+"`` (top), ``"z-"``
     (bottom), ``"x-"``.  ``lo``/``hi`` additionally restrict to a box (inclusive, with a tolerance
     of 1e-9 le).  With ``face=None`` only the box is used.
+
+    ``cells`` (hex of the packed C-ordered boolean mask over the body's grid, as
+    :attr:`Body.mask_bits`) selects the points of the closed boxes of those cells: the nodes of
+    cells with one label of a segmentation.  ``patch`` = ``(nx, ny, nz, px, py, pz, radius,
+    angle_deg)`` selects the points on the body's surface faces whose outward normal lies within
+    ``angle_deg`` of ``n`` and that lie within ``radius`` of ``p``.  Both restrict whatever else is
+    given, and both work on any point (lattice nodes, FEM nodes, face centres).
     """
 
     face: str | None = None
     lo: tuple[float, float, float] | None = None
     hi: tuple[float, float, float] | None = None
+    cells: str | None = None
+    patch: tuple[float, ...] | None = None
 
     def __post_init__(self):
         if self.face is not None and not isinstance(self.face, str):
@@ -481,12 +495,20 @@ class Region:
                                  f"({_typename(self.face)})")
         if self.face is not None and self.face not in {a + s for a in "xyz" for s in "+-"}:
             raise ValueError(f"face must be one of x-, x+, y-, y+, z-, z+; got {self.face!r}")
-        if self.face is None and self.lo is None and self.hi is None:
-            raise ValueError("a region needs a face or a box (lo, hi)")
+        if self.face is None and self.lo is None and self.hi is None and self.cells is None \
+                and self.patch is None:
+            raise ValueError("a region needs a face, a box (lo, hi), cells or a surface patch")
         if self.lo is not None:
             object.__setattr__(self, "lo", _vec3("lo", self.lo))
         if self.hi is not None:
             object.__setattr__(self, "hi", _vec3("hi", self.hi))
+        if self.cells is not None:
+            try:
+                bytes.fromhex(self.cells)
+            except (TypeError, ValueError):
+                raise ValueError("cells must be the hex text of a packed cell mask") from None
+        if self.patch is not None:
+            object.__setattr__(self, "patch", _patch(self.patch))
 
     def select(self, X: np.ndarray, body: Body) -> np.ndarray:
         """Boolean mask over reference points ``X`` (n, 3) of ``body`` in this region."""
@@ -502,7 +524,85 @@ class Region:
             sel &= np.all(X >= np.asarray(self.lo) - tol, axis=1)
         if self.hi is not None:
             sel &= np.all(X <= np.asarray(self.hi) + tol, axis=1)
+        if self.cells is not None:
+            sel &= _in_cells(X, body, self.cell_mask(body))
+        if self.patch is not None:
+            sel &= _on_patch(X, body, self.patch)
         return sel
+
+    def cell_mask(self, body: Body) -> np.ndarray:
+        """The boolean cell mask of ``cells`` over ``body``'s grid."""
+        n = int(np.prod(body.shape))
+        bits = np.frombuffer(bytes.fromhex(self.cells), dtype=np.uint8)
+        if len(bits) != (n + 7) // 8:
+            raise ValueError(f"cells holds {8 * len(bits)} bits for a grid of {n} cells")
+        return np.unpackbits(bits, count=n).astype(bool).reshape(body.shape)
+
+    @staticmethod
+    def of_cells(mask) -> "Region":
+        """The region of the closed boxes of the cells of a boolean ``mask`` over a body's grid."""
+        return Region(cells=np.packbits(np.asarray(mask, dtype=bool).ravel()).tobytes().hex())
+
+
+def _patch(value) -> tuple[float, ...]:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (8,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"patch must be 8 finite numbers (normal, point, radius, angle_deg), got {value!r}")
+    if np.linalg.norm(arr[:3]) == 0 or arr[6] <= 0 or not 0 < arr[7] < 180:
+        raise ValueError(f"patch needs a non-zero normal, radius > 0 and angle_deg in (0, 180), got {value!r}")
+    return tuple(float(v) for v in arr)
+
+
+def _grid_coords(X: np.ndarray, body: Body) -> tuple[np.ndarray, float]:
+    return (X - np.asarray(body.origin)) / body.le, 1e-9
+
+
+def _lookup(mask: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``mask[idx]`` for integer rows ``idx`` (n, 3), False outside the grid."""
+    inside = np.all((idx >= 0) & (idx < np.asarray(mask.shape)), axis=1)
+    out = np.zeros(len(idx), dtype=bool)
+    i = idx[inside]
+    out[inside] = mask[i[:, 0], i[:, 1], i[:, 2]]
+    return out
+
+
+def _in_cells(X: np.ndarray, body: Body, mask: np.ndarray) -> np.ndarray:
+    """Points in the closed box of at least one cell of ``mask`` (a point on a shared face or
+    corner is in each of the boxes that touch it)."""
+    t, tol = _grid_coords(X, body)
+    lo = np.ceil(t - 1 - tol).astype(np.int64)
+    hi = np.floor(t + tol).astype(np.int64)
+    out = np.zeros(len(X), dtype=bool)
+    for pick in np.ndindex(2, 2, 2):
+        idx = np.where(np.asarray(pick, dtype=bool), hi, lo)
+        out |= _lookup(mask, idx)
+    return out
+
+
+def _on_patch(X: np.ndarray, body: Body, patch: tuple[float, ...]) -> np.ndarray:
+    """Points within ``radius`` of the patch's point that lie on a surface face of ``body`` whose
+    outward normal is within ``angle_deg`` of the patch's normal."""
+    n = np.asarray(patch[:3]) / np.linalg.norm(patch[:3])
+    near = np.linalg.norm(X - np.asarray(patch[3:6]), axis=1) <= patch[6] * (1 + 1e-9)
+    t, tol = _grid_coords(X, body)
+    ijk, axes, sides = body.boundary_faces()
+    out = np.zeros(len(X), dtype=bool)
+    for axis in range(3):
+        for side in (0, 1):
+            if math.degrees(math.acos(np.clip((2 * side - 1) * n[axis], -1, 1))) > patch[7] + 1e-9:
+                continue
+            pick = (axes == axis) & (sides == side)
+            faces = np.zeros(body.shape, dtype=bool)
+            faces[tuple(ijk[pick].T)] = True  # the cells whose `side` face normal to `axis` is on the surface
+            plane = np.round(t[:, axis])
+            on = np.abs(t[:, axis] - plane) <= tol
+            lo = np.ceil(t - 1 - tol).astype(np.int64)
+            hi = np.floor(t + tol).astype(np.int64)
+            for pick2 in np.ndindex(2, 2):
+                idx = np.where(np.insert(np.asarray(pick2, dtype=bool), axis, False), hi, lo)
+                idx[:, axis] = plane.astype(np.int64) - side
+                out |= on & _lookup(faces, idx)
+    return out & near
 
 
 @dataclass(frozen=True)
@@ -609,6 +709,10 @@ class Scene:
         d["model"] = self.model.to_dict()
         if not self.loads:
             del d["loads"]
+        for item in (*d["plates"], *d.get("loads", ())):
+            for k in REGION_EXTRAS:
+                if item["region"][k] is None:
+                    del item["region"][k]
         return d
 
     @classmethod
@@ -682,7 +786,9 @@ _TEXT = (lambda v: isinstance(v, str), "a string")
 _VEC3 = _numbers(3)
 _REGION = {"face": (lambda v: v is None or isinstance(v, str), "a face name (x-, ..., z+) or null"),
            "lo": (lambda v: v is None or _VEC3[0](v), "3 numbers or null"),
-           "hi": (lambda v: v is None or _VEC3[0](v), "3 numbers or null")}
+           "hi": (lambda v: v is None or _VEC3[0](v), "3 numbers or null"),
+           "cells": (lambda v: v is None or isinstance(v, str), "hex text or null"),
+           "patch": (lambda v: v is None or _numbers(8)[0](v), "8 numbers or null")}
 _SCENE_SCHEMA = {
     "body": ({"shape": _numbers(3, integer=True), "le": _NUMBER, "origin": _VEC3, "mask_hex": _TEXT},
              ("shape", "le")),

@@ -2,7 +2,8 @@
 
 Subcommands: ``info`` (lattice counts), ``moduli`` (effective E, ν, G of a model), ``bench``
 (speed of the kernels), ``fem`` (the FEM reference of one scene), ``compare`` (one scene on the
-mass-spring system and the FEM, side by side) and ``run`` (the publication's studies).  Their
+mass-spring system and the FEM, side by side), ``run`` (the publication's studies) and ``study``
+(a user's study file).  Their
 implementations are in :mod:`studies.commands`.
 
 The scene options (``--mesh``, ``--E``, ``--nu``, ``--deformation``, ``--angle-deg``, …) are
@@ -352,6 +353,18 @@ def build_parser() -> tuple[Parser, Options]:
              help="address of a running dask scheduler, e.g. tcp://host:8786 (--executor dask)")
     opts.add(q, "--no-progress", action="store_true", help="no progress bar")
     no_guard(q)
+
+    q = command("study", "answer a study file (docs/study-format.md): its models against one FEM reference, "
+                "with cost, tables and a report", commands.study)
+    opts.add(q, "file", metavar="FILE", help="the study file (.toml)")
+    opts.add(q, "--quick", action="store_true", help="the file's [body.quick] values (a smoke run)")
+    opts.add(q, "--out", default=None, metavar="DIR", help="results folder (default artifacts/studies/<name>)")
+    opts.add(q, "--jobs", type=integer, default=None,
+             help="parallel runs, >= 1 (default: all cores, or the Dask cluster's threads)")
+    opts.add(q, "--scheduler", default=None, metavar="ADDRESS",
+             help="address of a running dask scheduler, e.g. tcp://host:8786 (runs on that cluster)")
+    opts.add(q, "--no-report", action="store_true", help="tables only, no report")
+    opts.add(q, "--no-progress", action="store_true", help="no progress bar")
     return p, opts
 
 

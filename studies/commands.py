@@ -732,3 +732,41 @@ def run(args):
     s = runner.summary
     names = list(STUDIES) + list(EXTRA_STUDIES) if args.all or not args.study else list(args.study)
     return {"out": str(args.out), "studies": names, **s.as_dict()}, f"{args.out}: {s.line()}"
+
+
+# ------------------------------------------------------------------------------- study
+def study(args):
+    """A study file: checked whole before any work (exit 2 naming the key, nothing written), its
+    runs computed into ``--out`` (resumable), its tables and report written."""
+    from .study import Study
+
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs {args.jobs} is not allowed: an integer >= 1 (parallel runs), or none for all cores")
+    if args.out is not None and not str(args.out).strip():
+        raise InputError("--out '' is not allowed: a results folder path is required")
+    spec = Study.from_toml(args.file, quick=args.quick)
+    out = args.out or f"artifacts/studies/{spec.name}"
+    executor = "dask" if args.scheduler else "local"
+    runner = Runner(executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
+    Store(out).check_writable()
+    t0 = time.perf_counter()
+    with runner:
+        done = spec.run(out, jobs=args.jobs, runner=runner, progress=not args.no_progress)
+    report = None if args.no_report or spec.experiment is not None else str(spec.report(out))
+    tables = spec.tables(out) if spec.experiment is None else {}
+    budget = [r for name, df in tables.items() if name.startswith("budget_") for r in df.to_dict("records")]
+    obj = {"study": spec.name, "title": spec.title, "out": str(out), "quick": args.quick,
+           "summary": runner.summary.as_dict(), **done, "report": report, "budget": budget,
+           "wall_time_s": time.perf_counter() - t0}
+    return obj, _study_text(spec, out, runner.summary.line(), budget, report, done)
+
+
+def _study_text(spec, out, line: str, budget: list[dict], report, done: dict) -> str:
+    lines = [f"{spec.title}", f"{out}: {line}"]
+    for b in budget:
+        lead = f", lead {b['lead']:.2f}x" if b.get("lead") else ""
+        lines.append(f"  {b['load_case']}: error {b['error']} <= {b['budget']:g}: {b['answer']}"
+                     + (f" ({b['cell_size_m']:g} m, {b['time_best_s']:.3g} s{lead})" if b.get("method") else ""))
+    lines += [f"  failed: {f}" for f in done.get("failures", [])]
+    lines.append(f"tables: {out}/tables/{spec.name}_*.csv" + (f"; report: {report}" if report else ""))
+    return "\n".join(lines)

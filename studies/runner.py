@@ -88,17 +88,28 @@ class Task:
     study: str = ""
 
     def key(self) -> str:
-        payload = json.dumps({"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
-                              "code": code_version(code_side(self.solver.kind))},
-                             sort_keys=True)
+        fields = {"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
+                  "code": code_version(code_side(self.solver.kind))}
+        extra = getattr(self.scene, "key_extra", None)
+        if extra is not None:  # what else a scene holder changes in the answer (a study's reference)
+            fields["extra"] = extra
+        payload = json.dumps(fields, sort_keys=True)
         return hashlib.sha256(payload.encode()).hexdigest()[:24]
 
 
 # --------------------------------------------------------------------------------- execution
 def solve(task: Task):
-    """Run one task; returns the :class:`hybmss.result.Result`."""
-    scene = task.scene.build()
-    s = task.solver
+    """Run one task; returns the :class:`hybmss.result.Result`.  A scene holder with a ``solve``
+    of its own (a study's :class:`studies.study.tasks.StudyScene`: repeats, an adaptive
+    reference) runs it; otherwise :func:`solve_scene`."""
+    own = getattr(task.scene, "solve", None)
+    if own is not None:
+        return own(task.solver)
+    return solve_scene(task.scene.build(), task.solver)
+
+
+def solve_scene(scene, s: SolverSpec):
+    """Solve the :class:`hybmss.scene.Scene` ``scene`` with solver ``s``."""
     if s.kind == "static":
         from hybmss.solve import solve_static
 

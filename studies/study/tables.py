@@ -1,0 +1,140 @@
+"""The tables of a study, from its stored runs: per load case the errors of every model run
+against its reference (:mod:`studies.study.metrics`), its cost beside its error, and the budget
+answer (the fastest run whose displacement field error ``u_rel_l2`` meets each budget, its lead
+over the next fastest, a tie when the lead is within the timing spread); and the references
+(element, refinement, own error estimate, time).
+
+Times are the best of the study's ``repeats`` runs, with their spread (max − min); an explicit
+run's cost adds µs per step, its dt_crit and the wall time of one simulated second."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..store import Store
+from .metrics import errors
+from .tasks import is_reference
+
+BUDGET_ERROR = "u_rel_l2"
+"""The error a budget bounds: the displacement field's relative L2 error against the FEM."""
+
+
+def loaded_runs(study, out) -> list[dict]:
+    """Every task of the study with its stored row and arrays (``None`` when not stored ok)."""
+    store = Store(Path(out))
+    runs = []
+    for task in study.tasks():
+        key = task.key()
+        row = store.row(key) if store.has(key) else None
+        ok = row is not None and row.get("status") in ("ok", "not-converged")
+        runs.append({"task": task, "key": key, "row": row, "arrays": store.arrays(key) if ok else None})
+    return runs
+
+
+def _config(task) -> tuple:
+    s = task.scene
+    m = s.build().material
+    return (s.load_case, m.E, m.nu, m.rho, s.cell_size)
+
+
+def error_rows(study, runs: list[dict]) -> list[dict]:
+    refs = {_config(r["task"]): r for r in runs if is_reference(r["task"])}
+    out = []
+    for r in runs:
+        task = r["task"]
+        if is_reference(task):
+            continue
+        s, m = task.scene, task.scene.build().material
+        row = {"load_case": s.load_case, "model": s.label, "cell_size_m": s.cell_size, "cells": s.build().body.n_cells,
+               "E": m.E, "nu": m.nu, "rho": m.rho, "solver": task.solver.kind,
+               "status": (r["row"] or {}).get("status", "missing"), "message": (r["row"] or {}).get("message", "")}
+        ref = refs[_config(task)]
+        if r["arrays"] is not None and ref["arrays"] is not None:
+            supports = {p.name: p.motion.kind for p in s.build().plates}
+            row.update(errors(r, ref, study.metrics, s.cell_size, supports))
+        row.update(_cost(task, r["row"] or {}))
+        out.append(row)
+    return out
+
+
+def _cost(task, row: dict) -> dict:
+    info = row.get("info", {}) or {}
+    best, spread = info.get("time_best_s", np.nan), info.get("time_spread_s", np.nan)
+    out = {"time_best_s": best, "time_spread_s": spread, "repeats": info.get("time_repeats", np.nan)}
+    if task.solver.kind == "explicit":
+        steps = row.get("steps") or task.solver.steps
+        per_step = best / steps
+        out.update(us_per_step=1e6 * per_step, dt_s=task.solver.dt, dt_crit_s=row.get("dt_crit", np.nan),
+                   steps=steps, wall_per_simulated_s=per_step / task.solver.dt)
+    return out
+
+
+def budget_answer(rows: pd.DataFrame, budgets) -> pd.DataFrame:
+    """Per budget (and material): the fastest run meeting it, its lead (next fastest's best time
+    / its best time) and whether that lead is a tie (the gap smaller than either spread)."""
+    out = []
+    keys = ["load_case", "E", "nu", "rho"]
+    for cfg, grp in rows.groupby(keys, sort=False):
+        for budget in budgets:
+            ok = grp[(grp[BUDGET_ERROR] <= budget) & grp["time_best_s"].notna()] if BUDGET_ERROR in grp else grp[:0]
+            ok = ok.sort_values("time_best_s")
+            line = dict(zip(keys, cfg), budget=budget, error=BUDGET_ERROR)
+            if ok.empty:
+                out.append({**line, "answer": "none meets it", "method": None})
+                continue
+            first = ok.iloc[0]
+            line.update(method=first["model"], cell_size_m=first["cell_size_m"], time_best_s=first["time_best_s"],
+                        time_spread_s=first["time_spread_s"], achieved=first[BUDGET_ERROR])
+            if len(ok) > 1:
+                second = ok.iloc[1]
+                gap = second["time_best_s"] - first["time_best_s"]
+                tie = bool(gap < max(first["time_spread_s"], second["time_spread_s"]))
+                line.update(runner_up=f"{second['model']} @ {second['cell_size_m']:g} m",
+                            lead=second["time_best_s"] / first["time_best_s"], tie=tie,
+                            answer=(f"tie: {first['model']} and {second['model']}" if tie else first["model"]))
+            else:
+                line.update(runner_up=None, lead=None, tie=False, answer=f"{first['model']} (the only one)")
+            out.append(line)
+    return pd.DataFrame(out)
+
+
+def reference_rows(runs: list[dict]) -> list[dict]:
+    out = []
+    for r in runs:
+        if not is_reference(r["task"]):
+            continue
+        s, row = r["task"].scene, r["row"] or {}
+        info = row.get("info", {}) or {}
+        m = s.build().material
+        out.append({"load_case": s.load_case, "cell_size_m": s.cell_size, "E": m.E, "nu": m.nu, "rho": m.rho,
+                    "solver": row.get("solver"), "element": info.get("element"), "law": r["task"].solver.law,
+                    "refine": info.get("reference_refine", info.get("refine")),
+                    "error_estimate": info.get("reference_error_estimate"),
+                    "error_target": info.get("reference_error_target"),
+                    "time_s": info.get("time_best_s"), "status": row.get("status", "missing")})
+    return out
+
+
+ERROR_COLUMNS = ("model", "cell_size_m", "E", "nu", "rho", "status")
+COST_COLUMNS = ("model", "cell_size_m", "solver", "time_best_s", "time_spread_s", "us_per_step", "dt_s",
+                "dt_crit_s", "wall_per_simulated_s", BUDGET_ERROR)
+COST_ONLY = COST_COLUMNS[3:-1]
+
+
+def study_tables(study, out) -> dict[str, pd.DataFrame]:
+    """``errors_<case>``, ``cost_<case>``, ``budget_<case>`` per load case, and ``reference``."""
+    runs = loaded_runs(study, out)
+    rows = pd.DataFrame(error_rows(study, runs))
+    tables = {}
+    for case in study.load_cases:
+        sub = rows[rows["load_case"] == case.name]
+        err_cols = [c for c in sub.columns if c not in COST_ONLY and c not in
+                    ("load_case", "cells", "repeats", "steps", "message", "solver")] + ["message"]
+        tables[f"errors_{case.name}"] = sub[[c for c in err_cols if c in sub]].reset_index(drop=True)
+        tables[f"cost_{case.name}"] = sub[[c for c in COST_COLUMNS if c in sub]].reset_index(drop=True)
+        tables[f"budget_{case.name}"] = budget_answer(sub, study.budgets)
+    tables["reference"] = pd.DataFrame(reference_rows(runs))
+    return tables

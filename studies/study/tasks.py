@@ -1,0 +1,159 @@
+"""The runs of a study: one per load case × material × resolution × model, and ONE FEM
+reference per load case × material × resolution (every model at that resolution is compared with
+it), as :class:`studies.runner.Task` s holding a :class:`StudyScene`.
+
+A :class:`StudyScene` is a built :class:`hybmss.scene.Scene` with the fields of a row (study,
+load case, cell size, model label, material), a ``build()`` like the experiments'
+:class:`~studies.scenes.SceneSpec` and its own ``solve``: a model run is timed ``repeats`` times
+(best and spread kept), a reference with ``refine = "auto"`` refines until its own error estimate
+is below its target.  Both add the reactions of every support to the result's ``info``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hybmss.scene import Material, Model, Scene
+
+from ..runner import SolverSpec, Task, solve_scene
+
+REFERENCE_MODEL = "hybmss"
+"""The model named in a reference scene (the FEM does not use it; a fixed name keeps the
+reference's key when the study's models change)."""
+
+
+@dataclass(frozen=True)
+class StudyScene:
+    scene: Scene
+    study: str
+    load_case: str
+    cell_size: float
+    label: str
+    repeats: int = 1
+    refine_auto: tuple[int, float] | None = None  # (largest refine, target relative error)
+
+    experiment = "study"
+
+    def build(self) -> Scene:
+        return self.scene
+
+    @property
+    def key_extra(self) -> dict:
+        """What else changes the stored answer: the timing repeats, an adaptive reference."""
+        if self.refine_auto is not None:
+            return {"refine": "auto", "largest": self.refine_auto[0], "target": self.refine_auto[1]}
+        return {"repeats": self.repeats}
+
+    @property
+    def mesh(self) -> tuple[int, int, int]:
+        return self.scene.body.shape
+
+    @property
+    def nu(self) -> float:
+        return self.scene.material.nu
+
+    @property
+    def model(self) -> str:
+        return self.scene.model.name
+
+    def to_dict(self) -> dict:
+        m = self.scene.material
+        return {"experiment": "study", "load_case": self.load_case, "cell_size": self.cell_size,
+                "mesh": "x".join(map(str, self.mesh)), "cells": self.scene.body.n_cells, "E": m.E,
+                "nu": m.nu, "rho": m.rho, "model": self.scene.model.name, "variant": self.label,
+                "repeats": self.repeats}
+
+    def solve(self, solver: SolverSpec):
+        if solver.kind == "fem" and self.refine_auto is not None:
+            res = _auto_reference(self.scene, solver, *self.refine_auto)
+        else:
+            res = _timed(self.scene, solver, self.repeats if solver.kind != "fem" else 1)
+        for name, r in res.reactions.items():
+            for c, v in zip("xyz", r.force):
+                res.info[f"reaction_{name}_f{c}"] = float(v)
+            for c, v in zip("xyz", r.torque):
+                res.info[f"reaction_{name}_t{c}"] = float(v)
+        return res
+
+
+def _timed(scene: Scene, solver: SolverSpec, repeats: int):
+    """The first result, with ``info['time_best_s']`` and ``info['time_spread_s']`` (max − min)
+    of ``repeats`` runs' own wall times."""
+    times, first = [], None
+    for _ in range(repeats):
+        res = solve_scene(scene, solver)
+        times.append(float(res.wall_time_s))
+        first = first or res
+    first.info.update(time_best_s=min(times), time_spread_s=max(times) - min(times), time_repeats=len(times))
+    return first
+
+
+def _auto_reference(scene: Scene, solver: SolverSpec, largest: int, target: float):
+    """Refine (1, 2, ... ``largest``) until the Richardson estimate of the reference's own
+    relative error (largest over max |u| and the plates' forces, expected order of the element)
+    is below ``target``; the result of the last refinement, with the estimate in its ``info``."""
+    from dataclasses import replace
+
+    from fem_reference.convergence import EXPECTED_ORDER, analyze
+
+    results, estimate = [], float("nan")
+    for r in range(1, largest + 1):
+        results.append(solve_scene(scene, replace(solver, refine=r)))
+        if len(results) < 2:
+            continue
+        order = EXPECTED_ORDER[results[-1].info["element"]]
+        estimate = max(analyze([r - 1, r], [q(x) for x in results[-2:]], order).relative_error_finest
+                       for q in _outputs(scene))
+        if estimate <= target:
+            break
+    res = results[-1]
+    res.info.update(reference_refine=len(results), reference_error_estimate=estimate,
+                    reference_error_target=target, time_best_s=float(res.wall_time_s), time_spread_s=0.0)
+    return res
+
+
+def _outputs(scene: Scene):
+    outs = [lambda r: r.max_displacement]
+    for p in scene.plates:
+        outs.append(lambda r, n=p.name: float(sum(f * f for f in r.reactions[n].force)) ** 0.5)
+    return outs
+
+
+# ---------------------------------------------------------------------------- the task list
+def study_tasks(study) -> list[Task]:
+    """Model runs first (load case, material, resolution, model), then the references."""
+    tasks, refs = [], {}
+    for case in study.load_cases:
+        for mat in study.materials:
+            for vox in study.voxels:
+                plates = tuple(s.plate(vox.labels) for s in case.supports)
+                loads = tuple(t.load(vox.labels) for t in case.tractions)
+                for run in study.models:
+                    scene = Scene(vox.body, mat, Model(run.name, **dict(run.params)), plates, case.gravity,
+                                  run.damping, f"{study.name} {case.name} {run.label}", loads)
+                    tasks.append(Task(StudyScene(scene, study.name, case.name, vox.le, run.label, study.repeats),
+                                      _solver(run), study.name))
+                refs[(case.name, mat, vox.le)] = _reference_task(study, case, mat, vox, plates, loads)
+    return tasks + list(refs.values())
+
+
+def _solver(run) -> SolverSpec:
+    if run.kind == "static":
+        return SolverSpec("static")
+    return SolverSpec(run.kind, dt=run.dt, steps=run.steps, ramp_time=run.ramp_time)
+
+
+def _reference_task(study, case, mat: Material, vox, plates, loads) -> Task:
+    ref = study.reference
+    scene = Scene(vox.body, mat, Model(REFERENCE_MODEL), plates, case.gravity, 0.0,
+                  f"{study.name} {case.name} FEM", loads)
+    auto = None
+    if ref.refine == "auto":
+        from .spec import AUTO_REFINE_MAX
+
+        auto = (AUTO_REFINE_MAX, ref.tolerance * min(study.budgets))
+    solver = SolverSpec("fem", element=ref.element, law=ref.law, refine=1 if auto else int(ref.refine))
+    return Task(StudyScene(scene, study.name, case.name, vox.le, "FEM", 1, auto), solver, study.name)
+
+
+def is_reference(task: Task) -> bool:
+    return task.solver.kind == "fem"
