@@ -1,0 +1,205 @@
+"""The shipped example studies end to end at --quick (tables, report, VTU files), their tables
+held to theory where theory exists, and the reference solved once per configuration.
+
+Theory:
+- compression of a block between frictionless plates with two symmetry planes is homogeneous
+  uniaxial stress: for the compressible Neo-Hookean law of the reference
+  (ψ = μ/2 (I₁ − 3) − μ ln J + λ/2 (ln J)²) the lateral stretch b solves
+  μ(b − 1/b) + λ ln(a b²)/b = 0 at the axial stretch a, the plate force is
+  A₀ (μ(a − 1/a) + λ ln(a b²)/a) and the volume change a b² − 1; for the linear law the force
+  is E A ε;
+- a cantilever under its weight q = ρ g A: the tip deflection lies between Euler–Bernoulli's
+  q L⁴ / 8EI (shear-rigid) and Timoshenko's q L⁴ / 8EI + q L² / (2 κ G A), κ = 5/6 (shear
+  flexible, the clamped section free to warp); a 3D clamp holds the section flat, so the answer
+  lies strictly inside the bracket;
+- the clamp of a hanging body carries its weight ρ g V (statics).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import tomllib
+from scipy.optimize import brentq
+
+from study_files import write
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "studies" / "examples"
+LIVER = tomllib.loads((EXAMPLES / "liver-block.toml").read_text())
+
+
+def _table(out: Path, study: str, name: str) -> pd.DataFrame:
+    return pd.read_csv(out / "tables" / f"{study}_{name}.csv")
+
+
+def neo_hookean_uniaxial(E, nu, a):
+    mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    b = brentq(lambda b: mu * (b - 1 / b) + lam * math.log(a * b * b) / b, 0.5, 2.0, xtol=1e-15)
+    return b, mu * (a - 1 / a) + lam * math.log(a * b * b) / a
+
+
+@pytest.fixture(scope="module")
+def liver(tmp_path_factory):
+    from conftest import run_cli
+
+    out = tmp_path_factory.mktemp("liver") / "out"
+    proc = run_cli("study", EXAMPLES / "liver-block.toml", "--quick", "--out", out, "--jobs", "1", "--json",
+                   "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    return out, json.loads(proc.stdout)
+
+
+def test_liver_compression_is_the_exact_uniaxial_neo_hookean_state(liver):
+    out, _ = liver
+    df = _table(out, "liver-block", "errors_compression")
+    mat = LIVER["material"]
+    H, d = LIVER["body"]["box"][2], -LIVER["load_case"][0]["support"][1]["displacement"][2]
+    b, P = neo_hookean_uniaxial(mat["E"], mat["nu"], 1 - d / H)
+    A = LIVER["body"]["box"][0] * LIVER["body"]["box"][1]
+    assert np.allclose(df["force_top_fem_N"], P * A, rtol=1e-6, atol=0)
+    assert np.allclose(df["volume_fem_own_detF"], (1 - d / H) * b * b - 1, rtol=1e-6)
+    # the named point, the middle of the top face: lateral (b - 1) x 2 cm each way, -d along z
+    tip = np.linalg.norm([0.02 * (b - 1), 0.02 * (b - 1), d])
+    assert np.allclose(df["point_tip_fem_u_m"], tip, rtol=1e-6)
+    # each error is relative to the reference: recomputed from the table's own columns
+    assert np.allclose(df["force_top_rel"], abs(df["force_top_N"] - df["force_top_fem_N"]) / abs(df["force_top_fem_N"]),
+                       rtol=1e-9)
+
+
+def test_liver_self_weight_clamp_carries_the_weight(liver):
+    out, _ = liver
+    df = _table(out, "liver-block", "errors_self-weight")
+    mat, box = LIVER["material"], LIVER["body"]["box"]
+    weight = mat["rho"] * 9.81 * box[0] * box[1] * box[2]
+    assert np.allclose(df["force_clamp_fem_N"], weight, rtol=1e-9)
+
+
+def test_liver_budget_answers_and_report(liver):
+    out, obj = liver
+    assert obj["status"] == "ok" and obj["failed"] == 0 and obj["runs"] == 16
+    for case in ("compression", "self-weight"):
+        cost, budget = _table(out, "liver-block", f"cost_{case}"), _table(out, "liver-block", f"budget_{case}")
+        assert len(budget) == len(LIVER["study"]["budgets"])
+        for _, b in budget.iterrows():
+            meets = cost[cost["u_rel_l2"] <= b["budget"]].sort_values("time_best_s")
+            if meets.empty:
+                assert b["answer"] == "none meets it"
+                continue
+            assert b["method"] == meets.iloc[0]["model"] and b["achieved"] <= b["budget"]
+            if len(meets) > 1:
+                gap = meets.iloc[1]["time_best_s"] - meets.iloc[0]["time_best_s"]
+                assert bool(b["tie"]) == (gap < max(meets.iloc[0]["time_spread_s"], meets.iloc[1]["time_spread_s"]))
+    page = (out / "report" / "liver-block.html").read_text()
+    assert LIVER["study"]["title"] in page and page.count("<h2>Load case") == 2
+    assert "views-" not in page and page.count("data:image/png") == 3  # chart + one view per load case
+
+
+def test_liver_vtu_files_carry_model_scene_fem_and_error(liver):
+    import pyvista as pv
+
+    out, _ = liver
+    names = sorted(p.name for p in (out / "vtu").glob("*.vtu"))
+    assert "hybmss-10mm-compression.vtu" in names and "xpbd-nh-20mm-self-weight.vtu" in names
+    grid = pv.read(out / "vtu" / "corot-hex8-10mm-self-weight.vtu")
+    assert str(grid.field_data["model"][0]) == "corot-hex8" and len(str(grid.field_data["scene_digest"][0])) == 64
+    assert "m" in str(grid.field_data["units"][0])
+    err = grid.point_data["displacement"] - grid.point_data["fem_displacement"]
+    assert np.allclose(grid.point_data["error"], err)
+    df = _table(out, "liver-block", "errors_self-weight")
+    row = df[(df["model"] == "corot-hex8") & (df["cell_size_m"] == 0.01)].iloc[0]
+    assert np.isclose(np.linalg.norm(err) / np.linalg.norm(grid.point_data["fem_displacement"]), row["u_rel_l2"])
+
+
+def _linear_variant(tmp_path) -> Path:
+    """The liver block 1000 times stiffer (a 0.16 mm deflection), linear reference, 1 cm cells."""
+    doc = json.loads(json.dumps(LIVER))
+    doc["study"].update(name="liver-linear", repeats=1)
+    doc["body"] = {"box": doc["body"]["box"], "cell_sizes": [0.01]}
+    doc["material"]["E"] = 3.0e6
+    doc["reference"] = {"element": "auto", "law": "linear", "refine": 1}
+    doc["model"] = [{"name": "corot-hex8"}]
+    return write(doc, tmp_path / "liver-linear.toml")
+
+
+def test_linear_compression_force_and_cantilever_tip_against_theory(tmp_path):
+    from studies.study import Study
+
+    study = Study.from_toml(_linear_variant(tmp_path))
+    out = tmp_path / "out"
+    study.run(out, jobs=1, progress=False)
+    t = study.tables(out)
+    E, nu, rho = 3.0e6, LIVER["material"]["nu"], LIVER["material"]["rho"]
+    a, L = 0.04, 0.08
+    comp = t["errors_compression"].iloc[0]
+    assert math.isclose(-comp["force_top_fem_N"], E * a * a * 0.1, rel_tol=1e-9)
+    q, I, G = rho * 9.81 * a * a, a ** 4 / 12, E / (2 * (1 + nu))
+    euler_bernoulli = q * L ** 4 / (8 * E * I)
+    timoshenko = euler_bernoulli + q * L ** 2 / (2 * 5 / 6 * G * a * a)
+    tip = t["errors_self-weight"].iloc[0]["point_tip_fem_u_m"]
+    assert euler_bernoulli < tip < timoshenko, (euler_bernoulli, tip, timoshenko)
+
+
+def test_nut_example_end_to_end(tmp_path, cli_in_process):
+    out = tmp_path / "out"
+    proc = cli_in_process("study", EXAMPLES / "nut.toml", "--quick", "--out", out, "--jobs", "1", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    for case in ("squeeze", "twist"):
+        df = _table(out, "rubber-nut", f"errors_{case}")
+        assert (df["status"] == "ok").all() and df["u_rel_l2"].notna().all()
+    twist = _table(out, "rubber-nut", "errors_twist")
+    assert twist["torque_top_rel"].notna().all()
+    assert (out / "report" / "rubber-nut.html").is_file()
+    assert len(list((out / "vtu").glob("*-4mm-*.vtu"))) == 8
+
+
+def test_the_reference_is_solved_once_per_configuration(tmp_path, monkeypatch):
+    """2 load cases x 2 materials x 2 resolutions = 8 references for 3 models (24 model runs)."""
+    import importlib
+
+    fem = importlib.import_module("fem_reference.solve")
+
+    from study_files import small_study
+    from studies.study import Study
+
+    doc = small_study()
+    doc["body"]["cell_sizes"] = [0.02, 0.01]
+    doc["material"]["E"] = [3000.0, 6000.0]
+    doc["load_case"].append({"name": "hang", "gravity": [-9.81, 0.0, 0.0],
+                             "support": [{"name": "top", "region": "z+", "motion": "clamped"}]})
+    doc["model"] = [{"name": "hybmss"}, {"name": "hybmss", "params": {"e_form": True}, "label": "e-form"},
+                    {"name": "corot-hex8"}]
+    calls = []
+    real = fem.solve
+    monkeypatch.setattr(fem, "solve", lambda scene, **kw: calls.append(scene.digest()) or real(scene, **kw))
+    study = Study.from_toml(write(doc, tmp_path / "count.toml"))
+    summary = study.run(tmp_path / "out", jobs=1, progress=False)
+    assert summary["runs"] == 24 + 8 and summary["failed"] == 0
+    assert len(calls) == 8 and len(set(calls)) == 8
+    study.run(tmp_path / "out", jobs=1, progress=False)  # resumed: nothing solved again
+    assert len(calls) == 8
+    errors = study.tables(tmp_path / "out")["errors_hang"]
+    assert len(errors) == 12 and errors["u_rel_l2"].notna().all()
+
+
+def test_fem_at_the_lattice_nodes_is_its_own_interpolation():
+    """skfem's probes of the reference's field at the lattice nodes give the nodal values the
+    study compares with (hex2 on cells split 2³: the lattice nodes are vertices of the mesh)."""
+    from fem_reference.dirichlet import plate_dirichlet
+    from fem_reference.linear import LinearElasticity
+    from fem_reference.mesh import build_mesh
+    from fem_reference.solve import solve
+    from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
+
+    scene = Scene(Body.box(2, 2, 3, 0.01), Material(3000.0, 0.3, 1000.0),
+                  plates=(Plate("clamp", Region("z-"), Motion("clamped")),), gravity=(-9.81, 0.0, 0.0))
+    res = solve(scene, element="hex2", law="linear", refine=2)
+    ops = LinearElasticity(build_mesh(scene.body, 2), "hex2")
+    sol = ops.solve(scene.material, plate_dirichlet(scene, ops.space), scene.gravity)
+    probes = ops.space.basis.probes(res.X.T)
+    U = np.asarray(sol.U).reshape(ops.space.n_scalar, 3) if np.ndim(sol.U) == 1 else np.asarray(sol.U)
+    assert np.allclose(probes @ U, res.u, rtol=0, atol=1e-12 * np.abs(res.u).max())
