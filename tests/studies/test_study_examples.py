@@ -44,11 +44,9 @@ def neo_hookean_uniaxial(E, nu, a):
 
 
 @pytest.fixture(scope="module")
-def liver(tmp_path_factory):
-    from conftest import run_cli
-
+def liver(tmp_path_factory, cli_in_process):
     out = tmp_path_factory.mktemp("liver") / "out"
-    proc = run_cli("study", EXAMPLES / "liver-block.toml", "--quick", "--out", out, "--jobs", "1", "--json",
+    proc = cli_in_process("study", EXAMPLES / "liver-block.toml", "--quick", "--out", out, "--jobs", "1", "--json",
                    "--no-progress")
     assert proc.returncode == 0, proc.stderr
     return out, json.loads(proc.stdout)
@@ -203,3 +201,29 @@ def test_fem_at_the_lattice_nodes_is_its_own_interpolation():
     probes = ops.space.basis.probes(res.X.T)
     U = np.asarray(sol.U).reshape(ops.space.n_scalar, 3) if np.ndim(sol.U) == 1 else np.asarray(sol.U)
     assert np.allclose(probes @ U, res.u, rtol=0, atol=1e-12 * np.abs(res.u).max())
+
+
+def test_auto_reference_refines_until_its_own_estimate_meets_the_target(tmp_path):
+    """A cantilever under its weight on 1 cm cells: refine = "auto" solves r = 1, 2, ... and
+    stops at the first whose Richardson estimate (from r - 1 and r) is below tolerance x the
+    smallest budget; the estimate is recomputed here from two independent solves."""
+    from fem_reference.convergence import EXPECTED_ORDER, analyze
+    from fem_reference.solve import solve
+
+    from study_files import small_study
+    from studies.study import Study
+
+    doc = small_study()
+    doc["load_case"] = [{"name": "hang", "gravity": [-9.81, 0.0, 0.0],
+                         "support": [{"name": "top", "region": "z+", "motion": "clamped"}]}]
+    doc["metrics"] = {"plate_force": ["top"]}
+    doc["reference"] = {"element": "hex1", "law": "linear", "refine": "auto", "tolerance": 1.0}
+    doc["study"]["budgets"] = [0.5]
+    study = Study.from_toml(write(doc, tmp_path / "auto.toml"))
+    study.run(tmp_path / "out", jobs=1, progress=False)
+    ref = study.tables(tmp_path / "out")["reference"].iloc[0]
+    scene = [t for t in study.tasks() if t.solver.kind == "fem"][0].scene.build()
+    r1, r2 = (solve(scene, element="hex1", law="linear", refine=r) for r in (1, 2))
+    expected = analyze([1, 2], [r1.max_displacement, r2.max_displacement], EXPECTED_ORDER["hex1"]).relative_error_finest
+    assert ref["refine"] == 2 and ref["error_target"] == 0.5
+    assert math.isclose(ref["error_estimate"], expected, rel_tol=1e-9) and expected <= 0.5
