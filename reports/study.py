@@ -6,7 +6,10 @@ the errors table, the cost table, the budget answer and the 3D views of the best
 model run (finest resolution, first material) beside the FEM, coloured by |u_model − u_FEM|
 (the FEM by |u|); the references.  Every model run and reference is also written as a VTU file
 ``vtu/<model>-<cell size>-<load case>.vtu`` with the model, the scene digest and the units as
-field data and the FEM displacement and the error as point data."""
+field data and the FEM displacement and the error as point data.
+
+``python -m reports.study FILE OUT [--quick] [--pdf]`` builds it and prints its path (what
+``hybmss study`` runs after the study, in a process of its own)."""
 
 from __future__ import annotations
 
@@ -217,3 +220,30 @@ def _render(study, sections, chart, reference, n_vtu: int) -> str:
         study=study, sections=sections, chart=chart, n_vtu=n_vtu, css=css,
         reference=None if reference is None or reference.empty else _html_table(reference),
         generated=time.strftime("%Y-%m-%d %H:%M"))
+
+
+def main(argv=None) -> int:
+    import argparse
+    import sys
+
+    from studies.study import Study
+
+    parser = argparse.ArgumentParser(prog="python -m reports.study", description="the report of a study file")
+    parser.add_argument("file")
+    parser.add_argument("out")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--pdf", action="store_true")
+    args = parser.parse_args(argv)
+    try:
+        path = build_study_report(Study.from_toml(args.file, quick=args.quick), args.out, pdf=args.pdf)
+    except Exception as exc:  # noqa: BLE001 - one line for the caller
+        print(f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}", file=sys.stderr)
+        return 3
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

@@ -16,6 +16,9 @@ from hybmss.scene import Material, Model, Scene
 
 from ..runner import SolverSpec, Task, solve_scene
 
+AUTO_REFINE_MAX = 3
+"""``refine = "auto"`` refines up to this factor (cells split into 3³ elements)."""
+
 REFERENCE_MODEL = "hybmss"
 """The model named in a reference scene (the FEM does not use it; a fixed name keeps the
 reference's key when the study's models change)."""
@@ -148,8 +151,6 @@ def _reference_task(study, case, mat: Material, vox, plates, loads) -> Task:
                   f"{study.name} {case.name} FEM", loads)
     auto = None
     if ref.refine == "auto":
-        from .spec import AUTO_REFINE_MAX
-
         auto = (AUTO_REFINE_MAX, ref.tolerance * min(study.budgets))
     solver = SolverSpec("fem", element=ref.element, law=ref.law, refine=1 if auto else int(ref.refine))
     return Task(StudyScene(scene, study.name, case.name, vox.le, "FEM", 1, auto), solver, study.name)
