@@ -96,6 +96,7 @@ def error_cost_chart(study, tables: dict, path: Path) -> str | None:
     """Displacement field error against the best wall time, one panel per load case, one line
     per model through its resolutions; the budgets as horizontal lines."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     cases = [c.name for c in study.load_cases
              if "u_rel_l2" in tables[f"cost_{c.name}"] and tables[f"cost_{c.name}"]["u_rel_l2"].notna().any()]
@@ -112,6 +113,8 @@ def error_cost_chart(study, tables: dict, path: Path) -> str | None:
                 ax.axhline(b, color=palette.COLORS["Euler-Bernoulli"], lw=0.8, ls=":")
             ax.set(xscale="log", yscale="log", xlabel="wall time, best of repeats (s)",
                    ylabel="displacement error, relative L2", title=case)
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.yaxis.set_minor_formatter(NullFormatter())
             ax.legend()
         fig.tight_layout()
         fig.savefig(path)
@@ -168,7 +171,9 @@ def render_views(case: str, picks, runs: list[dict], path: Path) -> str | None:
         p.subplot(0, k)
         clim = None if k == 0 else [0.0, max(max(errs), 1e-300)]
         p.add_mesh(g.copy(), scalars=scalars, clim=clim, cmap=palette.CMAP, show_edges=True, edge_color="#303030",
-                   line_width=0.5, scalar_bar_args={"title": scalars, "color": "black", "vertical": False})
+                   line_width=0.5, scalar_bar_args={"title": scalars, "color": "black", "n_labels": 3, "fmt": "%.2g",
+                                    "label_font_size": 10, "title_font_size": 11, "width": 0.7,
+                                    "position_x": 0.15})
         p.add_text(titles[k], font_size=9, color="black")
         p.camera.focal_point, p.camera.position, p.camera.up = view["focal"], view["position"], view["up"]
         p.enable_parallel_projection()

@@ -752,7 +752,7 @@ def study(args):
     t0 = time.perf_counter()
     with runner:
         done = spec.run(out, jobs=args.jobs, runner=runner, progress=not args.no_progress)
-    report = None if args.no_report or spec.experiment is not None else str(spec.report(out))
+    report = None if args.no_report or spec.experiment is not None else str(spec.report(out, pdf=True))
     tables = spec.tables(out) if spec.experiment is None else {}
     budget = [r for name, df in tables.items() if name.startswith("budget_") for r in df.to_dict("records")]
     obj = {"study": spec.name, "title": spec.title, "out": str(out), "quick": args.quick,

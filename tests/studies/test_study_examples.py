@@ -227,3 +227,22 @@ def test_auto_reference_refines_until_its_own_estimate_meets_the_target(tmp_path
     expected = analyze([1, 2], [r1.max_displacement, r2.max_displacement], EXPECTED_ORDER["hex1"]).relative_error_finest
     assert ref["refine"] == 2 and ref["error_target"] == 0.5
     assert math.isclose(ref["error_estimate"], expected, rel_tol=1e-9) and expected <= 0.5
+
+
+@pytest.mark.slow
+def test_explicit_cost_columns(tmp_path):
+    """µs per step, dt_crit and the wall time of one simulated second of an explicit run, from
+    the best of its repeats; the run is stable (dt below its dt_crit)."""
+    from study_files import small_study
+    from studies.study import Study
+
+    doc = small_study()
+    doc["study"]["repeats"] = 2
+    doc["model"] = [{"name": "corot-hex8", "solver": {"kind": "explicit", "dt": 1e-4, "steps": 300,
+                                                      "ramp_time": 0.01, "damping": 50.0}}]
+    study = Study.from_toml(write(doc, tmp_path / "explicit.toml"))
+    study.run(tmp_path / "out", jobs=1, progress=False)
+    cost = study.tables(tmp_path / "out")["cost_press"].iloc[0]
+    assert math.isclose(cost["us_per_step"], 1e6 * cost["time_best_s"] / 300, rel_tol=1e-12)
+    assert math.isclose(cost["wall_per_simulated_s"], cost["time_best_s"] / 300 / 1e-4, rel_tol=1e-12)
+    assert cost["dt_s"] == 1e-4 < cost["dt_crit_s"] and cost["time_spread_s"] >= 0
