@@ -171,18 +171,24 @@ def _user_study(top: Table, body: Table, quick: bool) -> Study:
 
 
 def _experiment_study(top: Table, doc: dict, quick: bool) -> Study:
-    """The shared keys of an ``experiment`` study; the rest is the experiment's module's."""
-    head = _read_head(top)
+    """The shared keys of an ``experiment`` study (the top-level tables, the study's name and
+    title), then the experiment's own (:func:`studies.study.experiment.validate_experiment`)."""
     for k in doc:
         if k not in EXPERIMENT_KEYS:
             raise top.error(k, doc[k], f"not a key of an experiment study; allowed: {', '.join(EXPERIMENT_KEYS)}"
                             f"{close(k, EXPERIMENT_KEYS)}")
+    t = top.sub("study", required=True)
+    name = t.text("name", required=True)
+    if not NAME.fullmatch(name):
+        raise t.error("name", name, "lower-case letters, digits, - and _ (it names the results folder)")
+    title = t.text("title", default=name)
     try:
-        from . import experiment  # noqa: F401 - the publication's experiments as study files
+        from .experiment import validate_experiment  # the publication's experiments as study files
     except ImportError:
         raise top.error("body.experiment", doc["body"]["experiment"],
                         "a body source this version reads: box, mesh, pyvista or mask") from None
-    return Study(**head, quick=quick, experiment=doc)
+    validate_experiment(doc, top.file)
+    return Study(name, title, top.file, str(top.folder / top.file), quick=quick, experiment=doc)
 
 
 def _read_head(top: Table) -> dict:
