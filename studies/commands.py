@@ -754,7 +754,8 @@ def study(args):
         done = spec.run(out, jobs=args.jobs, runner=runner, progress=not args.no_progress)
     report = None if args.no_report or spec.experiment is not None else str(spec.report(out, pdf=True))
     tables = spec.tables(out) if spec.experiment is None else {}
-    budget = [r for name, df in tables.items() if name.startswith("budget_") for r in df.to_dict("records")]
+    budget = [r for name, df in tables.items() if name.startswith("budget_")
+              for r in df.astype(object).where(df.notna(), None).to_dict("records")]
     obj = {"study": spec.name, "title": spec.title, "out": str(out), "quick": args.quick,
            "summary": runner.summary.as_dict(), **done, "report": report, "budget": budget,
            "wall_time_s": time.perf_counter() - t0}
@@ -764,9 +765,16 @@ def study(args):
 def _study_text(spec, out, line: str, budget: list[dict], report, done: dict) -> str:
     lines = [f"{spec.title}", f"{out}: {line}"]
     for b in budget:
-        lead = f", lead {b['lead']:.2f}x" if b.get("lead") else ""
-        lines.append(f"  {b['load_case']}: error {b['error']} <= {b['budget']:g}: {b['answer']}"
-                     + (f" ({b['cell_size_m']:g} m, {b['time_best_s']:.3g} s{lead})" if b.get("method") else ""))
+        if b["answer"] != "fastest":
+            lines.append(f"  {b['load_case']}: {b['method']} {b['answer']} (smallest error {b['error']:.3g})")
+            continue
+        head = f"  {b['load_case']}: u_rel_l2 <= {b['budget']:g}: {b['method']}"
+        if b["n_within"]:
+            head += f" at {b['cell_size_m']:g} m, {b['cost']:.3g} s"
+        if b["runner_up"]:
+            tie = {True: "a tie", False: "not a tie"}.get(b["tie"], "tie undetermined")
+            head += f"; lead {b['lead']:.2f}x over {b['runner_up']} ({tie})"
+        lines.append(head)
     lines += [f"  failed: {f}" for f in done.get("failures", [])]
     lines.append(f"tables: {out}/tables/{spec.name}_*.csv" + (f"; report: {report}" if report else ""))
     return "\n".join(lines)

@@ -1,11 +1,13 @@
 """The tables of a study, from its stored runs: per load case the errors of every model run
 against its reference (:mod:`studies.study.metrics`), its cost beside its error, and the budget
-answer (the fastest run whose displacement field error ``u_rel_l2`` meets each budget, its lead
-over the next fastest, a tie when the lead is within the timing spread); and the references
-(element, refinement, own error estimate, time).
+answer (:func:`studies.cost.budget_answer`: the fastest model whose displacement field error
+``u_rel_l2`` meets each budget, at its cheapest resolution within it, its lead over the next
+fastest, a tie when the lead is below 1 + the larger spread); and the references (element,
+refinement, own error estimate, time).
 
-Times are the best of the study's ``repeats`` runs, with their spread (max − min); an explicit
-run's cost adds µs per step, its dt_crit and the wall time of one simulated second."""
+Times are the best of the study's ``repeats`` runs after an untimed one, with their spread
+(median − best) / best (:class:`studies.cost.Timing`); an explicit run's cost adds µs per step,
+its dt_crit and the wall time of one simulated second at its dt and at the stable step."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import cost
 from ..store import Store
 from .metrics import errors
 from .tasks import is_reference
@@ -61,44 +64,39 @@ def error_rows(study, runs: list[dict]) -> list[dict]:
 
 
 def _cost(task, row: dict) -> dict:
+    """Best wall time, median and spread of the run's repeats; for an explicit run also µs per
+    step, dt_crit and the wall time of one simulated second at the run's dt and at the stable step
+    (:func:`studies.cost.stable_dt`)."""
     info = row.get("info", {}) or {}
-    best, spread = info.get("time_best_s", np.nan), info.get("time_spread_s", np.nan)
-    out = {"time_best_s": best, "time_spread_s": spread, "repeats": info.get("time_repeats", np.nan)}
+    best = info.get("time_s", np.nan)
+    out = {"time_s": best, "time_median_s": info.get("time_median_s", np.nan),
+           "time_spread": info.get("time_spread", np.nan), "repeats": info.get("time_repeats", np.nan)}
     if task.solver.kind == "explicit":
         steps = row.get("steps") or task.solver.steps
-        per_step = best / steps
-        out.update(us_per_step=1e6 * per_step, dt_s=task.solver.dt, dt_crit_s=row.get("dt_crit", np.nan),
-                   steps=steps, wall_per_simulated_s=per_step / task.solver.dt)
+        us = 1e6 * best / steps
+        dt_crit = row.get("dt_crit", np.nan)
+        out.update(us_per_step=us, dt_s=task.solver.dt, dt_crit_s=dt_crit, steps=steps,
+                   wall_per_simulated_s=cost.cost_per_simulated_second(us, task.solver.dt),
+                   wall_per_simulated_s_stable=cost.cost_per_simulated_second(us, cost.stable_dt(dt_crit))
+                   if np.isfinite(dt_crit) else np.nan)
     return out
 
 
 def budget_answer(rows: pd.DataFrame, budgets) -> pd.DataFrame:
-    """Per budget (and material): the fastest run meeting it, its lead (next fastest's best time
-    / its best time) and whether that lead is a tie (the gap smaller than either spread)."""
-    out = []
+    """Per material, :func:`studies.cost.budget_answer` of the runs (a model at several
+    resolutions is one method: its cheapest run within the budget stands for it), on the
+    displacement field error :data:`BUDGET_ERROR` and the best wall time."""
     keys = ["load_case", "E", "nu", "rho"]
+    if rows.empty or BUDGET_ERROR not in rows:
+        return pd.DataFrame()
+    parts = []
     for cfg, grp in rows.groupby(keys, sort=False):
-        for budget in budgets:
-            ok = grp[(grp[BUDGET_ERROR] <= budget) & grp["time_best_s"].notna()] if BUDGET_ERROR in grp else grp[:0]
-            ok = ok.sort_values("time_best_s")
-            line = dict(zip(keys, cfg), budget=budget, error=BUDGET_ERROR)
-            if ok.empty:
-                out.append({**line, "answer": "none meets it", "method": None})
-                continue
-            first = ok.iloc[0]
-            line.update(method=first["model"], cell_size_m=first["cell_size_m"], time_best_s=first["time_best_s"],
-                        time_spread_s=first["time_spread_s"], achieved=first[BUDGET_ERROR])
-            if len(ok) > 1:
-                second = ok.iloc[1]
-                gap = second["time_best_s"] - first["time_best_s"]
-                tie = bool(gap < max(first["time_spread_s"], second["time_spread_s"]))
-                line.update(runner_up=f"{second['model']} @ {second['cell_size_m']:g} m",
-                            lead=second["time_best_s"] / first["time_best_s"], tie=tie,
-                            answer=(f"tie: {first['model']} and {second['model']}" if tie else first["model"]))
-            else:
-                line.update(runner_up=None, lead=None, tie=False, answer=f"{first['model']} (the only one)")
-            out.append(line)
-    return pd.DataFrame(out)
+        ans = cost.budget_answer(grp, budgets, error=BUDGET_ERROR, cost="time_s", spread="time_spread",
+                                 method="model", keep=("cell_size_m",))
+        for k, v in zip(keys, cfg):
+            ans.insert(0, k, v)
+        parts.append(ans[keys + [c for c in ans.columns if c not in keys]])
+    return pd.concat(parts, ignore_index=True)
 
 
 def reference_rows(runs: list[dict]) -> list[dict]:
@@ -114,13 +112,13 @@ def reference_rows(runs: list[dict]) -> list[dict]:
                     "refine": info.get("reference_refine", info.get("refine")),
                     "error_estimate": info.get("reference_error_estimate"),
                     "error_target": info.get("reference_error_target"),
-                    "time_s": info.get("time_best_s"), "status": row.get("status", "missing")})
+                    "time_s": info.get("time_s"), "status": row.get("status", "missing")})
     return out
 
 
 ERROR_COLUMNS = ("model", "cell_size_m", "E", "nu", "rho", "status")
-COST_COLUMNS = ("model", "cell_size_m", "solver", "time_best_s", "time_spread_s", "us_per_step", "dt_s",
-                "dt_crit_s", "wall_per_simulated_s", BUDGET_ERROR)
+COST_COLUMNS = ("model", "cell_size_m", "solver", "time_s", "time_median_s", "time_spread", "us_per_step", "dt_s",
+                "dt_crit_s", "wall_per_simulated_s", "wall_per_simulated_s_stable", BUDGET_ERROR)
 COST_ONLY = COST_COLUMNS[3:-1]
 
 

@@ -69,7 +69,7 @@ class StudyScene:
         if solver.kind == "fem" and self.refine_auto is not None:
             res = _auto_reference(self.scene, solver, *self.refine_auto)
         else:
-            res = _timed(self.scene, solver, self.repeats if solver.kind != "fem" else 1)
+            res = _timed(self.scene, solver, self.repeats) if solver.kind != "fem" else _once(self.scene, solver)
         for name, r in res.reactions.items():
             for c, v in zip("xyz", r.force):
                 res.info[f"reaction_{name}_f{c}"] = float(v)
@@ -78,15 +78,20 @@ class StudyScene:
         return res
 
 
+def _once(scene: Scene, solver: SolverSpec):
+    res = solve_scene(scene, solver)
+    res.info.update(time_s=float(res.wall_time_s), time_repeats=1)
+    return res
+
+
 def _timed(scene: Scene, solver: SolverSpec, repeats: int):
-    """The first result, with ``info['time_best_s']`` and ``info['time_spread_s']`` (max − min)
-    of ``repeats`` runs' own wall times."""
-    times, first = [], None
-    for _ in range(repeats):
-        res = solve_scene(scene, solver)
-        times.append(float(res.wall_time_s))
-        first = first or res
-    first.info.update(time_best_s=min(times), time_spread_s=max(times) - min(times), time_repeats=len(times))
+    """The result of an untimed first run (compilation, caches), with the timing of ``repeats``
+    more (:func:`studies.cost.time_repeated`: best, median, spread) in ``info['time_*']``."""
+    from ..cost import time_repeated
+
+    first = solve_scene(scene, solver)
+    timing = time_repeated(lambda: solve_scene(scene, solver), repeats=repeats, warmup=0)
+    first.info.update(timing.as_dict("time"))
     return first
 
 
@@ -110,7 +115,7 @@ def _auto_reference(scene: Scene, solver: SolverSpec, largest: int, target: floa
             break
     res = results[-1]
     res.info.update(reference_refine=len(results), reference_error_estimate=estimate,
-                    reference_error_target=target, time_best_s=float(res.wall_time_s), time_spread_s=0.0)
+                    reference_error_target=target, time_s=float(res.wall_time_s), time_repeats=1)
     return res
 
 

@@ -47,8 +47,9 @@ def test_json_is_one_strict_object(tmp_path, cli_in_process):
     obj = json.loads(proc.stdout, parse_constant=_const)
     assert obj["status"] == "ok" and obj["runs"] == 2 and obj["report"] is None
     assert obj["budget"][0]["load_case"] == "press" and len(proc.stdout.strip().splitlines()) == 1
+    assert obj["budget"][0]["method"] == "hybmss" and obj["budget"][0]["tie"] is False  # alone: no runner-up
     text = cli_in_process("study", tmp_path / "tiny.toml", "--out", tmp_path / "out", "--no-report", "--no-progress")
-    assert text.returncode == 0 and "2 already stored" in text.stdout and "press: error u_rel_l2 <= 0.5" in text.stdout
+    assert text.returncode == 0 and "2 already stored" in text.stdout and "press: u_rel_l2 <= 0.5: hybmss at 0.01 m" in text.stdout
 
 
 def test_options_not_allowed(tmp_path, cli_in_process):
