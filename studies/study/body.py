@@ -13,9 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
-
-from hybmss.scene import Body
+from hybmss.scene import Body, pieces
 
 from .keys import Table
 
@@ -36,8 +34,10 @@ class Voxels:
     labels: np.ndarray
 
     def pieces(self) -> tuple[np.ndarray, int]:
-        """Face-connected pieces of the body: (piece number of each cell, 0 outside; count)."""
-        return ndimage.label(self.body.mask)
+        """Face-connected pieces of the body (:func:`hybmss.scene.pieces`): (piece number of each
+        cell, 0 outside; count)."""
+        labels, sizes = pieces(self.body.mask)
+        return labels, len(sizes)
 
 
 @dataclass(frozen=True)
@@ -91,29 +91,28 @@ def cropped(le: float, mask: np.ndarray, labels: np.ndarray, origin) -> Voxels:
     found = np.argwhere(mask)
     lo, hi = found.min(axis=0), found.max(axis=0) + 1
     box = tuple(slice(a, b) for a, b in zip(lo, hi))
-    shifted = np.asarray(origin, dtype=float) + lo * le
-    return Voxels(le, Body.from_mask(mask[box], le, tuple(shifted)), labels[box])
+    shifted = tuple(np.asarray(origin, dtype=float) + lo * le)
+    inner = mask[box]
+    if len(pieces(inner)[1]) > 1:  # Body.from_mask refuses pieces; the study holds each one or refuses
+        return Voxels(le, Body(inner.shape, le, shifted, np.packbits(inner.ravel()).tobytes()), labels[box])
+    return Voxels(le, Body.from_mask(inner, le, shifted), labels[box])
 
 
 def read_surface(path: str, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Points (scaled) and triangles of a closed surface file read with pyvista."""
-    mesh = _surface(path)
-    faces = np.asarray(mesh.faces).reshape(-1, 4)[:, 1:]
-    return np.asarray(mesh.points, dtype=float) * scale, faces.astype(np.int64)
-
-
-def open_edges(path: str) -> int:
-    """Edges of the surface held by one triangle only (0 for a closed surface)."""
-    return int(_surface(path).n_open_edges)
-
-
-def _surface(path: str):
+    """Points (scaled) and triangles of a surface file read with pyvista
+    (:func:`hybmss.voxelize.surface_triangles`)."""
     import pyvista as pv
 
-    mesh = pv.read(path)
-    if not isinstance(mesh, pv.PolyData):
-        mesh = mesh.extract_surface(algorithm="dataset_surface")
-    return mesh.triangulate().clean()
+    from hybmss.voxelize import surface_triangles
+
+    points, triangles = surface_triangles(pv.read(path))
+    return np.asarray(points, dtype=float) * scale, np.asarray(triangles, dtype=np.int64)
+
+
+def is_closed(path: str) -> bool:
+    from hybmss.voxelize import clean_surface, is_closed as closed
+
+    return closed(clean_surface(*read_surface(path))[1])
 
 
 def read_image(path: str, spacing=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -180,11 +179,11 @@ def _tuple(v):
 
 def _check_closed(t: Table, key: str, path: str) -> None:
     try:
-        n = open_edges(path)
+        closed = is_closed(path)
     except Exception as exc:  # noqa: BLE001 - an unreadable file is a refused key
         raise t.error(key, t.data[key], f"a surface mesh pyvista can read ({type(exc).__name__})") from None
-    if n:
-        raise t.error(key, t.data[key], f"a closed surface (this one has {n} open edges)")
+    if not closed:
+        raise t.error(key, t.data[key], "a closed surface (every edge shared by two triangles)")
 
 
 def _check_image(t: Table, src: BodySource) -> None:
