@@ -254,3 +254,15 @@ def test_explicit_cost_columns(tmp_path):
     assert math.isclose(cost["wall_per_simulated_s_stable"], cost["time_s"] / 300 / (0.5 * cost["dt_crit_s"]),
                         rel_tol=1e-12)
     assert cost["dt_s"] == 1e-4 < cost["dt_crit_s"] and cost["time_spread"] >= 0
+
+
+def test_an_experiment_study_file_gives_the_experiment_tasks():
+    """A publication study file (``[body] experiment``) read as a study: the same tasks, in the
+    same order, as studies.study.experiment.experiment_tasks gives."""
+    from studies.study import Study
+    from studies.study.experiment import experiment_tasks
+
+    path = Path(__file__).resolve().parents[2] / "studies" / "data" / "studies" / "compression.toml"
+    study = Study.from_toml(path, quick=True)
+    expected = experiment_tasks(tomllib.loads(path.read_text()), True)
+    assert [t.key() for t in study.tasks()] == [t.key() for t in expected] and len(expected) > 10
