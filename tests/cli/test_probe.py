@@ -35,6 +35,9 @@ CASES = [
     ("info --E 5", INVALID, "--E"),
     ("info --bogus", INVALID, "--bogus"),
     ("info --mesh", INVALID, "--mesh"),
+    ("study /nonexistent/study.toml", INVALID, "FILE"),
+    ("study", INVALID, "FILE"),
+    ("study /nonexistent/study.toml --bogus", INVALID, "--bogus"),
     ("nope", INVALID, "nope"),
     ("", INVALID, "COMMAND"),
     # ---------------------------------------------------------------- moduli
