@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hybmss import models
 from hybmss.scene import Material, Model, Scene
 
 from ..runner import SolverSpec, Task, solve_scene
@@ -19,9 +20,11 @@ from ..runner import SolverSpec, Task, solve_scene
 AUTO_REFINE_MAX = 3
 """``refine = "auto"`` refines up to this factor (cells split into 3³ elements)."""
 
-REFERENCE_MODEL = "hybmss"
-"""The model named in a reference scene (the FEM does not use it; a fixed name keeps the
-reference's key when the study's models change)."""
+
+def reference_model() -> str:
+    """The model named in a reference scene: the registry's default (the FEM does not use it; a
+    fixed name keeps the reference's key when the study's models change)."""
+    return models.default_name()
 
 
 @dataclass(frozen=True)
@@ -152,7 +155,7 @@ def _solver(run) -> SolverSpec:
 
 def _reference_task(study, case, mat: Material, vox, plates, loads) -> Task:
     ref = study.reference
-    scene = Scene(vox.body, mat, Model(REFERENCE_MODEL), plates, case.gravity, 0.0,
+    scene = Scene(vox.body, mat, Model(reference_model()), plates, case.gravity, 0.0,
                   f"{study.name} {case.name} FEM", loads)
     auto = None
     if ref.refine == "auto":
