@@ -25,7 +25,7 @@ from . import figures as figmod
 from . import palette
 from . import render as rendermod
 from . import engines as enginemod
-from . import findings, summary, tables, vtu
+from . import findings, layout, summary, tables, vtu
 from .data import Results
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -195,6 +195,74 @@ def check_out(out_dir) -> None:
         raise PermissionError(f"--out {out_dir}: {probe} is not writable; allowed: a writable folder")
 
 
+def summary_section(results: Results, head, claims) -> Section:
+    """§1: the verdict first (where each method wins, in sentences and one table), the caveats of the
+    reproduction, then the claims of the publication and the headline comparison."""
+    v = summary.verdict(results)
+    subject = results.published_model("proposed")
+    paras = summary.verdict_sentences(v, subject) if not v.empty else []
+    notes = summary.caveats(results, claims, head)
+    intro = "".join(f"<p>{p}</p>" for p in paras)
+    if notes:
+        intro += "<p><b>Caveats.</b></p><ul class='caveats'>" + "".join(f"<li>{_escape(n)}</li>" for n in notes) + "</ul>"
+    s = Section("summary", "Summary: where each method wins", intro)
+    if not v.empty:
+        s.items.append(("table", summary.verdict_table(v)))
+    if not claims.empty:
+        s.items += [("table", t) for t in summary.claims_tables(claims)]
+    if not head.empty:
+        s.items.append(("table", summary.headline_table(head)))
+    return s
+
+
+def _escape(text: str) -> str:
+    import html
+
+    return html.escape(str(text), quote=False)
+
+
+def failures_section(results: Results) -> Section:
+    """Runs without a result, and explicit equilibria apart from the static ones (non-unique)."""
+    s = Section("failures", "Failures and non-unique equilibria",
+                " ".join(p for p in (tables.nonunique_sentence(results), PROTOCOL_FAILURES) if p))
+    t = tables.explicit_table(results)
+    if t is not None:
+        s.items.append(("table", t))
+    s.items.append(("table", tables.failures_table(results)))
+    return s
+
+
+def publication_tables_section(results: Results, figs: dict) -> Section:
+    """Tables 2–6: each "[G20] beside ours" (at most :data:`reports.tables.MAX_COLUMNS` columns),
+    the models [G20] does not list in tables of their own, and their figures."""
+    s = Section("tables", "Tables 2–6 of the publication, reproduced")
+    for name, exp, number in (("table2_compression", "compression", 2), ("table3_tension", "tension", 3)):
+        t = tables.volume_table(results, name, exp, number)
+        if t is not None:
+            s.items.append(("table", t))
+        s.items += [("table", c) for c in tables.competitors_volume_tables(results, name, exp, number)]
+    if "fig_e" in figs:
+        s.items.append(("figure", _fig(figs["fig_e"])))
+    for name, exp, number, load, unit, q in (
+            ("table4_shear", "shear", 4, "deformation", "N", "reaction force F_x"),
+            ("table5_torsion", "torsion", 5, "angle_deg", "N·m", "reaction torque T_z")):
+        t = tables.reaction_table(results, name, exp, number, load, unit, q)
+        if t is not None:
+            s.items.append(("table", t))
+        t = tables.published_reaction_table(results, number)
+        if t is not None:
+            s.items.append(("table", t))
+        s.items += [("table", c) for c in tables.competitors_reaction_tables(results, name, exp, number, load, unit, q)]
+    for fid in ("fig_reactions", "fig_torsion_sweep"):
+        if fid in figs:
+            s.items.append(("figure", _fig(figs[fid])))
+    for t in (tables.meshes_table(results), tables.bending_table(results)):
+        if t is not None:
+            s.items.append(("table", t))
+    s.items += [("table", t) for t in tables.bending_others_tables(results)]
+    return s
+
+
 def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> BuildResult:
     t0 = time.perf_counter()
     check_out(out_dir)
@@ -233,48 +301,20 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     claims = summary.claims(results)
     sections: list[Section] = []
 
-    s = Section("summary", "Summary")
-    if not head.empty:
-        s.items.append(("table", summary.headline_table(head)))
-    if not claims.empty:
-        for t in summary.claims_tables(claims):
-            s.items.append(("table", t))
-    sections.append(s)
+    sections.append(summary_section(results, head, claims))
 
-    s = Section("tables", "Tables 2–6 of the publication, reproduced",
-                "Each table lists this reproduction's values next to the publication's; differences are coloured "
-                "by the thresholds stated in the caption. Quantities are from static equilibria.")
-    for t in (tables.volume_table(results, "table2_compression", "compression", 2),
-              tables.volume_table(results, "table3_tension", "tension", 3)):
-        if t is not None:
-            s.items.append(("table", t))
-    if "fig_e" in figs:
-        s.items.append(("figure", _fig(figs["fig_e"])))
-    for t in (tables.reaction_table(results, "table4_shear", "shear", 4, "deformation", "N", "reaction force F_x"),
-              tables.reaction_table(results, "table5_torsion", "torsion", 5, "angle_deg", "N·m", "reaction torque T_z")):
-        if t is not None:
-            s.items.append(("table", t))
-    for t in (tables.published_reaction_table(results, 4), tables.published_reaction_table(results, 5)):
-        if t is not None:
-            s.items.append(("table", t))
-    for fid in ("fig_reactions", "fig_torsion_sweep"):
-        if fid in figs:
-            s.items.append(("figure", _fig(figs[fid])))
-    for t in (tables.meshes_table(results), tables.bending_table(results)):
-        if t is not None:
-            s.items.append(("table", t))
-    sections.append(s)
+    sections.append(publication_tables_section(results, figs))
 
     if renders:
         s = Section("shapes", "Deformed shapes (Figs 3, 4, 7, 9)",
                     "Rows: hybmss-fd, hybmss, FEM reference; columns: ν = 0, 0.25, 0.499. Off-screen pyvista renders of "
-                    "the stored static equilibria, coloured by displacement magnitude with one colour bar per figure.")
+                    "the stored static equilibria: the MSS rows coloured by their distance to the FEM, |u_MSS − u_FEM|, "
+                    "the FEM row by its displacement |u|.")
         for r in renders:
             n = rendermod.FIGURE_NUMBERS.get(r.experiment, "")
             s.items.append(("figure", {"id": r.path.stem, "title": f"{r.experiment.capitalize()}, {r.load} (cf. Fig. {n})",
                                        "src": _b64(r.path), "caption": r.caption, "number": str(n),
-                                       "file": f"figures/{r.path.name}",
-                                       "css": "half"}))
+                                       "file": f"figures/{r.path.name}"}))
         sections.append(s)
 
     s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)")
@@ -307,6 +347,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                 s.items.append(("figure", item))
         if short is not None:
             s.items.append(("table", short))
+        if sid == "baudet":
+            t = tables.b09_published_table(results)
+            if t is not None:
+                s.items.append(("table", t))
         for name in names:
             t = tables.stored_table(results, name)
             if t is not None:
@@ -322,13 +366,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                 s.items.append(("table", t))
         sections.append(s)
 
-    s = Section("failures", "Failures and instabilities", PROTOCOL_FAILURES)
-    s.items.append(("table", tables.failures_table(results)))
-    t = tables.explicit_table(results)
-    if t is not None:
-        s.title = "Explicit protocol, failures and instabilities"
-        s.items.insert(0, ("table", t))
-    sections.append(s)
+    sections.append(failures_section(results))
 
     s = Section("moduli", "Effective moduli and the E-form check")
     for t in (tables.moduli_table(results), tables.eform_table(results)):
@@ -383,6 +421,7 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             from weasyprint import HTML
 
             doc = HTML(string=printed, base_url=str(out)).render()
+            layout.check_fits(doc)  # a table or figure wider than the page fails the build
             pages = len(doc.pages)
             texts = [_page_text(p) for p in doc.pages]
             anchors = [sorted(p.anchors) for p in doc.pages]
@@ -424,7 +463,8 @@ def _finding(sid: str, results: Results):
     if sid == "baudet":
         f = findings.b09_frame(results.table("baudet_cantilever"), results.table("baudet_lshape"),
                                tables.paper_table("b09_errors"))
-        return findings.b09_sentence(f), tables.b09_table(results)
+        norm = tables.b09_normalisation(f) if not f.empty else f
+        return findings.b09_sentence(f) + " " + tables.b09_sd_sentence(norm), tables.b09_table(results)
     return "", None
 
 

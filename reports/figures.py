@@ -48,11 +48,38 @@ def _shared_legend(fig, axes, ncol=None, **kw):
     fig.legend(handles, labels, ncol=max(1, min(ncol or len(labels), len(labels))), frameon=False, **kw)
 
 
+def nu_to_log_gap(nu):
+    """−log10(½ − ν): the x coordinate of a ν axis, on which 0.45, 0.49, 0.499 and 0.4999 are one
+    decade apart (a linear ν axis squeezes them into one point)."""
+    return -np.log10(0.5 - np.minimum(np.asarray(nu, dtype=float), 0.5 - 1e-12))
+
+
+def log_gap_to_nu(x):
+    return 0.5 - 10.0 ** (-np.asarray(x, dtype=float))
+
+
 def _nu_axis(ax, nus):
-    """The Poisson ratios of the results on the x axis."""
-    ax.set_xlabel("ν")
-    ax.set_xticks(list(nus))
-    ax.set_xticklabels([f"{v:g}" for v in nus])
+    """The Poisson ratios of the results on a log(½ − ν) x axis, labelled in ν."""
+    ax.set_xscale("function", functions=(nu_to_log_gap, log_gap_to_nu))
+    nus = sorted(set(float(v) for v in nus))
+    ax.set_xlabel("ν (axis: log(½ − ν))")
+    ax.set_xticks(nus)
+    ax.set_xticklabels([f"{v:g}" for v in nus], rotation=45 if len(nus) > 4 else 0)
+    ax.xaxis.set_minor_locator(__import__("matplotlib").ticker.NullLocator())
+    lo, hi = nu_to_log_gap(min(nus)), nu_to_log_gap(max(nus))
+    pad = 0.06 * max(hi - lo, 0.5)
+    ax.set_xlim(log_gap_to_nu(lo - pad), log_gap_to_nu(hi + pad))
+
+
+ERROR_FLOOR_PCT = 1e-3
+"""Relative errors below this (%) are drawn at it (triangles pointing down): exact cases (10⁻¹³ %)
+would otherwise stretch a log axis over ten empty decades."""
+
+
+def clipped(values, floor: float = ERROR_FLOOR_PCT):
+    """(values clipped from below at ``floor``, mask of the clipped ones)."""
+    v = np.asarray(values, dtype=float)
+    return np.maximum(v, floor), v < floor
 
 def _save(plt, fig, path: Path) -> Path:
     path = Path(path)
@@ -337,9 +364,13 @@ def differences(results: Results, path: Path) -> Figure | None:
                     if s.empty:
                         continue
                     lab = f"θ={v:g}°" if loadcol == "angle_deg" else f"d={100 * v:g}%"
-                    ax.plot(s["nu"], 100 * s["rel_l2"], color=palette.color(m), marker=palette.marker(m), ls=ls,
+                    y, low = clipped(100 * s["rel_l2"])
+                    ax.plot(s["nu"], y, color=palette.color(m), marker=palette.marker(m), ls=ls,
                             lw=1.0, label=f"{m.replace(' static', '')}, {lab}")
+                    if low.any():
+                        ax.plot(s["nu"][low], y[low], ls="none", marker="v", ms=6, color=palette.color(m))
             ax.set_yscale("log")
+            ax.set_ylim(bottom=0.5 * ERROR_FLOOR_PCT)
             ax.set_title(f"{exp}, mesh {mesh}")
             _nu_axis(ax, sorted(sub["nu"].unique()))
         axes[0, 0].set_ylabel("‖u_MSS − u_FEM‖ / ‖u_FEM‖ (%)")
@@ -356,7 +387,8 @@ def differences(results: Results, path: Path) -> Figure | None:
     return Figure("fig_diff", "Nodal displacement difference MSS vs FEM", Path(path),
                   "Relative L2 difference of the nodal displacements (%) of each MSS static equilibrium against its "
                   "FEM reference on the same grid (linear at ≤ 5 % / ≤ 5°, Neo-Hookean above); solid: small load, "
-                  "dashed: large load; E = 10⁴ Pa.")
+                  f"dashed: large load; E = 10 kPa. Differences below {ERROR_FLOOR_PCT:g} % (exact cases) are drawn at "
+                  f"{ERROR_FLOOR_PCT:g} % as downward triangles. ν on a log(½ − ν) axis.")
 
 
 def torsion_sweep(results: Results, path: Path) -> Figure | None:
@@ -581,7 +613,7 @@ def dt_stability(df: pd.DataFrame, path: Path) -> Figure | None:
                 ax.plot(g["nu"], g["dt_stable"], color=palette.color(var), ls="none", marker="_", ms=12, mew=2,
                         label=f"{var}: {stable_label(g)}")
         ax.set_yscale("log")
-        ax.set_xlabel("ν")
+        _nu_axis(ax, df["nu"].unique())
         ax.set_ylabel("time step (s)")
         ax.legend(frameon=False, fontsize=6.5, ncol=1, loc="center left", bbox_to_anchor=(1.0, 0.5))
         fig.tight_layout()
@@ -696,7 +728,7 @@ def limit_stretch(results: Results, path: Path) -> Figure | None:
             if held.any():
                 ax.plot(g.loc[held, "nu"], g.loc[held, "stretch_lo"], ls="none", marker="^", ms=8,
                         color=palette.color(var), mfc="white")
-        ax.set_xlabel("ν")
+        _nu_axis(ax, t["nu"].unique())
         ax.set_ylabel("stretch L/L0 at loss of equilibrium")
         ax.legend(frameon=False, fontsize=6.5, loc="center left", bbox_to_anchor=(1.0, 0.5))
         fig.tight_layout()
@@ -714,20 +746,21 @@ def damping(results: Results, path: Path) -> Figure | None:
     with palette.style() as plt:
         fig, ax = plt.subplots(figsize=(4.2, 2.7))
         for nu, g in c.groupby("nu"):
-            ax.plot(g["steps"], g["error"], marker="o", label=f"ν = {nu:g}")
+            ax.plot(g["steps"], 100 * g["error"], marker="o", label=f"ν = {nu:g}")
         t = results.table("damping_steps")
         if "tol" in t:
-            ax.axhline(float(t["tol"].iloc[0]), color="k", lw=0.8, ls="--", label="tolerance")
+            ax.axhline(100 * float(t["tol"].iloc[0]), color="k", lw=0.8, ls="--", label="tolerance")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("explicit steps (dt = 1 ms)")
-        ax.set_ylabel("rel. L2 distance to static")
+        ax.set_ylabel("‖u − u_static‖ / ‖u_static‖ (%)")
         ax.legend(frameon=False, fontsize=7)
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("study_damping", "Explicit protocol: distance to the static equilibrium against steps", Path(path),
-                  "From tables/damping_steps.csv: relative L2 difference of the explicit state (semi-implicit Euler, "
-                  "mass-proportional damping) from the static equilibrium of the same scene after n steps.")
+                  "From tables/damping_steps.csv: relative L2 difference (%) of the explicit state (semi-implicit "
+                  "Euler, mass-proportional damping) from the static equilibrium of the same scene after n steps, "
+                  "measured at every checkpoint whether or not the run had come to rest.")
 
 
 def b09_errors(results: Results, path: Path) -> Figure | None:

@@ -175,7 +175,11 @@ def damping_sentence(damping: pd.DataFrame | None) -> str:
     dt = damping["dt"].iloc[0] if "dt" in damping else math.nan
     def steps(v) -> str:
         v = str(v).strip()
-        return f"more than {v[1:].strip()} steps (the most run)" if v.startswith(">") else f"{v} steps"
+        if v.startswith(">"):
+            return f"more than {v[1:].strip()} steps (the most run)"
+        if v.startswith("≤"):
+            return f"at most {v[1:].strip()} steps (the first checkpoint)"
+        return f"{v} steps"
 
     vals = [steps(v) for v in damping["steps_to_tol"]]
     if len(set(vals)) == 1:
@@ -183,8 +187,8 @@ def damping_sentence(damping: pd.DataFrame | None) -> str:
     else:
         per = ", ".join(f"{v} at ν = {nu:g}" for v, nu in zip(vals, damping["nu"]))
     return (f"With mass-proportional damping c = {c:g} s⁻¹ and dt = {dt:g} s, the explicit run needs {per} to come "
-            f"within {tol:g} (relative L2) of the static equilibrium; [G20]'s protocol reads the state after 10,000 "
-            "steps.")
+            f"within {100 * tol:g} % (relative L2) of the static equilibrium for good (interpolated between the "
+            "checkpoints that bracket the crossing); [G20]'s protocol reads the state after 10,000 steps.")
 
 
 # ------------------------------------------------------------------ [B09]

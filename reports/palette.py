@@ -1,7 +1,9 @@
 """One palette and one typographic style for every figure of the report.
 
 Colours are keyed by family so that a model has the same colour in every plot, render caption
-and table legend.  A model's style (colour, marker, line style) is the model's own: the studies
+and table legend, and no two models (nor a model and a reference) share a colour: a declared
+colour or marker already taken is replaced by a spare (:func:`unique_styles`); an explicit run is
+drawn with another line style than the static one of its model.  A model's style (colour, marker, line style) is the model's own: the studies
 store it with the results (``tables/models.csv``, one row per variant name) and the report uses it
 inside :func:`models`.  FEM references are greys/black, Euler–Bernoulli red, the publication's
 values brown; a method of no stored model is :data:`OTHER` (grey, never another model's colour).
@@ -54,14 +56,41 @@ RC = {
 }
 
 
+SPARE_COLORS = ("#e377c2", "#bcbd22", "#17becf", "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#393b79",
+                "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d", "#31a354", "#756bb1",
+                "#636363", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2",
+                "#dbdb8d", "#9edae5", "#6b6ecf", "#b5cf6b", "#e7ba52", "#d6616b", "#ce6dbd", "#de9ed6")
+"""Colours given, in this order, to a variant whose declared colour another variant (or a reference,
+:data:`COLORS`) already has."""
+SPARE_MARKERS = ("o", "s", "^", "v", "D", "X", "<", ">", "p", "H", "d", "8", "P", "*", "h")
+"""Markers given to a variant whose declared marker an earlier variant already has, while one is free."""
+
+
+def unique_styles(records) -> dict:
+    """``variant -> (color, marker, linestyle)`` from the models' declared styles (in the table's
+    order), each variant with a colour of its own (never a reference's, :data:`COLORS`) and, while
+    :data:`SPARE_MARKERS` has one left, a marker of its own: a later variant whose declared colour or
+    marker is taken gets the first free spare."""
+    used_c = {c.lower() for c in COLORS.values()}
+    used_m = set(MARKERS.values())
+    out = {}
+    for r in records:
+        color, marker = str(r["color"]), str(r["marker"])
+        if color.lower() in used_c:
+            color = next((c for c in SPARE_COLORS if c.lower() not in used_c), color)
+        if marker in used_m:
+            marker = next((m for m in SPARE_MARKERS if m not in used_m), marker)
+        used_c.add(color.lower())
+        used_m.add(marker)
+        out[str(r["variant"])] = (color, marker, str(r["linestyle"]))
+    return out
+
+
 @contextmanager
 def models(table):
     """Use the model styles of ``table`` (rows ``variant, color, marker, linestyle``: the
-    results' ``models`` table) inside the ``with`` block."""
-    styles = {}
-    if table is not None:
-        for r in table.to_dict("records"):
-            styles[str(r["variant"])] = (str(r["color"]), str(r["marker"]), str(r["linestyle"]))
+    results' ``models`` table), made unique (:func:`unique_styles`), inside the ``with`` block."""
+    styles = unique_styles(table.to_dict("records")) if table is not None else {}
     token = _MODELS.set(styles)
     try:
         yield styles
@@ -108,9 +137,10 @@ def linestyle(method: str) -> str:
     fam = family(method)
     if fam in LINESTYLES:
         return LINESTYLES[fam]
-    if "explicit" in str(method):
-        return "--"
-    return _MODELS.get()[fam][2] if fam not in COLORS else "-"
+    own = _MODELS.get()[fam][2] if fam not in COLORS else "-"
+    if "explicit" in str(method):  # never the static method's line
+        return ":" if own == "--" else "--"
+    return own
 
 
 @contextmanager

@@ -1,8 +1,9 @@
 """Deformed shapes rendered off-screen with pyvista (Figs 3, 4, 7, 9 of [G20]).
 
 Each figure is a grid: rows hybmss-fd / hybmss / FEM reference, columns ν ∈ {0, 0.25, 0.499}; each
-panel is the deformed lattice (displacements to scale) coloured by |u| (m) with one colour range
-per figure, the undeformed body drawn as a grey outline.  Panels are rendered with a single
+panel is the deformed lattice (displacements to scale); the MSS panels are coloured by
+|u_MSS − u_FEM| (m) against the FEM panel of their column, the FEM panels by |u| (m), each with one
+colour range per figure; the undeformed body is drawn as a grey outline.  Panels are rendered with a single
 off-screen plotter (EGL, no display needed) and assembled with matplotlib, which draws the labels
 and the shared colour bar.  Figures are cached by the keys and file times of the runs they show.
 """
@@ -21,7 +22,7 @@ from . import palette
 from .data import VTK_HEX_ORDER, Results
 
 #: bump when the look of the renders changes (invalidates the cache)
-RENDER_VERSION = "4"
+RENDER_VERSION = "5"
 PANEL_SIZE = (400, 350)
 BEAM_PANEL_SIZE = (420, 170)
 def render_rows(results: Results) -> list[str]:
@@ -46,13 +47,19 @@ class RenderFigure:
     umax: float = 0.0
 
 
-def hex_grid(X: np.ndarray, u: np.ndarray, cells: np.ndarray):
-    """pyvista UnstructuredGrid of the deformed lattice with point data ``|u|``."""
+#: colour map of the MSS panels: |u_MSS − u_FEM| (m)
+DIFF_CMAP = "magma_r"
+
+
+def hex_grid(X: np.ndarray, u: np.ndarray, cells: np.ndarray, scalars: np.ndarray | None = None,
+             name: str = "|u| (m)"):
+    """pyvista UnstructuredGrid of the deformed lattice with point data ``name``: ``scalars`` (one
+    value per particle), by default ``|u|``."""
     import pyvista as pv
 
     grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: np.asarray(cells)[:, VTK_HEX_ORDER]},
                                np.asarray(X + u, dtype=float))
-    grid.point_data["|u| (m)"] = np.linalg.norm(u, axis=1)
+    grid.point_data[name] = np.linalg.norm(u, axis=1) if scalars is None else np.asarray(scalars, dtype=float)
     return grid
 
 
@@ -75,13 +82,14 @@ class PanelRenderer:
     def __exit__(self, *exc):
         self.close()
 
-    def panel(self, X, u, cells, clim, view: dict, size=PANEL_SIZE) -> np.ndarray:
+    def panel(self, X, u, cells, clim, view: dict, size=PANEL_SIZE, scalars=None, cmap=None) -> np.ndarray:
+        """One panel: the deformed lattice coloured by ``scalars`` (default |u|) in ``cmap``."""
         pv, p = self._pv, self.plotter
         p.clear()
         if tuple(p.window_size) != tuple(size):
             p.window_size = list(size)
-        grid = hex_grid(X, u, cells)
-        p.add_mesh(grid, scalars="|u| (m)", clim=clim, cmap=palette.CMAP, show_edges=True,
+        grid = hex_grid(X, u, cells, scalars, "value")
+        p.add_mesh(grid, scalars="value", clim=clim, cmap=cmap or palette.CMAP, show_edges=True,
                    edge_color="#303030", line_width=0.6, show_scalar_bar=False, lighting=True)
         lo, hi = X.min(axis=0), X.max(axis=0)
         p.add_mesh(pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])).outline(),
@@ -206,9 +214,10 @@ def _caption(results, experiment, mesh, load, panels, umax) -> str:
     missing = 9 - len(panels)
     miss = f"; {missing} panel(s) empty (run missing or failed, see the failures table)" if missing else ""
     return (f"{experiment.capitalize()}, mesh {mesh}, E = {any_row['E']:g} Pa, ρ = {any_row['rho']:g} kg/m³, "
-            f"{load_label(load)}; static equilibrium (MSS: Newton), {femtxt}. Deformed shape to scale, colour = "
-            f"displacement magnitude |u| (m), one colour range 0–{umax:.3g} m for all panels; grey box: undeformed "
-            f"body{miss}.")
+            f"{load_label(load)}; static equilibrium (MSS: Newton), {femtxt}. Deformed shapes to scale. Colour of "
+            f"the MSS rows: |u_MSS − u_FEM| (m) per particle against the FEM panel of the same column (one range for "
+            f"the figure, upper colour bar); colour of the FEM row: its displacement magnitude |u| (m), 0–{umax:.3g} m "
+            f"(lower colour bar). Grey box: undeformed body{miss}.")
 
 
 def _failed(results, experiment, mesh, load) -> dict:
@@ -225,6 +234,20 @@ def _failed(results, experiment, mesh, load) -> dict:
     return out
 
 
+def model_differences(results: Results, panels: dict) -> dict:
+    """|u_MSS − u_FEM| per particle of each MSS panel whose column has a FEM panel on the same grid."""
+    rows = render_rows(results)
+    fem_row = len(rows) - 1
+    out = {}
+    for (r, c), s in panels.items():
+        if r == fem_row or (fem_row, c) not in panels:
+            continue
+        u, uf = results.arrays(s["key"])["u"], results.arrays(panels[(fem_row, c)]["key"])["u"]
+        if u.shape == uf.shape:
+            out[(r, c)] = np.linalg.norm(u - uf, axis=1)
+    return out
+
+
 def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
     failed = _failed(results, experiment, mesh, load)
     beam = experiment in ("tension", "bending")
@@ -236,10 +259,16 @@ def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
     size = BEAM_PANEL_SIZE if beam else PANEL_SIZE
     view = _view(boxes, beam, size)
     clim = (0.0, umax if umax > 0 else 1.0)
+    diffs = model_differences(results, panels)
+    dmax = max((float(d.max()) for d in diffs.values()), default=0.0)
+    dlim = (0.0, dmax if dmax > 0 else 1.0)
     images = {}
     for (r, c), s in panels.items():
         a = results.arrays(s["key"])
-        images[(r, c)] = renderer.panel(a["X"], a["u"], a["cells"], clim, view, size)
+        if (r, c) in diffs:
+            images[(r, c)] = renderer.panel(a["X"], a["u"], a["cells"], dlim, view, size, diffs[(r, c)], DIFF_CMAP)
+        else:
+            images[(r, c)] = renderer.panel(a["X"], a["u"], a["cells"], clim, view, size)
 
     with palette.style() as plt:
         import matplotlib as mpl
@@ -266,9 +295,17 @@ def _compose(results, renderer, experiment, mesh, load, panels, umax, path):
             fam = "fem-linear" if label == "FEM" else label
             axes[r, 0].text(-0.04, 0.5, label, rotation=90, ha="right", va="center", transform=axes[r, 0].transAxes,
                             color=palette.color(fam), fontsize=9.5, fontweight="bold")
-        cax = fig.add_axes([0.905, 0.08, 0.022, 0.8])
-        sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(*clim), cmap=palette.CMAP)
-        cb = fig.colorbar(sm, cax=cax)
-        cb.set_label("|u| (m)")
+        fem_row = len(render_rows(results)) - 1
+        if diffs:  # MSS rows: |u_MSS − u_FEM|; the FEM row: |u|
+            bars = [([0.905, 0.08 + 0.8 * (1 - fem_row / 3) + 0.02, 0.022, 0.8 * fem_row / 3 - 0.04], dlim, DIFF_CMAP,
+                     "|u_MSS − u_FEM| (m)"),
+                    ([0.905, 0.08, 0.022, 0.8 / 3 - 0.02], clim, palette.CMAP, "FEM |u| (m)")]
+        else:
+            bars = [([0.905, 0.08, 0.022, 0.8], clim, palette.CMAP, "|u| (m)")]
+        for rect, lim, cmap, label in bars:
+            sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(*lim), cmap=cmap)
+            cb = fig.colorbar(sm, cax=fig.add_axes(rect))
+            cb.set_label(label, fontsize=8)
+            cb.ax.tick_params(labelsize=7)
         fig.savefig(path, dpi=130)
         plt.close(fig)

@@ -10,12 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from studies.verdict import TIE_COST, TIE_PP
 from studies.claims import E_FEM_PP, NOT, PARTLY, REL_PCT, REPRODUCED, SUPPORTED, e_threshold, thresholds
 
 from .data import EXPERIMENT_ORDER, Results
 from .tables import REL_DIFF_PCT, Table, fmt, grade
 
-__all__ = ["claims", "claims_table", "claims_tables", "headline", "headline_table", "overview", "thresholds"]
+__all__ = ["caveats", "verdict", "verdict_sentences", "verdict_table", "claims", "claims_table", "claims_tables", "headline", "headline_table", "overview", "thresholds"]
 
 VERDICT_CSS = {REPRODUCED: "good", PARTLY: "warn", NOT: "bad", SUPPORTED: "good"}
 """The colour class of each verdict in the claims tables."""
@@ -127,3 +128,97 @@ def claims_table(cl: pd.DataFrame) -> Table:
                  "Verdicts computed by the studies from the stored results with the stated criteria "
                  "(studies/claims.py, tables/claims.csv); 'partly' = at least half of the cases meet the criterion.",
                  ["claim", "criterion", "verdict", "evidence"], rows, css="claims")
+
+
+# ------------------------------------------------------------------------------------ verdict
+RANK_CSS = {"best": "good", "tied with best": "good", "worse": "", "no result": "fail"}
+"""The colour class of each rank of the verdict table."""
+
+
+def verdict(results: Results) -> pd.DataFrame:
+    """Where each model wins, as the studies stored it (``tables/verdict.csv``; empty if not)."""
+    t = results.table("verdict")
+    return t if t is not None else pd.DataFrame()
+
+
+def _signed(v: float, unit: str) -> str:
+    if unit == "count":
+        return f"{v:.0f}"
+    if unit == "ms/s":
+        return f"{v:.3g}"
+    return f"{v:+.3g}"
+
+
+def _value_text(r) -> str:
+    if r["state"] != "ok" or pd.isna(r["value"]):
+        return str(r["state"]) if str(r["state"]) not in ("ok", "nan") else "no result"
+    text = _signed(float(r["value"]), r["unit"])
+    if r["unit"] == "count" and pd.notna(r.get("total", np.nan)):
+        text += f" of {int(r['total'])}"
+    return text
+
+
+def verdict_table(v: pd.DataFrame) -> Table:
+    """Regimes (rows) × models (columns): each model's error or cost, the best and those tied with it green."""
+    models = list(dict.fromkeys(v["method"]))
+    cols = ["regime", "quantity (unit)", "scene"] + models
+    rows = []
+    for (regime, quantity), g in v.groupby(["regime", "quantity"], sort=False):
+        unit = str(g["unit"].iloc[0])
+        by = {r["method"]: r for _, r in g.iterrows()}
+        row = [(regime, ""), (f"{quantity} ({unit})", ""), (str(g["scene"].iloc[0]), "")]
+        for m in models:
+            r = by.get(m)
+            row.append(("–", "") if r is None else (_value_text(r), RANK_CSS.get(r["rank"], "")))
+        rows.append(row)
+    return Table("table_verdict", "Where each method wins",
+                 "Each model's static equilibrium against the FEM reference on the same grid (signed: model − "
+                 "reference, relative to the reference in % or in percentage points of e), the count of large-load "
+                 "scenes without equilibrium, and the explicit cost in milliseconds of wall time per simulated second "
+                 f"at the model's stable step (from single stored runs; the budget study repeats its timings). Green: the best and those tied with it (within {TIE_PP:g} % / pp of the "
+                 f"best error, a factor {TIE_COST:g} of the best cost). Computed by studies/verdict.py "
+                 "(tables/verdict.csv).", cols, rows, css="verdict")
+
+
+def verdict_sentences(v: pd.DataFrame, subject: str | None) -> list[str]:
+    """One sentence per regime row (best, tied, the subject's value) and one on where ``subject`` wins."""
+    out, wins, losses = [], [], []
+    for (regime, quantity), g in v.groupby(["regime", "quantity"], sort=False):
+        unit = str(g["unit"].iloc[0])
+        u = "" if unit == "count" else f" {unit}"
+        good = g[g["rank"].isin(["best", "tied with best"])]
+        if good.empty:
+            continue
+        best = ", ".join(f"{r['method']} ({_value_text(r)}{u})" for _, r in good.iterrows())
+        rest = g[g["rank"] == "worse"]
+        worse = ", ".join(f"{r['method']} {_value_text(r)}{u}" for _, r in rest.iterrows())
+        out.append(f"<b>{regime}</b>, {quantity}: best {best}" + (f"; then {worse}" if worse else "") + ".")
+        if subject is not None and subject in set(g["method"]):
+            rk = g.loc[g["method"] == subject, "rank"].iloc[0]
+            (wins if rk in ("best", "tied with best") else losses).append(f"{regime}: {quantity.split(',')[0]}")
+    if subject is not None and (wins or losses):
+        lead = (f"{subject} is best or tied in: " + "; ".join(wins) if wins else f"{subject} is best in no regime")
+        lead += (f". It is behind in: " + "; ".join(losses) + "." if losses else ".")
+        out.insert(0, lead)
+    return out
+
+
+def caveats(results: Results, cl: pd.DataFrame, h: pd.DataFrame) -> list[str]:
+    """The reproduction's caveats a reader needs before any number: the calibration, the inferred
+    torsion angles, meshes and references, from the stored claims and headline."""
+    out = []
+    ef = cl[cl["claim"].astype(str).str.contains("E-form", regex=False)] if not cl.empty else cl
+    if not ef.empty:
+        found = "; ".join(f"{c['claim'].split(' (')[0]}: {c['verdict']} ({str(c['evidence']).split(' (')[0]})"
+                          for _, c in ef.iterrows())
+        out.append("Calibration: this harness builds its spring constants from G = E/(2(1+ν)), which give the input "
+                   "moduli at every ν; [G20] eq. 5.12 states them in terms of E (the E-form). " + found + ". Where "
+                   "[G20]'s values follow the E-form, its rows of Tables 2–3 differ from ours by construction.")
+    out.append("Torsion loads: [G20] labels its torsion rows 5 % and 20 % without defining d for a rotation; they "
+               "are read as θ = 1° and 45° (the angles at which the published torques agree with linear torsion of a "
+               "square section), an inference, not a statement of [G20].")
+    if not h.empty and "mesh" in h:
+        meshes = ", ".join(f"{e} {m}" for e, m in h.groupby("experiment", sort=False)["mesh"].first().items())
+        out.append(f"Meshes here: {meshes}; [G20]: the 10×10×10 cube and the 4×4×24 beam. The FEM reference is "
+                   "scikit-fem (Hex2 on the same grid, mixed u–p near ν = ½); [G20]'s is LS-Dyna.")
+    return out

@@ -15,7 +15,9 @@ import numpy as np
 import pandas as pd
 
 from studies.paper import printed
-from studies.claims import MIDDLE_LAYER_TOL, REL_PCT, middle_layer_frame
+from studies.equilibria import NONUNIQUE_PCT
+from studies.claims import b09_normalisation, b09_particles
+from studies.claims import MIDDLE_LAYER_TOL, PAPER_PP, REL_PCT, e_threshold, middle_layer_frame
 
 from . import findings
 from .data import Results, paper_source, paper_table, run_state
@@ -40,6 +42,7 @@ class Table:
     row_classes: dict = field(default_factory=dict)  # row -> css class
     css: str = ""
     csv: str = ""  # link to the stored CSV the table shows (HTML)
+    print_note: str = ""  # printed instead of a table kept out of the PDF
 
     @property
     def n_rows(self) -> int:
@@ -91,137 +94,325 @@ def _not_in_design(method: str, law: str) -> bool:
     return method.startswith("fem") and law == "linear" and not method.endswith("linear")
 
 
+MAX_COLUMNS = 14
+"""Columns of a printed table at most: wider tables are split (the PDF build fails on a table
+wider than its page, :mod:`reports.layout`)."""
+
+SIGNS = ("Δ = model − reference: positive when the model's value is larger; relative differences "
+         "(model − reference) / |reference| in %.")
+"""The sign convention of every difference of the report (stated in the captions)."""
+
+
+NONUNIQUE_NOTE = (f"‡: the explicit run of this scene came to rest more than {NONUNIQUE_PCT:g} % (relative L2 of the "
+                  "nodal displacements) from this static equilibrium: the model has more than one equilibrium here, "
+                  "and this value is one of them (see 'Failures and non-unique equilibria').")
+
+
+def _nonunique_note(rows: list) -> str:
+    """The ‡ note, for a table that has a flagged cell."""
+    return " " + NONUNIQUE_NOTE if any(c[1] == "twofold" for row in rows for c in row) else ""
+
+
+def nonunique_scenes(results: Results) -> set:
+    """(method, experiment, mesh, ν, load) of the scenes with two equilibria (``tables/equilibria.csv``)."""
+    t = results.table("equilibria")
+    if t is None or "apart" not in t:
+        return set()
+    t = t[t["apart"].astype(str).str.lower() == "true"]
+    out = set()
+    for _, r in t.iterrows():
+        load = float(r["angle_deg"]) if r["experiment"] == "torsion" else float(r["deformation"])
+        out.add((r["method"], r["experiment"], str(r["mesh"]), round(float(r["nu"]), 6), round(load, 6)))
+    return out
+
+
+def _flagged(cell: tuple[str, str], flags: set, method: str, experiment: str, r, load: str) -> tuple[str, str]:
+    """A value cell marked ‡ (and coloured) where its scene has two equilibria."""
+    key = (method, experiment, str(r["mesh"]), round(float(r["nu"]), 6), round(float(r[load]), 6))
+    if key not in flags or cell[1] == "fail":
+        return cell
+    return f"{cell[0]} ‡", "twofold"
+
+
+def _split_methods(results: Results, methods: list[str]) -> tuple[list[str], list[str], list[str]]:
+    """(the static methods of [G20]'s own models, the FEM methods, every other method) of a table."""
+    own = _published_methods(results, methods)
+    fem = [m for m in methods if m.startswith("fem")]
+    return own, fem, [m for m in methods if m not in own and m not in fem]
+
+
+def _reference(results: Results, experiment: str, methods: list[str], r, load: str):
+    """(reference column, its value) of a row: the FEM law the studies compare the row's load with."""
+    law = results.reference_law(experiment, r[load] if load == "deformation" else 0.0,
+                                r[load] if load == "angle_deg" else 0.0)
+    col = next((m for m in methods if law and m.startswith("fem") and m.endswith(law)), None)
+    return col, (r.get(col, np.nan) if col else np.nan), law
+
+
+def _load_cell(r, load: str) -> tuple[str, str]:
+    return (fmt(r[load], 3), "") if load == "angle_deg" else (fmt(100 * r[load], 3), "")
+
+
+def _method_value(results: Results, experiment: str, m: str, r, load: str, law: str, cls: str = "") -> tuple[str, str]:
+    """A method's value, or what the reader sees instead: not run at this load, failed, missing."""
+    v = r.get(m, np.nan)
+    if pd.isna(v) and _not_in_design(m, law):
+        return "–", ""
+    if pd.isna(v):
+        scene = {"mesh": r["mesh"], load: r[load], **({"nu": r["nu"]} if "nu" in r else {})}
+        state = run_state(results, experiment, m, **scene)
+        return (state or "missing"), "fail" if state.startswith("failed") else ""
+    return fmt(v), cls
+
+
+def _pp(a, b) -> float:
+    """a − b in percentage points, to 0.001 pp (round-off below that reads as 0)."""
+    return round(a - b, 3) if not (pd.isna(a) or pd.isna(b)) else np.nan
+
+
+def _pp_cell(d: float, thresholds=E_DIFF_PP) -> tuple[str, str]:
+    if pd.isna(d):
+        return "–", ""
+    return (f"{d:+.3g}" if d != 0 else "0"), grade(d, thresholds)
+
+
+def _rel(a, b) -> float:
+    """(a − b) / |b| in %."""
+    return 100 * (a - b) / abs(b) if not (pd.isna(a) or pd.isna(b) or b == 0) else np.nan
+
+
+def _rel_cell(d: float, thresholds=REL_DIFF_PCT) -> tuple[str, str]:
+    return ("–", "") if pd.isna(d) else (f"{d:+.3g}", grade(d, thresholds))
+
+
+def _chunks(items: list, size: int) -> list[list]:
+    return [items[i:i + size] for i in range(0, len(items), size)] or [[]]
+
+
 def volume_table(results: Results, name: str, experiment: str, number: int) -> Table | None:
+    """[G20] Table 2 or 3 beside ours: [G20]'s own models and FEM, ours and the publication's, the
+    differences and a verdict per row (the other models: :func:`competitors_volume_tables`)."""
     t = results.table(name)
     if t is None:
         return None
     t = t.sort_values(["mesh", "deformation", "nu"])
     methods = _method_cols(results, t)
-    own = [m for m in results.published("G20")["model"] if f"paper {m}" in t]
-    subject = results.published_model("proposed")
-    paper_cols = [f"paper {m}" for m in own] + [c for c in ("paper FEM (LS-Dyna)",) if c in t]
-    cols = ["mesh", "ν", "d (%)"] + [f"{_short(m)}" for m in methods] + [c.replace("paper", "[G20]") for c in paper_cols]
-    cols += [f"Δ {m} − [G20] (pp)" for m in own] + ["Δ FEM ref − [G20] FEM (pp)", f"Δ {subject} − FEM ref (pp)"]
+    own, _, _ = _split_methods(results, methods)
+    paper_own = [m for m in own if f"paper {m.rsplit(' ', 1)[0]}" in t]
+    subject = f"{results.published_model('proposed')} static"
+    pfem = "paper FEM (LS-Dyna)"
+    cols = ["mesh", "ν", "d (%)"]
+    for m in paper_own:
+        cols += [f"{_short(m)} ours", f"{_short(m)} [G20]"]
+    cols += ["FEM ours", "FEM [G20]", f"Δ {_short(subject)} − FEM, ours (pp)",
+             f"Δ {_short(subject)} − FEM, [G20] (pp)", f"Δ {_short(subject)} ours − [G20] (pp)", "verdict"]
+    flags = nonunique_scenes(results)
     rows = []
     for _, r in t.iterrows():
-        law = results.reference_law(experiment, r["deformation"])
-        ref_col = next((m for m in methods if law and m.startswith("fem") and m.endswith(law)), None)
-        ref = r.get(ref_col, np.nan) if ref_col else np.nan
-        row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (fmt(100 * r["deformation"], 3), "")]
-        for m in methods:
-            v = r[m]
-            if pd.isna(v) and _not_in_design(m, law):
-                row.append(("–", ""))
-            elif pd.isna(v):
-                state = run_state(results, experiment, m, mesh=r["mesh"], nu=r["nu"], deformation=r["deformation"])
-                row.append((state or "missing", "fail" if state.startswith("failed") else ""))
-            else:
-                row.append((fmt(v), "ref" if m == ref_col else ""))
-        for c in paper_cols:
-            row.append((fmt(r[c], 3), "paper"))
-
-        def delta(a, b):  # printed to 0.001 pp: round-off below that reads as 0
-            d = round(a - b, 3) if not (pd.isna(a) or pd.isna(b)) else np.nan
-            return (fmt(d, 3) if d != 0 else "0", grade(d, E_DIFF_PP))
-
-        for m in own:
-            row.append(delta(r.get(f"{m} static", np.nan), r.get(f"paper {m}", np.nan)))
-        row.append(delta(ref, r.get("paper FEM (LS-Dyna)", np.nan)))
-        row.append(delta(r.get(f"{subject} static", np.nan), ref))
+        ref_col, ref, law = _reference(results, experiment, methods, r, "deformation")
+        row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), _load_cell(r, "deformation")]
+        for m in paper_own:
+            cell = _method_value(results, experiment, m, r, "deformation", law)
+            row += [_flagged(cell, flags, m, experiment, r, "deformation"),
+                    (fmt(r[f"paper {m.rsplit(' ', 1)[0]}"], 3), "paper")]
+        row += [(fmt(ref), "ref") if pd.notna(ref) else ("missing", ""), (fmt(r.get(pfem, np.nan), 3), "paper")]
+        ours = r.get(subject, np.nan)
+        theirs = r.get(f"paper {subject.rsplit(' ', 1)[0]}", np.nan)
+        d_fem, d_paper_fem, d_paper = _pp(ours, ref), _pp(theirs, r.get(pfem, np.nan)), _pp(ours, theirs)
+        row += [_pp_cell(d_fem, (e_threshold(r["deformation"]), 3 * e_threshold(r["deformation"]))),
+                (_pp_cell(d_paper_fem)[0], "paper"), _pp_cell(d_paper)]
+        row.append(_volume_verdict(d_fem, d_paper, r["deformation"]))
         rows.append(row)
     src = paper_source(f"g20_table{number}_{experiment}")
     body = "10×10×10 cube of 5 m" if experiment == "compression" else "0.4 × 0.4 × 2.4 m beam"
-    return Table(f"table{number}", f"Table {number}: {experiment}, relative volume change e (%)",
-                 f"{experiment.capitalize()} of the {body}, E = 10⁴ Pa, ρ = 1000 kg/m³, static equilibria; "
-                 f"e = |V′ − V0|/V0 in %, FEM e = ∫ det F. FEM ref (bold) = linear at d = 5 %, Neo-Hookean at 20 %. "
-                 f"Δ in percentage points; green |Δ| ≤ {E_DIFF_PP[0]:g} pp, amber ≤ {E_DIFF_PP[1]:g} pp, red above. "
-                 f"The publication ran the 10×10×10 cube / 4×4×24 and 8×8×48 beams; compare meshes before "
-                 f"reading a Δ. '–': not run at this load (finite-strain FEM at 5 %). Publication: {src}", cols, rows)
+    return Table(f"table{number}", f"Table {number} beside [G20]: {experiment}, relative volume change e (%)",
+                 f"{experiment.capitalize()} of the {body}, E = 10 kPa, ρ = 1000 kg/m³, static equilibria; "
+                 f"e = |V′ − V0|/V0 in % as [G20] prints it (a magnitude; FEM V′ = ∫ det F dX, linear FEM ∫ (1 + div u) dX). "
+                 f"FEM ours (bold) = linear at d = 5 %, Neo-Hookean at 20 %; [G20]'s FEM is LS-Dyna. "
+                 f"{SIGNS} Δ in percentage points; against FEM green within the claims' criterion "
+                 f"(|Δ| ≤ {e_threshold(0.05):g} pp at 5 %, ≤ {e_threshold(0.2):g} pp at 20 %), against [G20] green "
+                 f"|Δ| ≤ {E_DIFF_PP[0]:g} pp, amber ≤ {E_DIFF_PP[1]:g} pp. Verdict: 'as [G20]' within {PAPER_PP:g} pp "
+                 f"of the publication; 'as FEM' within the FEM criterion.{_nonunique_note(rows)} [G20] ran the 10×10×10 "
+                 f"cube and the 4×4×24 / 8×8×48 beams: compare meshes before reading a Δ. Other models: the next "
+                 f"table. Publication: {src}", cols, rows)
+
+
+def _volume_verdict(d_fem: float, d_paper: float, deformation: float) -> tuple[str, str]:
+    if pd.isna(d_fem) and pd.isna(d_paper):
+        return "no result", "fail"
+    parts = []
+    if pd.notna(d_paper):
+        parts.append("as [G20]" if abs(d_paper) <= PAPER_PP else "not as [G20]")
+    if pd.notna(d_fem):
+        parts.append("as FEM" if abs(d_fem) <= e_threshold(deformation) else "not as FEM")
+    good = all(not p.startswith("not") for p in parts)
+    return ", ".join(parts), "good" if good else ("bad" if all(p.startswith("not") for p in parts) else "warn")
+
+
+def competitors_volume_tables(results: Results, name: str, experiment: str, number: int) -> list[Table]:
+    """The models [G20] does not tabulate (competitors, variants) against the same FEM reference:
+    Δe = e_model − e_FEM (pp) per row, split so that no table has more than :data:`MAX_COLUMNS`."""
+    t = results.table(name)
+    if t is None:
+        return []
+    t = t.sort_values(["mesh", "deformation", "nu"])
+    methods = _method_cols(results, t)
+    own, fem, _ = _split_methods(results, methods)
+    tabulated = [m for m in own if f"paper {m.rsplit(' ', 1)[0]}" in t]  # the models of volume_table
+    others = [m for m in methods if m not in tabulated and m not in fem]
+    th = (E_DIFF_PP[0], E_DIFF_PP[1])
+    return _competitor_tables(results, t, experiment, others, "deformation", f"table{number}_others",
+                              f"Table {number}, other models: {experiment}, Δe = e_model − e_FEM (pp)",
+                              f"The models of this harness that [G20]'s Table {number} does not list, against the "
+                              f"same FEM reference as Table {number} (linear at 5 %, Neo-Hookean at 20 %): e as "
+                              f"there (%, magnitude), Δe = e_model − e_FEM in percentage points (green |Δe| ≤ "
+                              f"{th[0]:g} pp, amber ≤ {th[1]:g} pp). Values of e: tables/{name}.csv.",
+                              "FEM ref e (%)", lambda v, ref: _pp_cell(_pp(v, ref), th), "(pp)")
+
+
+def _competitor_tables(results: Results, t: pd.DataFrame, experiment: str, others: list[str], load: str,
+                       tid: str, title: str, caption: str, ref_head: str, delta, unit: str) -> list[Table]:
+    if not others:
+        return []
+    load_head = "θ (°)" if load == "angle_deg" else "d (%)"
+    per = MAX_COLUMNS - 4
+    methods = _method_cols(results, t)
+    flags = nonunique_scenes(results)
+    out = []
+    for k, chunk in enumerate(_chunks(others, per)):
+        cols = ["mesh", "ν", load_head, ref_head] + [f"{_short(m)} {unit}" for m in chunk]
+        rows = []
+        for _, r in t.iterrows():
+            _, ref, law = _reference(results, experiment, methods, r, load)
+            row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), _load_cell(r, load),
+                   (fmt(ref), "ref") if pd.notna(ref) else ("missing", "")]
+            for m in chunk:
+                v = r.get(m, np.nan)
+                cell = delta(v, ref) if pd.notna(v) else _method_value(results, experiment, m, r, load, law)
+                row.append(_flagged(cell, flags, m, experiment, r, load))
+            rows.append(row)
+        suffix = f" ({k + 1} of {len(_chunks(others, per))})" if len(others) > per else ""
+        out.append(Table(f"{tid}{'_' + str(k + 1) if k else ''}", title + suffix,
+                         caption + " " + SIGNS + _nonunique_note(rows), cols, rows))
+    return out
 
 
 def reaction_table(results: Results, name: str, experiment: str, number: int, load: str, unit: str,
                    quantity: str) -> Table | None:
+    """[G20]'s own models against the FEM reference at every ν and load (the publication's values
+    at ν = 1/4: :func:`published_reaction_table`; the other models: :func:`competitors_reaction_tables`)."""
     t = results.table(name)
     if t is None:
         return None
     t = t.sort_values(["mesh", load, "nu"])
     methods = _method_cols(results, t)
-    compared = _published_methods(results, methods)
-    paper = paper_table(f"g20_table{number}_{experiment}")
+    own, _, _ = _split_methods(results, methods)
     load_head = "θ (°)" if load == "angle_deg" else "d (%)"
-    cols = ["mesh", "ν", load_head] + [f"{_short(m)} ({unit})" for m in methods]
-    cols += [f"{_short(m)} vs FEM ref (%)" for m in compared]
-    if paper is not None:
-        cols += [f"[G20] {c.replace('fem_lsdyna', 'FEM (LS-Dyna)')} ({unit})" for c in paper.columns
-                 if c not in ("nu", "deformation", "angle_deg")]
+    cols = ["mesh", "ν", load_head] + [f"{_short(m)} ({unit})" for m in own] + [f"FEM ref ({unit})"]
+    cols += [f"{_short(m)} − FEM (%)" for m in own] + ["verdict"]
+    flags = nonunique_scenes(results)
     rows = []
     for _, r in t.iterrows():
-        law = results.reference_law(experiment, r[load] if load == "deformation" else 0.0,
-                                    r[load] if load == "angle_deg" else 0.0)
-        ref_col = next((m for m in methods if law and m.startswith("fem") and m.endswith(law)), None)
-        ref = r.get(ref_col, np.nan) if ref_col else np.nan
-        lv = fmt(r[load], 3) if load == "angle_deg" else fmt(100 * r[load], 3)
-        row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), (lv, "")]
-        scene = dict(mesh=r["mesh"], nu=r["nu"], **{load: r[load]})
-        for m in methods:
-            if pd.isna(r[m]) and _not_in_design(m, law):
-                row.append(("–", ""))
-            elif pd.isna(r[m]):
-                state = run_state(results, experiment, m, **scene)
-                row.append((state or "missing", "fail" if state.startswith("failed") else ""))
-            else:
-                row.append((fmt(r[m]), "ref" if m == ref_col else ""))
-        for m in compared:
-            v = r.get(m, np.nan)
-            rel = 100 * (v - ref) / abs(ref) if not (pd.isna(v) or pd.isna(ref) or ref == 0) else np.nan
-            row.append((fmt(rel, 3), grade(rel, REL_DIFF_PCT)))
-        if paper is not None:
-            keycol = load if load in paper else None
-            sel = paper[printed(paper["nu"], r["nu"])]
-            if keycol:
-                sel = sel[printed(sel[keycol], r[load])]
-            for c in paper.columns:
-                if c not in ("nu", "deformation", "angle_deg"):
-                    row.append((fmt(sel[c].iloc[0]), "paper") if len(sel) else ("not published", ""))
+        _, ref, law = _reference(results, experiment, methods, r, load)
+        row = [(r["mesh"], ""), (fmt(r["nu"], 3), ""), _load_cell(r, load)]
+        row += [_flagged(_method_value(results, experiment, m, r, load, law), flags, m, experiment, r, load)
+                for m in own]
+        row.append((fmt(ref), "ref") if pd.notna(ref) else ("missing", ""))
+        rels = [_rel(r.get(m, np.nan), ref) for m in own]
+        row += [_rel_cell(d) for d in rels]
+        within = [abs(d) <= REL_PCT for d in rels if pd.notna(d)]
+        row.append(("no result", "fail") if not within else
+                   (f"{sum(within)} of {len(own)} within {REL_PCT:g} %",
+                    "good" if all(within) and len(within) == len(own) else ("warn" if any(within) else "bad")))
         rows.append(row)
-    note = (" [G20] publishes ν = 0.25 only (\"not published\" elsewhere); the table beside [G20] follows."
-            if paper is not None else "")
     loadtxt = "top plate rotated by θ about the vertical axis" if load == "angle_deg" else "top plate moved along x by d·H"
-    return Table(f"table{number}", f"Table {number}: {experiment}, {quantity} ({unit})",
-                 f"{experiment.capitalize()} of the 5 m cube, bottom clamped, {loadtxt}; E = 10⁴ Pa, static equilibria; "
+    return Table(f"table{number}", f"Table {number}: {experiment}, {quantity} ({unit}), [G20]'s models against FEM",
+                 f"{experiment.capitalize()} of the 5 m cube, bottom clamped, {loadtxt}; E = 10 kPa, static equilibria; "
                  f"{quantity} on the top plate in {unit}. FEM ref (bold) = linear at small load (5 %, 1°), "
-                 f"Neo-Hookean at large load. Relative differences: green ≤ {REL_DIFF_PCT[0]:g} %, amber ≤ "
-                 f"{REL_DIFF_PCT[1]:g} %, red above. '–': not run at this load (finite-strain FEM at the small load).{note}",
-                 cols, rows)
+                 f"Neo-Hookean at large load. {SIGNS} Green ≤ {REL_DIFF_PCT[0]:g} %, amber ≤ "
+                 f"{REL_DIFF_PCT[1]:g} %, red above.{_nonunique_note(rows)} [G20]'s values (ν = 0.25 only) are in the "
+                 f"table 'beside [G20]'; the other models in the table after it.", cols, rows)
+
+
+def competitors_reaction_tables(results: Results, name: str, experiment: str, number: int, load: str,
+                                unit: str, quantity: str) -> list[Table]:
+    t = results.table(name)
+    if t is None:
+        return []
+    t = t.sort_values(["mesh", load, "nu"])
+    _, _, others = _split_methods(results, _method_cols(results, t))
+    return _competitor_tables(results, t, experiment, others, load, f"table{number}_others",
+                              f"Table {number}, other models: {experiment}, {quantity}, (model − FEM) / |FEM| (%)",
+                              f"The models of this harness that [G20]'s Table {number} does not list, against the "
+                              f"same FEM reference ({unit}): relative difference in % (green ≤ {REL_DIFF_PCT[0]:g} %, "
+                              f"amber ≤ {REL_DIFF_PCT[1]:g} %). Values: tables/{name}.csv.",
+                              f"FEM ref ({unit})", lambda v, ref: _rel_cell(_rel(v, ref)), "(%)")
+
+
+def _deflection_rel(v, ref) -> float:
+    """(|v| − |ref|) / |ref| in %: negative when the model deflects less than the reference."""
+    return _rel(abs(v), abs(ref)) if not (pd.isna(v) or pd.isna(ref)) else np.nan
+
+
+BENDING_SIGNS = ("Differences compare deflection magnitudes, (|model| − |reference|) / |reference| in %: negative "
+                 "when the model deflects less (is stiffer).")
 
 
 def bending_table(results: Results) -> Table | None:
+    """[G20]'s own models against the finite-strain FEM and Euler–Bernoulli (the others:
+    :func:`bending_others_tables`)."""
     t = results.table("bending")
     if t is None:
         return None
     methods = _method_cols(results, t)
-    subject = results.published_model("proposed")
-    cols = ["mesh", "E (MPa)"] + [f"{_short(m)} (m)" for m in methods] + ["Euler–Bernoulli (m)",
-                                                                            f"{subject} vs E–B (%)",
-                                                                            f"{subject} vs FEM NH (%)"]
+    own, fem, _ = _split_methods(results, methods)
+    nh = next((m for m in fem if m.endswith("neo-hookean")), None)
+    cols = ["mesh", "E (MPa)"] + [f"{_short(m)} (m)" for m in own + fem] + ["Euler–Bernoulli (m)"]
+    cols += [f"{_short(m)} vs FEM NH (%)" for m in own] + [f"{_short(m)} vs E–B (%)" for m in own]
     rows = []
     for _, r in t.sort_values(["mesh", "E"]).iterrows():
         row = [(r["mesh"], ""), (fmt(r["E"] / 1e6, 3), "")]
-        for m in methods:
-            row.append((fmt(r[m]), "ref" if m.endswith("neo-hookean") else ""))
+        row += [(fmt(r[m]), "ref" if m == nh else "") if pd.notna(r[m]) else
+                _method_value(results, "bending", m, r, "E", "") for m in own + fem]
         eb = r.get("euler_bernoulli_tip", np.nan)
         row.append((fmt(eb), "paper"))
-        h = r.get(f"{subject} static", np.nan)
-        fem = next((r[m] for m in methods if m.startswith("fem") and m.endswith("neo-hookean")), np.nan)
-        for refv in (eb, fem):
-            rel = 100 * (h - refv) / abs(refv) if not (pd.isna(h) or pd.isna(refv) or refv == 0) else np.nan
-            row.append((fmt(rel, 3), grade(rel, REL_DIFF_PCT)))
+        ref = r.get(nh, np.nan) if nh else np.nan
+        row += [_rel_cell(_deflection_rel(r.get(m, np.nan), ref)) for m in own]
+        row += [_rel_cell(_deflection_rel(r.get(m, np.nan), eb)) for m in own]
         rows.append(row)
     return Table("table_bending", "Beam under gravity: tip deflection (m)",
                  "Clamped 0.4 × 0.4 × 2.4 m beam, ν = 0.25, ρ = 1000 kg/m³, g = 10 m/s², static equilibria; "
                  "vertical displacement of the free end's centre (m, negative = down). Euler–Bernoulli: "
-                 "y(L) = −ρ g l h L⁴ / (8 E I). FEM: Hex2, linear and Neo-Hookean. Relative differences: green ≤ "
-                 f"{REL_DIFF_PCT[0]:g} %, amber ≤ {REL_DIFF_PCT[1]:g} %, red above.", cols, rows)
+                 "y(L) = −ρ g l h L⁴ / (8 E I). FEM: Hex2, linear and Neo-Hookean (NH, the reference). "
+                 f"{BENDING_SIGNS} Green ≤ {REL_DIFF_PCT[0]:g} %, amber ≤ {REL_DIFF_PCT[1]:g} %, red above. "
+                 "Other models: the next table.", cols, rows)
+
+
+def bending_others_tables(results: Results) -> list[Table]:
+    t = results.table("bending")
+    if t is None:
+        return []
+    methods = _method_cols(results, t)
+    _, fem, others = _split_methods(results, methods)
+    nh = next((m for m in fem if m.endswith("neo-hookean")), None)
+    if not others or nh is None:
+        return []
+    out = []
+    chunks = _chunks(others, MAX_COLUMNS - 3)
+    for k, chunk in enumerate(chunks):
+        cols = ["mesh", "E (MPa)", "FEM NH (m)"] + [f"{_short(m)} (%)" for m in chunk]
+        rows = []
+        for _, r in t.sort_values(["mesh", "E"]).iterrows():
+            row = [(r["mesh"], ""), (fmt(r["E"] / 1e6, 3), ""), (fmt(r[nh]), "ref")]
+            row += [_rel_cell(_deflection_rel(r[m], r[nh])) if pd.notna(r[m]) else
+                    _method_value(results, "bending", m, r, "E", "") for m in chunk]
+            rows.append(row)
+        out.append(Table(f"table_bending_others{'_' + str(k + 1) if k else ''}",
+                         "Beam under gravity, other models: tip deflection against FEM NH (%)"
+                         + (f" ({k + 1} of {len(chunks)})" if len(chunks) > 1 else ""),
+                         f"The beam of the previous table; each other model's tip deflection against the Neo-Hookean "
+                         f"FEM. {BENDING_SIGNS} Values: tables/bending.csv.", cols, rows))
+    return out
 
 
 def meshes_table(results: Results) -> Table | None:
@@ -402,10 +593,13 @@ def runs_table(results: Results, vtu_files: dict) -> Table | None:
         return None
     df = df.sort_values(["study", "label", "solver"]).copy()
     df["e_pct"] = 100 * df["volume_change"]
+    failed = df["status"] != "ok"  # a run that did not reach a result shows no value
+    df.loc[failed, ["e_pct", "max_displacement"]] = np.nan
     cols = {"study": "study", "label": "scene", "solver": "solver", "status": "status", "e_pct": "signed e (%)",
             "max_displacement": "max |u| (m)", "elapsed_s": "time (s)", "key": "VTU"}
     tab = frame_table(df, "table_runs", "All runs",
-                      "Every stored run: signed relative volume change (%), largest displacement (m), wall time (s); "
+                      "Every stored run: signed relative volume change (V′ − V0)/V0 (%), largest displacement (m), "
+                      "wall time (s); '–' for a run that did not reach a result (its status says why); "
                       "the VTU link opens the deformed state (point field displacement, cell field "
                       "relative_volume_change) in ParaView.", cols,
                       lambda r, c: ("fail" if r["status"] != "ok" else "good") if c == "status" else "",
@@ -420,24 +614,29 @@ def runs_table(results: Results, vtu_files: dict) -> Table | None:
     return tab
 
 
-#: rows of a table printed in the PDF: the rest stay in the HTML page (one page of A4 landscape)
+#: rows of a table printed in the PDF: a longer table is a dump, kept to the HTML page and its CSV
 PRINT_ROWS = 30
 #: the same for tables whose rows carry a message of a few lines
 PRINT_ROWS_LONG = {"table_failures": 16, "table_explicit": 16}
 
 
 def cap_printed_rows(tab: Table, limit: int | None = None) -> Table:
-    """Keep at most ``limit`` rows of ``tab`` in print (rows already screen-only do not count);
-    the others are marked screen-only and the caption says so.  The default limit is
-    :data:`PRINT_ROWS_LONG` for the tables listed there, else :data:`PRINT_ROWS`."""
+    """A table of more than ``limit`` printed rows (rows already screen-only do not count) is not
+    printed at all: the PDF says where it is (the HTML page, its CSV) instead of printing its first
+    rows. The default limit is :data:`PRINT_ROWS_LONG` for the tables listed there, else
+    :data:`PRINT_ROWS`."""
     limit = limit if limit is not None else PRINT_ROWS_LONG.get(tab.id, PRINT_ROWS)
     printed = [i for i in range(tab.n_rows) if tab.row_classes.get(i) != "screen-only"]
-    if len(printed) <= limit:
+    if tab.screen_only or (0 < len(printed) <= limit) or tab.n_rows == 0:
         return tab
-    for i in printed[limit:]:
-        tab.row_classes[i] = "screen-only"
-    tab.caption += (f" The PDF prints the first {limit} of these {len(printed)} rows; the HTML page holds all"
-                    + (f" (and tables/{tab.csv.split('/')[-1]})" if tab.csv else "") + ".")
+    if not printed:  # every row is of another study: no empty table in print
+        tab.screen_only = True
+        tab.print_note = f"its {tab.n_rows} rows belong to other studies' sections: in the HTML page (index.html) only."
+        return tab
+    tab.screen_only = True
+    where = f"tables/{tab.csv.split('/')[-1]}" if tab.csv else "the report's tables/ folder"
+    tab.print_note = (f"{len(printed)} rows, longer than a page: in the HTML page (index.html) and as CSV in "
+                      f"{where}, not printed here.")
     return tab
 
 
@@ -482,71 +681,108 @@ def damping_short(results: Results) -> Table | None:
     t = results.table("damping_steps")
     if t is None:
         return None
-    cols = {"nu": "ν", "damping": "c (1/s)", "dt": "dt (s)", "tol": "tolerance", "steps_to_tol": "steps to tolerance",
-            "error_at_last": "rel. L2 at last step", "last_steps": "last step"}
+    t = t.copy()
+    for c in ("tol", "error_at_last"):
+        if c in t:
+            t[c] = 100 * pd.to_numeric(t[c], errors="coerce")
+    cols = {"nu": "ν", "damping": "c (1/s)", "dt": "dt (s)", "tol": "tolerance (%)",
+            "steps_to_tol": "steps to tolerance", "crossing_between": "between checkpoints",
+            "error_at_last": "rel. L2 at last checkpoint (%)", "last_steps": "last checkpoint (steps)"}
     return frame_table(t, "table_damping_short", "Steps to the static equilibrium",
                        "Explicit semi-implicit Euler with mass-proportional damping c from rest to the static "
-                       "equilibrium of the compression cube: steps until the relative L2 difference falls below the "
-                       "tolerance ('> n': not reached within the n steps run).", cols)
+                       "equilibrium of the compression cube, runs cut at checkpoints of n steps (a run cut before "
+                       "rest is measured all the same): steps at which the relative L2 difference ‖u_n − u_static‖ / "
+                       "‖u_static‖ crosses the tolerance for good, interpolated log-linearly between the two "
+                       "checkpoints that bracket it ('≤ n': within at the first checkpoint; '> n': not reached within "
+                       "the n steps run).", cols)
+
+
+def equilibria_frame(results: Results) -> pd.DataFrame:
+    """The explicit runs beside their static twins as the studies stored them
+    (``tables/equilibria.csv``), or computed from the runs for a folder stored without it."""
+    t = results.table("equilibria")
+    if t is None:
+        from studies.equilibria import equilibria
+
+        t = equilibria(results)
+    return t
+
+
+def _explicit_state(r) -> tuple[str, str]:
+    if r["status"] != "ok":
+        return r["status"], "fail"
+    if str(r["apart"]).lower() == "true":
+        return "two equilibria ‡", "twofold"
+    return "ok", "good"
 
 
 def explicit_table(results: Results) -> Table | None:
-    """Each explicit run (the publication's protocol) against the static equilibrium of the same scene."""
-    df = results.rows
-    if df.empty or not (df["solver"] == "mss-explicit").any():
+    """Each explicit run (the publication's protocol) against the static equilibrium of the same
+    scene; a run that did not come to rest shows no value, a pair apart is flagged."""
+    eq = equilibria_frame(results)
+    if eq.empty:
         return None
-    ex = df[df["solver"] == "mss-explicit"]
-    st = df[(df["solver"] == "mss-static") & (df["status"] == "ok")]
     rows = []
-    # the static twin: the same stored scene, every parameter exact, but the dynamic solvers' damping
-    keys = [c for c in results.scene_columns() if c not in ("damping", "variant")]
-
-    def cell(v):
-        if isinstance(v, (list, tuple, np.ndarray)):
-            return tuple(v)
-        return None if pd.isna(v) else v  # a missing value matches a missing value
-
-    def scene_of(r) -> tuple:
-        return tuple(cell(r[k]) for k in keys)
-
-    twins: dict = {}
-    for _, t in st.iterrows():  # the first stored static run of each scene
-        twins.setdefault(scene_of(t), t)
-    for _, r in ex.sort_values(["study", "label"]).iterrows():
-        twin = twins.get(scene_of(r))
+    for _, r in eq.iterrows():
         ok = r["status"] == "ok"
-        rel = de = np.nan
-        if ok and twin is not None:
-            a, b = results.arrays(r["key"]), results.arrays(twin["key"])
-            if "u" in a and "u" in b and a["u"].shape == b["u"].shape and np.linalg.norm(b["u"]) > 0:
-                rel = 100 * float(np.linalg.norm(a["u"] - b["u"]) / np.linalg.norm(b["u"]))
-            de = 100 * (float(r["volume_change"]) - float(twin["volume_change"]))
-        info = r.get("info") if isinstance(r.get("info"), dict) else {}
-        dt, steps = r.get("solver_dt", np.nan), r.get("solver_steps", np.nan)
         rows.append([
-            (r["label"], ""), (fmt(dt, 3), ""), (fmt(steps), ""), (fmt(r.get("damping", np.nan), 3), ""),
-            (fmt(info.get("dt_crit", r.get("dt_crit", np.nan)), 3), ""),
-            (r["status"], "good" if ok else "fail"),
-            (fmt(100 * abs(r["volume_change"]), 4) if ok else "–", ""),
-            (fmt(100 * abs(twin["volume_change"]), 4) if twin is not None else "–", "ref"),
-            (fmt(de, 3), grade(de, (0.1, 1.0))),
-            (fmt(rel, 3), grade(rel, (1.0, 5.0))),
-            (fmt(info.get("max_speed", np.nan), 3), ""),
-            ("" if ok else " ".join(str(r["message"]).split())[:220], ""),
+            (r["label"], ""), (fmt(r["dt"], 3), ""), (fmt(r["steps"]), ""), (fmt(r["damping"], 3), ""),
+            (fmt(r["dt_crit"], 3), ""), _explicit_state(r),
+            (fmt(r["e_explicit_pct"], 4) if ok else "–", ""),
+            (fmt(r["e_static_pct"], 4), "ref") if pd.notna(r["e_static_pct"]) else ("–", ""),
+            _pp_cell(r["de_pp"] if ok else np.nan, (0.1, 1.0)),
+            ((fmt(r["rel_l2_pct"], 3), grade(r["rel_l2_pct"], (1.0, NONUNIQUE_PCT))) if ok else ("–", "")),
+            (fmt(r["max_speed"], 3) if ok else "–", ""),
+            ("" if ok else str(r["message"])[:220], ""),
         ])
-    other = [i for i, k in enumerate(ex.sort_values(["study", "label"])["key"]) if not results.is_publication_run(k)]
-    note = (f" {len(other)} explicit runs of other studies (stability) are listed in the HTML page only."
-            if other else "")
+    other = [i for i, k in enumerate(eq["explicit_key"]) if not results.is_publication_run(k)]
+    note = (f" {len(other)} explicit runs of other studies (stability, speed against error) are listed in the HTML "
+            "page only." if other else "")
     return Table("table_explicit", "Explicit protocol against the static equilibrium",
                  "The publication's protocol: semi-implicit Euler, dt = 1 ms, 10,000 steps (10 s), plates ramped over "
-                 "1 s, mass-proportional damping c (s⁻¹, not stated in [G20]); read at the end. Compared with the "
-                 "static equilibrium of the same scene: e (%) of both, their difference (pp; green ≤ 0.1, amber ≤ 1) "
-                 "and the relative L2 difference of the nodal displacements (%; green ≤ 1, amber ≤ 5). dt_crit (s) "
-                 "at rest, largest particle speed at the end (m/s). A large difference means 10 s do not reach "
-                 "equilibrium." + note,
+                 "1 s, mass-proportional damping c (s⁻¹, not stated in [G20]); read at the end. A run that did not "
+                 "come to rest (status not-converged, diverged) shows no value: it is no result. Compared with the "
+                 "static equilibrium of the same scene: e (%) of both, Δe = e_explicit − e_static (pp; green ≤ 0.1, "
+                 "amber ≤ 1) and ‖u_explicit − u_static‖ / ‖u_static‖ (%; green ≤ 1, amber ≤ "
+                 f"{NONUNIQUE_PCT:g}). Above {NONUNIQUE_PCT:g} % with the explicit run at rest, both are equilibria of "
+                 "one scene: 'two equilibria ‡' (non-unique). dt_crit (s) at rest, largest particle speed at the end "
+                 "(m/s)." + note,
                  ["run", "dt (s)", "steps", "c (1/s)", "dt_crit (s)", "status", "e explicit (%)", "e static (%)",
                   "Δe (pp)", "‖Δu‖ rel. L2 (%)", "max speed (m/s)", "message"], rows, css="explicit",
                  row_classes={i: "screen-only" for i in other})
+
+
+def _apart_counts(results: Results, eq: pd.DataFrame) -> str:
+    """"k of the n explicit runs at rest …: model: scenes, range" for one group of explicit runs."""
+    rest = eq[eq["status"] == "ok"]
+    apart = rest[rest["apart"].astype(str).str.lower() == "true"]
+    if apart.empty:
+        return f"none of the {len(rest)} explicit runs that came to rest"
+    per = "; ".join(f"{v} {len(g)} ({g['rel_l2_pct'].min():.3g}–{g['rel_l2_pct'].max():.3g} % apart)"
+                    for v, g in apart.groupby("variant"))
+    return f"{len(apart)} of the {len(rest)} explicit runs that came to rest ({per})"
+
+
+def nonunique_sentence(results: Results) -> str:
+    """How many explicit runs at rest are apart from their static equilibria, in the publication's
+    scenes and in the other studies' stress tests, and which models."""
+    eq = equilibria_frame(results)
+    if eq.empty:
+        return ""
+    own = eq["explicit_key"].map(results.is_publication_run).astype(bool)
+    parts = []
+    if own.any():
+        parts.append(f"in the publication's scenes, {_apart_counts(results, eq[own])}")
+    if (~own).any():
+        parts.append(f"in the other studies (extreme loads, speed against error), {_apart_counts(results, eq[~own])}")
+    apart = eq[(eq["status"] == "ok") & (eq["apart"].astype(str).str.lower() == "true")]
+    fd = results.published_model("no-face-diagonals")
+    hourglass = (f" {fd} has no face diagonals: its cubic lattice has zero-energy (hourglass-like) modes, the zig-zag "
+                 "surfaces of its renders." if fd in set(apart["variant"]) else "")
+    return ("Non-unique equilibria: an explicit run that came to rest more than "
+            f"{NONUNIQUE_PCT:g} % (relative L2 of the nodal displacements) from the static equilibrium of the same "
+            "scene found a second equilibrium, and neither value is the model's answer (Tables 2–5 mark such scenes "
+            "‡). Found " + "; ".join(parts) + "." + hourglass)
 
 
 # ------------------------------------------------------------------ the publication's numbers beside ours
@@ -678,3 +914,55 @@ def b09_table(results: Results) -> Table | None:
                  "the particles of |u_MSS − u_FEM| / max|u_FEM| (%); nodal rel.: |u_MSS − u_FEM| / |u_FEM| at the "
                  "particles that move (%). [B09]'s values are for its own model (" + ", ".join(own) + ") and do not say which "
                  f"normalization they use. {src}", cols, rows)
+
+
+def b09_published_table(results: Results) -> Table | None:
+    """[B09]'s whole published table (both experiments, every mesh) beside ours for its own model,
+    with the reading of its SD as the standard error of the mean."""
+    paper = paper_table("b09_errors")
+    if paper is None:
+        return None
+    df = findings.b09_frame(results.table("baudet_cantilever"), results.table("baudet_lshape"), paper)
+    norm = b09_normalisation(df) if not df.empty else pd.DataFrame()
+    cols = ["experiment", "mesh", "N particles", "[B09] M", "[B09] SD", "[B09] MAX", "ours M", "ours SD", "ours MAX",
+            "ours SD/√N × [B09] M / ours M", "that ÷ [B09] SD"]
+    rows = []
+    for _, p in paper.iterrows():
+        row = [(findings.EXPERIMENT_NAMES.get(p["experiment"], p["experiment"]), ""), (p["mesh"], ""),
+               (fmt(b09_particles(p["experiment"], p["mesh"])), "")]
+        row += [(fmt(float(p[c]), 3), "paper") for c in ("mean_pct", "sd_pct", "max_pct")]
+        ours = df[(df["experiment"] == p["experiment"]) & (df["mesh"] == p["mesh"]) & (df["model"] == p["model"])] \
+            if not df.empty else df
+        n = norm[(norm["experiment"] == p["experiment"]) & (norm["mesh"] == p["mesh"])
+                 & (norm["model"] == p["model"])] if not norm.empty else norm
+        if ours.empty:
+            row += [("not run here", "")] + [("–", "")] * 4
+        elif ours["state"].iloc[0] != "ok":
+            row += [(_short_state(str(ours["state"].iloc[0])), "fail")] + [("–", "")] * 4
+        else:
+            o = ours.iloc[0]
+            row += [(fmt(o[c], 3), "") for c in ("err_mean_pct", "err_sd_pct", "err_max_pct")]
+            if n.empty:
+                row += [("–", "")] * 2
+            else:
+                q = n.iloc[0]
+                row += [(fmt(q["sem_scaled_pct"], 3), ""), (f"×{q['sem_ratio']:.3g}", grade(q["sem_ratio"] - 1, (0.15, 0.35)))]
+        rows.append(row)
+    return Table("table_b09_published", f"[B09]'s published errors ({', '.join(dict.fromkeys(paper['model']))}) and "
+                 "its standard deviation", "[B09]'s table whole: both experiments, every mesh, mean (M), standard "
+                 "deviation (SD) and maximum (MAX) of the nodal displacement error in % as printed, beside ours for "
+                 "the same model (|u_MSS − u_FEM| / max|u_FEM| over the N particles, %). " + b09_sd_sentence(norm) + " Read as the standard error of the mean, SD/√N, and scaled by the ratio of the means (to compare the "
+                 "normalisations, not our accuracy), ours gives the last two columns: a ratio near 1 supports that "
+                 "reading (green within 15 %, amber within 35 %). Where a mesh was not run (a shorter reproduction), "
+                 f"the row says so. {paper_source('b09_errors')}", cols, rows)
+
+
+def b09_sd_sentence(norm: pd.DataFrame) -> str:
+    """Our SD against [B09]'s, and our means against [B09]'s, over the rows run (from the data)."""
+    if norm.empty:
+        return "No mesh of [B09]'s table was run here."
+    m = norm["err_mean_pct"] / norm["b09_mean_pct"]
+    return (f"Our SD is ×{norm['sd_ratio'].min():.3g}–×{norm['sd_ratio'].max():.3g} [B09]'s while our means are "
+            f"×{m.min():.3g}–×{m.max():.3g} theirs: [B09]'s SD is not the spread of the error over the particles; "
+            f"read as the standard error of the mean, ours matches it to ×{norm['sem_ratio'].min():.3g}–"
+            f"×{norm['sem_ratio'].max():.3g}.")

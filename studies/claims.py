@@ -22,7 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .equilibria import equilibria
 from .paper import printed
+from .verdict import verdict
 from .results import EXPERIMENT_ORDER, Results, own_study_first, paper_table, run_state
 from .store import Store
 
@@ -556,6 +558,41 @@ def b09_frame(cantilever: pd.DataFrame | None, lshape: pd.DataFrame | None, pape
     return df
 
 
+def b09_particles(experiment: str, mesh: str) -> int:
+    """Particles of [B09]'s lattices: the nodes of the cantilever's box grid, and of the cells of the
+    L-shape's mask (the column x < n/2 and the arm z ≥ n/2 of the n³ grid, as
+    :func:`studies.baudet.lshape_mask`)."""
+    dims = [int(v) for v in str(mesh).split("x")]
+    if experiment != "lshape":
+        return int(np.prod([d + 1 for d in dims]))
+    n = dims[0]
+    cells = np.zeros((n, n, n), dtype=bool)
+    cells[: n // 2, :, :] = True
+    cells[:, :, n // 2:] = True
+    nodes = np.zeros((n + 1, n + 1, n + 1), dtype=bool)
+    for di in (0, 1):
+        for dj in (0, 1):
+            for dk in (0, 1):
+                nodes[di:n + di, dj:n + dj, dk:n + dk] |= cells
+    return int(nodes.sum())
+
+
+def b09_normalisation(df: pd.DataFrame) -> pd.DataFrame:
+    """[B09]'s SD beside ours read two ways, for the rows with published values: our SD over the N
+    particles, and our standard error of the mean SD/√N scaled by the ratio of the means
+    (``sem_scaled_pct``: what [B09] would print if its SD were the standard error of its mean);
+    ``sem_ratio``: that over [B09]'s SD (1 if the reading holds)."""
+    s = df[df["state"].eq("ok") & df.get("b09_sd_pct", pd.Series(np.nan, index=df.index)).notna()].copy()
+    if s.empty:
+        return s
+    s["n_particles"] = [b09_particles(e, m) for e, m in zip(s["experiment"], s["mesh"])]
+    s["sem_pct"] = s["err_sd_pct"] / np.sqrt(s["n_particles"])
+    s["sem_scaled_pct"] = s["sem_pct"] * s["b09_mean_pct"] / s["err_mean_pct"]
+    s["sd_ratio"] = s["err_sd_pct"] / s["b09_sd_pct"]
+    s["sem_ratio"] = s["sem_scaled_pct"] / s["b09_sd_pct"]
+    return s
+
+
 def b09_models(df: pd.DataFrame) -> list[str]:
     """The models [B09]'s figures are for (those rows of :func:`b09_frame` with published values)."""
     if "b09_mean_pct" not in df:
@@ -580,7 +617,14 @@ def write_claims(store: Store) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Judge the results in ``store`` (every stored run of this code version and the tables the
     studies wrote, as the report reads them) and store ``tables/headline.csv`` and
     ``tables/claims.csv``; run after every study's tables are written."""
-    h, c = judge(Results(store.root))
+    results = Results(store.root)
+    h, c = judge(results)
+    eq = equilibria(results)
+    if not eq.empty:
+        store.write_table("equilibria", eq)
+    v = verdict(results)
+    if not v.empty:
+        store.write_table("verdict", v)
     if not h.empty:
         store.write_table("headline", h)
     if not c.empty:

@@ -62,7 +62,7 @@ def results(tmp_path_factory):
     row = store.row(tasks[0].key())
     row.update(key="f" * 24, status="diverged", message="ExplicitDivergenceError: |v| > 1e6 m/s at step 812",
                solver="mss-explicit", label=row["label"] + " (explicit)")
-    for k in ("volume_change", "max_displacement", "force_x", "force_y", "force_z"):
+    for k in ("force_x", "force_y", "force_z"):  # e and max|u| stay: a failed run's last state, never a result
         row.pop(k, None)
     store.save(row["key"], row)
     with pytest.MonkeyPatch.context() as mp:  # moduli at three ν keep the test short
@@ -197,7 +197,8 @@ def test_pdf_pages_and_text(report):
     # cover + contents + one section a page at least; the list of runs is not printed
     assert res.pages >= 9
     text = " ".join(res.page_text)
-    for needle in ("Summary", "Table 2: compression", "Table 3: tension", "Table 4: shear", "Table 5: torsion",
+    for needle in ("Summary", "Table 2 beside [G20]: compression", "Table 3 beside [G20]: tension", "Table 4: shear",
+                   "Table 5: torsion", "Table 2, other models", "Where each method wins",
                    "Table 6: meshes", "Deformed shapes", "Euler", "Runs that did not reach a result", "diverged",
                    "Explicit protocol against the static equilibrium",
                    "ExplicitDivergenceError", "Effective moduli", "E-form check", "Performance", "reproduced"):
@@ -413,13 +414,32 @@ def test_every_printed_table_fits_one_page(report):
     assert checked >= 10
 
 
-def test_printed_rows_are_capped():
+def test_a_table_longer_than_a_page_is_not_printed_in_part():
+    """No dump of the first rows: a long table stays whole in the HTML page, the PDF says where."""
     from reports.tables import PRINT_ROWS, Table, cap_printed_rows
 
     t = Table("t", "t", "caption.", ["a"], [[(str(i), "")] for i in range(PRINT_ROWS + 7)])
     cap_printed_rows(t)
-    assert sum(1 for i in range(t.n_rows) if t.row_classes.get(i) == "screen-only") == 7
-    assert f"first {PRINT_ROWS} of these {PRINT_ROWS + 7} rows" in t.caption
+    assert t.screen_only and not t.row_classes
+    assert f"{PRINT_ROWS + 7} rows" in t.print_note and "HTML" in t.print_note
+    short = Table("s", "s", "caption.", ["a"], [[(str(i), "")] for i in range(PRINT_ROWS)])
+    assert not cap_printed_rows(short).screen_only and not short.print_note
+
+
+@pytest.mark.slow
+def test_a_failed_run_shows_no_value(report):
+    """The list of runs (HTML) shows '–' for the volume change and displacement of every run that
+    did not reach a result; the fixture's diverged run is one."""
+    res, _ = report
+    t = res.tables["table_runs"]
+    status, e, u = (t.columns.index(c) for c in ("status", "signed e (%)", "max |u| (m)"))
+    failed = [r for r in t.rows if r[status][0] != "ok"]
+    assert failed, "the fixture stores a diverged run"
+    assert all(r[e][0] == "–" and r[u][0] == "–" for r in failed)
+    assert all(r[e][0] != "–" for r in t.rows if r[status][0] == "ok")
+    ex = res.tables["table_explicit"]
+    shown = [r[i] for r in ex.rows if r[5][0] == "diverged" for i in (6, 8, 9, 10)]  # not 7: the static twin's e
+    assert shown and all(c[0] == "–" for c in shown)
 
 
 @pytest.mark.slow
@@ -632,3 +652,126 @@ def test_the_report_prints_the_claims_the_studies_judged(report, results):
     assert (counted["rows_within"] <= counted["rows_counted"]).all() and len(counted) >= len(stored) - 3
     printed = [row for tid, t in sorted(res.tables.items()) if tid.startswith("table_claims") for row in t.rows]
     assert sorted((row[0][0], row[2][0]) for row in printed) == sorted(zip(stored["claim"], stored["verdict"]))
+
+
+# ------------------------------------------------------------------ the printed page
+EDGE_MM = 3.0
+"""Width of the band along each paper edge that must stay blank (the page margins are 11–13 mm)."""
+
+
+def edge_ink(pdf_path, dpi: int = 50, edge_mm: float = EDGE_MM) -> list[tuple[int, str]]:
+    """(page, edge) of every PDF page whose rendered image has ink within ``edge_mm`` of an edge."""
+    import pypdfium2 as pdfium
+
+    found = []
+    pdf = pdfium.PdfDocument(str(pdf_path))
+    try:
+        for i in range(len(pdf)):
+            img = np.asarray(pdf[i].render(scale=dpi / 72).to_pil().convert("L"))
+            k = max(1, int(round(edge_mm / 25.4 * dpi)))
+            bands = {"left": img[:, :k], "right": img[:, -k:], "top": img[:k, :], "bottom": img[-k:, :]}
+            found += [(i + 1, name) for name, band in bands.items() if (band < 200).any()]
+    finally:
+        pdf.close()
+    return found
+
+
+@pytest.mark.slow
+def test_no_ink_at_the_page_edges(report):
+    """Every page of the PDF, rendered: nothing runs to the paper's edge (a table wider than the
+    page would, and the build's own check would have refused it before)."""
+    res, out = report
+    assert edge_ink(out / "report.pdf") == []
+
+
+def test_edge_ink_sees_a_table_off_the_page(tmp_path):
+    """The image check itself: a 27-column table printed without the build's check runs to the edge."""
+    from weasyprint import HTML
+
+    head = "".join(f"<th>column {i}</th>" for i in range(27))
+    HTML(string=f"<style>@page {{ size: A4 landscape; margin: 11mm }} th {{ white-space: nowrap }}</style>"
+              f"<table><tr>{head}</tr></table>").write_pdf(tmp_path / "wide.pdf")
+    assert (1, "right") in edge_ink(tmp_path / "wide.pdf")
+    HTML(string="<style>@page { size: A4 landscape; margin: 11mm }</style><p>narrow</p>").write_pdf(tmp_path / "n.pdf")
+    assert edge_ink(tmp_path / "n.pdf") == []
+
+
+@pytest.mark.slow
+def test_build_refuses_a_table_wider_than_the_page(results, tmp_path, monkeypatch):
+    """A 27-column table in the printed report: the build fails naming it, and no PDF is written."""
+    from reports import build as buildmod
+    from reports import tables as tabmod
+    from reports.layout import PageOverflowError
+
+    wide = tabmod.Table("table_wide", "A table of 27 columns", "", [f"column {i}" for i in range(27)],
+                        [[(f"{1000 * i + j:.4g}", "") for j in range(27)] for i in range(3)])
+    monkeypatch.setattr(tabmod, "meshes_table", lambda results: wide)
+    with pytest.raises(PageOverflowError, match="table_wide"):
+        buildmod.build(results, tmp_path / "out")
+    assert not (tmp_path / "out" / "report.pdf").exists()
+
+
+def test_no_two_series_share_a_colour_or_marker():
+    """Every registered variant, and the references, have a colour of their own, and no two variants
+    share a marker while spare markers remain; explicit and static runs of one model differ in line."""
+    from reports import palette
+    from studies.tables import models_table
+
+    table = models_table()
+    with palette.models(table) as styles:
+        colours = [c.lower() for c, _, _ in styles.values()]
+        assert len(set(colours)) == len(colours) == len(table)
+        assert not set(colours) & {c.lower() for c in palette.COLORS.values()}
+        markers = [m for _, m, _ in styles.values()]
+        assert len(set(markers)) == min(len(markers), len(palette.SPARE_MARKERS))
+        for v in styles:
+            assert palette.linestyle(f"{v} static") != palette.linestyle(f"{v} explicit"), v
+    # declared duplicates are what the check is for: two models declaring one colour
+    dup = pd.DataFrame({"variant": ["a", "b"], "color": ["#123456", "#123456"], "marker": ["o", "o"],
+                        "linestyle": ["-", "-"]})
+    assert len({c for c, _, _ in palette.unique_styles(dup.to_dict("records")).values()}) == 2
+
+
+@pytest.mark.slow
+def test_summary_opens_with_the_verdict(report, results):
+    """§1 opens with sentences on where each method wins, then the verdict table; the long headline
+    comparison comes last. The verdict's errors are the tables' own numbers: (model − FEM)/|FEM|
+    recomputed here from tables/table4_shear.csv."""
+    res, _ = report
+    html = res.html.read_text(encoding="utf-8")
+    start = html.index('<section id="summary"')
+    summary = html[start:html.index("</section>", start)]
+    assert summary.index('class="intro"') < summary.index("<table") < summary.index('id="table_headline"')
+    assert summary.index('id="table_verdict"') < summary.index('id="table_claims"')
+    assert "best" in _visible_text(summary[:summary.index("<table")]) and "Caveats" in summary
+    v = pd.read_csv(results / "tables" / "verdict.csv")
+    t = pd.read_csv(results / "tables" / "table4_shear.csv")
+    row = t[(t["nu"] == t["nu"].max()) & (t["deformation"] == t["deformation"].max())].iloc[0]
+    shear = v[(v["regime"] == "near incompressibility") & v["quantity"].str.startswith("shear")]
+    assert len(shear) >= 2
+    ref = row[next(c for c in t.columns if c.startswith("fem") and c.endswith("linear"))]  # 5 %: linear FEM
+    for _, r in shear.iterrows():
+        expect = 100 * (row[f"{r['method']} static"] - ref) / abs(ref)
+        assert r["value"] == pytest.approx(expect, rel=1e-9)
+    best = shear.loc[shear["value"].abs().idxmin(), "method"]
+    assert shear.set_index("method").loc[best, "rank"] == "best"
+
+
+@pytest.mark.slow
+def test_tables_beside_the_publication_fit_and_name_their_sign(report):
+    """Tables 2–5 as [G20] beside ours in at most 14 columns, the other models in tables of their
+    own, every difference signed and its convention stated."""
+    from reports.tables import MAX_COLUMNS
+
+    res, _ = report
+    for tid, t in res.tables.items():
+        if not t.screen_only and not t.csv:
+            assert len(t.columns) <= MAX_COLUMNS, (tid, len(t.columns))
+    t2 = res.tables["table2"]
+    assert "hybmss ours" in t2.columns and "hybmss [G20]" in t2.columns and "verdict" in t2.columns
+    assert "model − reference" in t2.caption
+    assert any(tid.startswith("table2_others") for tid in res.tables)
+    others = res.tables["table2_others"]
+    assert "hybmss (pp)" not in others.columns and "hybmss-fd (pp)" not in others.columns
+    d = t2.columns.index("Δ hybmss − FEM, ours (pp)")
+    assert all(c[0] == "–" or c[0] == "0" or c[0][0] in "+-" for c in (r[d] for r in t2.rows))
