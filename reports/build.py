@@ -232,10 +232,13 @@ def failures_section(results: Results) -> Section:
     return s
 
 
-def publication_tables_section(results: Results, figs: dict) -> Section:
+def publication_tables_section(results: Results, figs: dict, claims) -> Section:
     """Tables 2–6: each "[G20] beside ours" (at most :data:`reports.tables.MAX_COLUMNS` columns),
-    the models [G20] does not list in tables of their own, and their figures."""
-    s = Section("tables", "Tables 2–6 of the publication, reproduced")
+    the models [G20] does not list in tables of their own, and their figures; opened by the claims
+    they decide."""
+    s = Section("tables", "Tables 2–6 of the publication, reproduced",
+                summary.claim_findings(claims, "Tables 2, 3", "(Table 4", "(Table 5", "FEM shear force",
+                                       "FEM torsion torque", "FEM volume change"))
     for name, exp, number in (("table2_compression", "compression", 2), ("table3_tension", "tension", 3)):
         t = tables.volume_table(results, name, exp, number)
         if t is not None:
@@ -303,13 +306,11 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
 
     sections.append(summary_section(results, head, claims))
 
-    sections.append(publication_tables_section(results, figs))
+    sections.append(publication_tables_section(results, figs, claims))
 
     if renders:
-        s = Section("shapes", "Deformed shapes (Figs 3, 4, 7, 9)",
-                    "Rows: hybmss-fd, hybmss, FEM reference; columns: ν = 0, 0.25, 0.499. Off-screen pyvista renders of "
-                    "the stored static equilibria: the MSS rows coloured by their distance to the FEM, |u_MSS − u_FEM|, "
-                    "the FEM row by its displacement |u|.")
+        s = Section("shapes", "Deformed shapes (Figs 3, 4, 7, 9): where the MSS departs from the FEM",
+                    rendermod.largest_differences_sentence(renders))
         for r in renders:
             n = rendermod.FIGURE_NUMBERS.get(r.experiment, "")
             s.items.append(("figure", {"id": r.path.stem, "title": f"{r.experiment.capitalize()}, {r.load} (cf. Fig. {n})",
@@ -317,7 +318,8 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
                                        "file": f"figures/{r.path.name}"}))
         sections.append(s)
 
-    s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)")
+    s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)",
+                summary.claim_findings(claims, "middle-layer", "beam deflection", "closer to FEM than"))
     for fid in ("fig8", "fig10"):
         if fid in figs:
             s.items.append(("figure", _fig(figs[fid])))
@@ -368,7 +370,8 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
 
     sections.append(failures_section(results))
 
-    s = Section("moduli", "Effective moduli and the E-form check")
+    s = Section("moduli", "Effective moduli and the E-form check",
+                summary.claim_findings(claims, "input Young's modulus", "limited to ν = 1/4", "E-form"))
     for t in (tables.moduli_table(results), tables.eform_table(results)):
         if t is not None:
             s.items.append(("table", t))

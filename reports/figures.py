@@ -64,7 +64,9 @@ def _nu_axis(ax, nus):
     nus = sorted(set(float(v) for v in nus))
     ax.set_xlabel("ν (axis: log(½ − ν))")
     ax.set_xticks(nus)
-    ax.set_xticklabels([f"{v:g}" for v in nus], rotation=45 if len(nus) > 4 else 0)
+    gaps = np.diff(nu_to_log_gap(nus)) if len(nus) > 1 else np.array([1.0])
+    crowded = len(nus) > 4 or bool((gaps < 0.45).any())  # labels closer than about half a decade overlap
+    ax.set_xticklabels([f"{v:g}" for v in nus], rotation=90 if crowded else 0, fontsize=7 if crowded else None)
     ax.xaxis.set_minor_locator(__import__("matplotlib").ticker.NullLocator())
     lo, hi = nu_to_log_gap(min(nus)), nu_to_log_gap(max(nus))
     pad = 0.06 * max(hi - lo, 0.5)

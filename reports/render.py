@@ -45,6 +45,8 @@ class RenderFigure:
     caption: str
     keys: list = field(default_factory=list)
     umax: float = 0.0
+    dmax: float = 0.0  # largest |u_MSS − u_FEM| over the MSS panels (m)
+    dmax_where: str = ""  # "<model>, ν = <nu>" of that panel
 
 
 #: colour map of the MSS panels: |u_MSS − u_FEM| (m)
@@ -197,9 +199,10 @@ def render_figures(results: Results, out_dir: Path, cache_dir: Path | None = Non
                     if cached is not None:
                         cached.parent.mkdir(parents=True, exist_ok=True)
                         shutil.copyfile(path, cached)
+                dmax, where = _largest_difference(results, experiment, panels)
                 figs.append(RenderFigure(experiment, load_label(load), path, mesh,
                                          _caption(results, experiment, mesh, load, panels, umax),
-                                         [s["key"] for s in panels.values()], umax))
+                                         [s["key"] for s in panels.values()], umax, dmax, where))
     finally:
         if renderer is not None:
             renderer.close()
@@ -246,6 +249,27 @@ def model_differences(results: Results, panels: dict) -> dict:
         if u.shape == uf.shape:
             out[(r, c)] = np.linalg.norm(u - uf, axis=1)
     return out
+
+
+def _largest_difference(results: Results, experiment: str, panels: dict) -> tuple[float, str]:
+    """(largest |u_MSS − u_FEM| over the figure's MSS panels (m), "<model>, ν = <nu>" of its panel)."""
+    diffs = model_differences(results, panels)
+    if not diffs:
+        return 0.0, ""
+    (r, c), d = max(diffs.items(), key=lambda kv: float(kv[1].max()))
+    model = render_rows(results)[r].replace(" static", "")
+    return float(d.max()), f"{model}, ν = {results.nus(experiment)[c]:g}"
+
+
+def largest_differences_sentence(figs: list, n: int = 3) -> str:
+    """The figures whose MSS panels depart most from the FEM (relative to the FEM's largest |u|)."""
+    ranked = sorted((f for f in figs if f.dmax > 0 and f.umax > 0), key=lambda f: f.dmax / f.umax, reverse=True)
+    if not ranked:
+        return "No render has an MSS panel beside a FEM panel of the same grid."
+    parts = [f"{f.experiment} at {f.load}: {f.dmax_where}, {f.dmax:.3g} m ({100 * f.dmax / f.umax:.3g} % of the "
+             f"figure's largest displacement |u|)" for f in ranked[:n]]
+    return ("The MSS panels are coloured by their distance to the FEM panel of the same column, |u_MSS − u_FEM|, "
+            "the FEM row by its displacement |u|. Largest distances: " + "; ".join(parts) + ".")
 
 
 def _compose(results, renderer, experiment, mesh, load, panels, umax, path):

@@ -222,3 +222,19 @@ def caveats(results: Results, cl: pd.DataFrame, h: pd.DataFrame) -> list[str]:
         out.append(f"Meshes here: {meshes}; [G20]: the 10×10×10 cube and the 4×4×24 beam. The FEM reference is "
                    "scikit-fem (Hex2 on the same grid, mixed u–p near ν = ½); [G20]'s is LS-Dyna.")
     return out
+
+
+def claim_findings(cl: pd.DataFrame, *needles: str) -> str:
+    """The stored claims whose statement contains one of ``needles``, as "claim: verdict (rows)."
+    sentences: a section opens with its finding, not with a description."""
+    if cl.empty:
+        return ""
+    out = []
+    for _, c in cl.iterrows():
+        claim = str(c["claim"])
+        if any(n in claim for n in needles):
+            counted = c.get("rows_counted")
+            rows = (f", {int(c['rows_within'])} of {int(counted)} cases" if pd.notna(counted) and
+                    pd.notna(c.get("rows_within")) else "")
+            out.append(f"{claim}: <b>{c['verdict']}</b>{rows}.")
+    return " ".join(out)

@@ -951,8 +951,8 @@ def b09_published_table(results: Results) -> Table | None:
     return Table("table_b09_published", f"[B09]'s published errors ({', '.join(dict.fromkeys(paper['model']))}) and "
                  "its standard deviation", "[B09]'s table whole: both experiments, every mesh, mean (M), standard "
                  "deviation (SD) and maximum (MAX) of the nodal displacement error in % as printed, beside ours for "
-                 "the same model (|u_MSS − u_FEM| / max|u_FEM| over the N particles, %). " + b09_sd_sentence(norm) + " Read as the standard error of the mean, SD/√N, and scaled by the ratio of the means (to compare the "
-                 "normalisations, not our accuracy), ours gives the last two columns: a ratio near 1 supports that "
+                 "the same model (|u_MSS − u_FEM| / max|u_FEM| over the N particles, %). " + b09_sd_sentence(norm) + " The last two columns: our SD/√N scaled by the ratio of the means (to "
+                 "compare the normalisations, not our accuracy) and its ratio to [B09]'s SD; near 1 supports that "
                  "reading (green within 15 %, amber within 35 %). Where a mesh was not run (a shorter reproduction), "
                  f"the row says so. {paper_source('b09_errors')}", cols, rows)
 

@@ -148,6 +148,8 @@ def stable_dt(results: Results, variant: str, nu: float, mesh: str) -> float:
     if g.empty:
         return np.nan
     r = g.iloc[0]
+    if str(r.get("note", "")).startswith("no stability limit"):  # stable at any dt tried: no limit to price
+        return np.nan
     dt = r.get("dt_stable", np.nan)
     dt = r["dt_crit"] if pd.isna(dt) else dt
     return float(dt) * int(str(r["mesh"]).split("x")[0]) / int(str(mesh).split("x")[0])
@@ -165,7 +167,7 @@ def _cost_rows(results: Results) -> list[dict]:
         dt = stable_dt(results, r["variant"], 0.499, r["mesh"])
         out.append(dict(regime="cost", quantity="the same at ν = 0.499, at the stability study's stable dt", unit="ms/s",
                         scene=scene, method=r["variant"], value=1e3 * r["step_s"] / dt if pd.notna(dt) else np.nan,
-                        state="ok" if pd.notna(dt) else "missing"))
+                        state="ok" if pd.notna(dt) else (no_limit if pd.isna(r["cost"]) else "missing")))
     return out
 
 
