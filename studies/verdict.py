@@ -8,10 +8,10 @@ the FEM reference of the same grid, or its explicit cost):
 - ν < 1/4 at large strain: shear force at the smallest ν (0) and the large load, and the count of
   the publication's large-load scenes at ν < 1/4 in which the model has no equilibrium;
 - bending: tip deflection of the beam under gravity against the Neo-Hookean FEM (worst case);
-- cost: wall time per simulated second of the explicit protocol at the model's own stable step
-  (the run's per-step wall time / dt_crit at ν = 1/4; at ν = 0.499 / the stability study's largest
-  stable dt, carried to the run's mesh by the cell size). Single timed runs: ties within
-  :data:`TIE_COST`.
+- cost: wall time per simulated second of the explicit protocol at the model's stable step
+  (:mod:`studies.cost`: ½ dt_crit), from the per-step wall time of the model's stored explicit run
+  and its dt_crit at ν = 1/4, and at ν = 0.499 the stability study's dt_crit carried to the run's
+  mesh by the cell size. Single timed runs: ties within :data:`TIE_COST`.
 
 Best: the smallest |error| (cost); tied: within :data:`TIE_PP` percentage points of the best error
 (within a factor :data:`TIE_COST` of the best cost). Calibration variants (the E-form constants)
@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from . import cost
 from .results import Results, run_state
 
 TIE_PP = 2.0
@@ -115,11 +116,11 @@ def _bending_rows(results: Results) -> list[dict]:
 
 
 def explicit_cost(results: Results) -> pd.DataFrame:
-    """Per model: wall time per explicit step (s) of its stored explicit compression run at ν = 1/4
-    on the largest mesh that every model ran, that run's dt_crit (s) and the cost per simulated
-    second (s of wall time per s simulated)."""
+    """Per model: wall time per explicit step (µs) of its stored explicit compression run at ν = 1/4
+    on the largest mesh that every model ran, that run's dt_crit (s), and the cost of one simulated
+    second at the stable step :func:`studies.cost.stable_dt` (wall s per simulated s)."""
     df = results.rows
-    cols = ["variant", "experiment", "mesh", "step_s", "dt_crit", "cost"]
+    cols = ["variant", "experiment", "mesh", "us_per_step", "dt_crit", "cost"]
     ex = df[(df["solver"] == "mss-explicit") & (df["nu"].astype(float) == 0.25)
             & (df["experiment"] == "compression")] if not df.empty else df
     ex = ex[~ex["variant"].astype(str).str.contains("E-form", regex=False)] if not ex.empty else ex
@@ -131,18 +132,18 @@ def explicit_cost(results: Results) -> pd.DataFrame:
     for v, g in ex[ex["mesh"] == mesh].groupby("variant"):
         r = g.iloc[0]
         info = r["info"] if isinstance(r.get("info"), dict) else {}
-        step = float(r["elapsed_s"]) / float(r["solver_steps"])
+        us = 1e6 * float(r["elapsed_s"]) / float(r["solver_steps"])
         dtc = float(info.get("dt_crit") or np.nan)
-        recs.append(dict(variant=v, experiment="compression", mesh=mesh, step_s=step, dt_crit=dtc, cost=step / dtc))
+        c = cost.cost_per_simulated_second(us, cost.stable_dt(dtc)) if np.isfinite(dtc) else np.nan
+        recs.append(dict(variant=v, experiment="compression", mesh=mesh, us_per_step=us, dt_crit=dtc, cost=c))
     return pd.DataFrame(recs, columns=cols)
 
 
-def stable_dt(results: Results, variant: str, nu: float, mesh: str) -> float:
-    """The largest stable step of the stability study's compression cube at ``nu`` (dt_stable,
-    else dt_crit), carried to ``mesh`` by the cell size (dt ∝ cell size at one material); NaN
-    where not stored."""
+def dt_crit_at(results: Results, variant: str, nu: float, mesh: str) -> float:
+    """dt_crit of the stability study's compression cube at ``nu``, carried to ``mesh`` by the cell
+    size (dt_crit ∝ cell size at one material); NaN where not stored or the model has no limit."""
     t = results.table("dt_stability")
-    if t is None or not {"variant", "nu", "mesh"} <= set(t.columns):
+    if t is None or not {"variant", "nu", "mesh", "dt_crit"} <= set(t.columns):
         return np.nan
     g = t[(t["variant"] == variant) & np.isclose(t["nu"].astype(float), nu)]
     if g.empty:
@@ -150,24 +151,24 @@ def stable_dt(results: Results, variant: str, nu: float, mesh: str) -> float:
     r = g.iloc[0]
     if str(r.get("note", "")).startswith("no stability limit"):  # stable at any dt tried: no limit to price
         return np.nan
-    dt = r.get("dt_stable", np.nan)
-    dt = r["dt_crit"] if pd.isna(dt) else dt
-    return float(dt) * int(str(r["mesh"]).split("x")[0]) / int(str(mesh).split("x")[0])
+    return float(r["dt_crit"]) * int(str(r["mesh"]).split("x")[0]) / int(str(mesh).split("x")[0])
 
 
 def _cost_rows(results: Results) -> list[dict]:
     c = explicit_cost(results)
     out = []
+    at = f"at the stable step {cost.SAFETY:g} dt_crit"
     for _, r in c.iterrows():
         scene = f"compression, mesh {r['mesh']}"
         no_limit = "no dt limit"
-        out.append(dict(regime="cost", quantity="wall time per simulated second at dt_crit, ν = 0.25", unit="ms/s",
+        out.append(dict(regime="cost", quantity=f"wall time per simulated second {at}, ν = 0.25", unit="ms/s",
                         scene=scene, method=r["variant"], value=1e3 * r["cost"],
                         state="ok" if pd.notna(r["cost"]) else no_limit))
-        dt = stable_dt(results, r["variant"], 0.499, r["mesh"])
-        out.append(dict(regime="cost", quantity="the same at ν = 0.499, at the stability study's stable dt", unit="ms/s",
-                        scene=scene, method=r["variant"], value=1e3 * r["step_s"] / dt if pd.notna(dt) else np.nan,
-                        state="ok" if pd.notna(dt) else (no_limit if pd.isna(r["cost"]) else "missing")))
+        dtc = dt_crit_at(results, r["variant"], 0.499, r["mesh"])
+        value = 1e3 * cost.cost_per_simulated_second(r["us_per_step"], cost.stable_dt(dtc)) if pd.notna(dtc) else np.nan
+        out.append(dict(regime="cost", quantity=f"the same at ν = 0.499 (dt_crit of the stability study)", unit="ms/s",
+                        scene=scene, method=r["variant"], value=value,
+                        state="ok" if pd.notna(value) else (no_limit if pd.isna(r["cost"]) else "missing")))
     return out
 
 
