@@ -207,7 +207,7 @@ def summary_section(results: Results, head, claims) -> Section:
         intro += "<p><b>Caveats.</b></p><ul class='caveats'>" + "".join(f"<li>{_escape(n)}</li>" for n in notes) + "</ul>"
     s = Section("summary", "Summary: where each method wins", intro)
     if not v.empty:
-        s.items.append(("table", summary.verdict_table(v)))
+        s.items.append(("table", summary.verdict_table(v, results.published_model("springs-only"))))
     if not claims.empty:
         s.items += [("table", t) for t in summary.claims_tables(claims)]
     if not head.empty:

@@ -92,7 +92,8 @@ def headline_table(h: pd.DataFrame) -> Table:
                  f"{who} (static equilibrium) against the FEM reference on the same grid (linear at 5 % / 1°, "
                  "Neo-Hookean at 20 % / 45° and for the beam). Compression/tension: e = |ΔV|/V0 in %, error in "
                  f"percentage points (green ≤ {E_FEM_PP[0.05]:g} pp at 5 %, ≤ {E_FEM_PP[0.20]:g} pp at 20 %); shear: "
-                 "top-plate force F_x (N); torsion: torque T_z (N·m); beam: tip deflection (m); errors in % of FEM "
+                 "top-plate force F_x (N); torsion: torque T_z (N·m); beam: tip deflection (m, negative = down; its "
+                 "difference compares magnitudes, negative when the model deflects less); errors (model − FEM) in % of FEM "
                  f"(green ≤ {REL_PCT:g} %). [G20] columns: the publication's {who} and LS-Dyna values (Tables 2–5; "
                  "10×10×10 cube, 4×4×24 beam; Tables 4, 5 at ν = 0.25 only, torsion read as 1° and 45°). Last column: relative L2 nodal displacement difference (%).",
                  cols, rows)
@@ -158,7 +159,16 @@ def _value_text(r) -> str:
     return text
 
 
-def verdict_table(v: pd.DataFrame) -> Table:
+def _rank_css(r) -> str:
+    """Green for the best and the tied, red for a run that failed or is missing, else none (a model
+    with no dt limit has no explicit cost to rank, which is no failure)."""
+    state = str(r["state"])
+    if state.startswith("failed") or state == "missing":
+        return "fail"
+    return RANK_CSS.get(r["rank"], "") if r["rank"] != "no result" else ""
+
+
+def verdict_table(v: pd.DataFrame, springs_only: str | None = None) -> Table:
     """Regimes (rows) × models (columns): each model's error or cost, the best and those tied with it green."""
     models = list(dict.fromkeys(v["method"]))
     cols = ["regime", "quantity (unit)", "scene"] + models
@@ -169,7 +179,7 @@ def verdict_table(v: pd.DataFrame) -> Table:
         row = [(regime, ""), (f"{quantity} ({unit})", ""), (str(g["scene"].iloc[0]), "")]
         for m in models:
             r = by.get(m)
-            row.append(("–", "") if r is None else (_value_text(r), RANK_CSS.get(r["rank"], "")))
+            row.append(("–", "") if r is None else (_value_text(r), _rank_css(r)))
         rows.append(row)
     return Table("table_verdict", "Where each method wins",
                  "Each model's static equilibrium against the FEM reference on the same grid (signed: model − "
@@ -177,7 +187,9 @@ def verdict_table(v: pd.DataFrame) -> Table:
                  "scenes without equilibrium, and the explicit cost in milliseconds of wall time per simulated second "
                  f"at the model's stable step (from single stored runs; the budget study repeats its timings). Green: the best and those tied with it (within {TIE_PP:g} % / pp of the "
                  f"best error, a factor {TIE_COST:g} of the best cost). Computed by studies/verdict.py "
-                 "(tables/verdict.csv).", cols, rows, css="verdict")
+                 "(tables/verdict.csv)." + (f" {springs_only} has no volume term: its ν is always 1/4, so its "
+                 "cost at ν = 0.499 is that of another material." if springs_only in models else ""),
+                 cols, rows, css="verdict")
 
 
 def verdict_sentences(v: pd.DataFrame, subject: str | None) -> list[str]:

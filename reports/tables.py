@@ -733,7 +733,7 @@ def explicit_table(results: Results) -> Table | None:
             _pp_cell(r["de_pp"] if ok else np.nan, (0.1, 1.0)),
             ((fmt(r["rel_l2_pct"], 3), grade(r["rel_l2_pct"], (1.0, NONUNIQUE_PCT))) if ok else ("–", "")),
             (fmt(r["max_speed"], 3) if ok else "–", ""),
-            ("" if ok else str(r["message"])[:220], ""),
+            ("" if ok or pd.isna(r["message"]) else str(r["message"])[:220], ""),
         ])
     other = [i for i, k in enumerate(eq["explicit_key"]) if not results.is_publication_run(k)]
     note = (f" {len(other)} explicit runs of other studies (stability, speed against error) are listed in the HTML "

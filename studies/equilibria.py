@@ -50,6 +50,16 @@ def rel_l2_pct(a: np.ndarray, b: np.ndarray) -> float:
     return 100 * float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
+def _message(r, ok: bool) -> str:
+    """Why an explicit run is no result, in one line ("" for a run at rest)."""
+    if ok:
+        return ""
+    text = " ".join(str(r.get("message") or "").split()) if not pd.isna(r.get("message")) else ""
+    if not text and r["status"] == "not-converged":
+        return f"not at rest after {int(r['solver_steps'])} steps" if pd.notna(r.get("solver_steps")) else "not at rest"
+    return text
+
+
 def equilibria(results: Results) -> pd.DataFrame:
     """Every explicit run beside its static twin (:data:`COLUMNS`); ``apart``: both are equilibria
     (the explicit run at rest) and they differ by more than :data:`NONUNIQUE_PCT`."""
@@ -79,6 +89,6 @@ def equilibria(results: Results) -> pd.DataFrame:
             "e_explicit_pct": 100 * abs(float(r["volume_change"])) if ok else np.nan,
             "e_static_pct": 100 * abs(float(twin["volume_change"])) if twin is not None else np.nan,
             "de_pp": de, "rel_l2_pct": rel, "apart": bool(ok and rel > NONUNIQUE_PCT),
-            "message": "" if ok else " ".join(str(r.get("message", "")).split()),
+            "message": _message(r, ok),
         })
     return pd.DataFrame(recs, columns=COLUMNS)
