@@ -58,6 +58,10 @@ def log_gap_to_nu(x):
     return 0.5 - 10.0 ** (-np.asarray(x, dtype=float))
 
 
+LABEL_GAP_DECADES = 0.4
+"""ν tick labels closer than this on the log(½ − ν) axis overlap: they are turned upright."""
+
+
 def _nu_axis(ax, nus):
     """The Poisson ratios of the results on a log(½ − ν) x axis, labelled in ν."""
     ax.set_xscale("function", functions=(nu_to_log_gap, log_gap_to_nu))
@@ -65,7 +69,7 @@ def _nu_axis(ax, nus):
     ax.set_xlabel("ν (axis: log(½ − ν))")
     ax.set_xticks(nus)
     gaps = np.diff(nu_to_log_gap(nus)) if len(nus) > 1 else np.array([1.0])
-    crowded = len(nus) > 4 or bool((gaps < 0.45).any())  # labels closer than about half a decade overlap
+    crowded = len(nus) > 4 or bool((gaps < LABEL_GAP_DECADES).any())
     ax.set_xticklabels([f"{v:g}" for v in nus], rotation=90 if crowded else 0, fontsize=7 if crowded else None)
     ax.xaxis.set_minor_locator(__import__("matplotlib").ticker.NullLocator())
     lo, hi = nu_to_log_gap(min(nus)), nu_to_log_gap(max(nus))
