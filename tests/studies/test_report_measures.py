@@ -43,3 +43,24 @@ def test_relative_l2_of_two_equilibria():
     assert rel_l2_pct(1.3 * b, b) == pytest.approx(30.0)  # 30 % apart: flagged
     assert rel_l2_pct(1.3 * b, b) > NONUNIQUE_PCT > rel_l2_pct(1.01 * b, b)
     assert np.isnan(rel_l2_pct(b[:4], b)) and np.isnan(rel_l2_pct(b, 0 * b))
+
+
+def test_a_scene_with_two_equilibria_is_marked_where_its_value_is_shown():
+    """The stored pairs apart (explicit at rest vs static) mark that model's cell of that scene ‡,
+    and only that one; a failed cell stays a failure."""
+    from reports.tables import _flagged, nonunique_scenes
+
+    class Stored:  # the one table nonunique_scenes reads
+        def table(self, name):
+            return pd.DataFrame({"method": ["hybmss-fd static", "hybmss static"], "experiment": "compression",
+                                 "mesh": "10x10x10", "nu": [0.499, 0.499], "deformation": 0.2, "angle_deg": 0.0,
+                                 "apart": [True, False]}) if name == "equilibria" else None
+
+    flags = nonunique_scenes(Stored())
+    row = pd.Series({"mesh": "10x10x10", "nu": 0.499, "deformation": 0.2})
+    assert _flagged(("0.12", ""), flags, "hybmss-fd static", "compression", row, "deformation") == ("0.12 ‡", "twofold")
+    assert _flagged(("0.12", ""), flags, "hybmss static", "compression", row, "deformation") == ("0.12", "")
+    other = pd.Series({"mesh": "10x10x10", "nu": 0.25, "deformation": 0.2})
+    assert _flagged(("3.1", ""), flags, "hybmss-fd static", "compression", other, "deformation") == ("3.1", "")
+    assert _flagged(("failed (unstable)", "fail"), flags, "hybmss-fd static", "compression", row,
+                    "deformation") == ("failed (unstable)", "fail")
