@@ -36,8 +36,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable
 
-from hybmss import models
-
 STUDY_ROLES = ("tables", "explicit-tables", "torsion-sweep", "bending", "regression", "stability",
                "pareto", "performance", "b09")
 """Roles a model can take in the studies: the per-experiment error ``tables`` (static runs), their
@@ -255,11 +253,13 @@ def part(model: str) -> Part:
 
 def takes_part(model: str, role: str) -> bool:
     """Whether the model ``model`` joins the study role ``role``: declared, and its solvers allow it."""
+    from hybmss import models  # read here: the report imports this module's tables without the registry
     return role in part(model).roles and NEEDS.get(role, "static") in models.get(model).solvers
 
 
 def in_role(role: str) -> tuple[str, ...]:
     """Names of the models that take part in the study role ``role``, in the registry's order."""
+    from hybmss import models  # read here: the report imports this module's tables without the registry
     if role not in STUDY_ROLES:
         raise ValueError(f"study role must be one of {', '.join(STUDY_ROLES)}; got {role!r}")
     return tuple(n for n in models.names() if takes_part(n, role))
@@ -269,6 +269,7 @@ def studied() -> tuple[str, ...]:
     """Names of the models that take part in any study role (a model listed with no role, such as an
     engine whose study resolutions are not chosen yet, is left out of every study), in the
     registry's order."""
+    from hybmss import models  # read here: the report imports this module's tables without the registry
     return tuple(n for n in models.names() if part(n).roles)
 
 
