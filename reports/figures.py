@@ -635,44 +635,66 @@ STATE_COLORS = {"converged": "#4daf4a", "unstable": "#ff7f00", "diverged": "#e41
 
 
 def budget_chart(results: Results, path: Path) -> Figure | None:
-    """Experiment × error budget -> the fastest method that meets it, its time and its lead."""
+    """The budget answer: one panel per cost (rows: static, explicit) and error measure (columns:
+    force, volume, field); in a panel, configurations down and budgets across, each cell the
+    winner's marker in its model's colour (hollow: a tie; grey dot: no method meets the budget)
+    and its lead over the runner-up."""
     ans = findings.budget_answers(results.table("budget"))
     if ans.empty:
         return None
     configs = list(dict.fromkeys(ans["config"]))
-    budgets = sorted(ans["budget"].unique())
+    budgets = sorted(ans["budget"].astype(float).unique())
+    kinds = [k for k in findings.COST_NAMES if k in set(ans["cost_kind"])]
+    measures = [m for m in findings.MEASURE_NAMES if m in set(ans["measure"])]
+    short = {"force": "force", "volume": "volume change", "field": "field (nodal L2)"}
+    kind_title = {"static": "time to equilibrium", "explicit": "per simulated s, explicit"}
     with palette.style() as plt:
-        fig, ax = plt.subplots(figsize=(1.9 * len(budgets) + 2.2, 0.42 * len(configs) + 0.9))
-        for i, cfg in enumerate(configs):
-            for j, b in enumerate(budgets):
-                r = ans[(ans["config"] == cfg) & (ans["budget"] == b)].iloc[0]
-                none = r["method"] == "none"
-                ax.add_patch(plt.Rectangle((j, i), 0.96, 0.9, color="#eeeeee" if none else palette.color(r["method"]),
-                                           alpha=1.0 if none else 0.35, lw=0))
-                if none:
-                    txt = "no method meets it"
-                else:
-                    lead = "only method" if pd.isna(r["lead"]) else f"×{r['lead']:.2f} ahead of {r['next_method']}"
-                    txt = f"{r['method']} {r['mesh']}\n{1e3 * r['time_s']:.3g} ms, {lead}"
-                ax.text(j + 0.48, i + 0.45, txt, ha="center", va="center", fontsize=5.6)
-        ax.set_xlim(0, len(budgets))
-        ax.set_ylim(len(configs), 0)
-        ax.set_xticks([j + 0.48 for j in range(len(budgets))])
-        ax.set_xticklabels([f"error ≤ {100 * b:g} %" for b in budgets])
-        ax.set_yticks([i + 0.45 for i in range(len(configs))])
-        ax.set_yticklabels(configs, fontsize=7)
-        ax.grid(False)
-        for sp in ax.spines.values():
-            sp.set_visible(False)
-        ax.tick_params(length=0)
-        ax.xaxis.tick_top()
+        fig, axes = plt.subplots(len(kinds), len(measures), squeeze=False, sharey=True,
+                                 figsize=(2.35 * len(measures) + 1.6, (0.17 * len(configs) + 0.7) * len(kinds) + 0.9))
+        seen = {}
+        for i, kind in enumerate(kinds):
+            for j, m in enumerate(measures):
+                ax = axes[i, j]
+                sub = ans[(ans["cost_kind"] == kind) & (ans["measure"] == m)]
+                for r in sub.itertuples():
+                    y = configs.index(r.config)
+                    x = budgets.index(float(r.budget))
+                    if r.method == "none":
+                        ax.plot(x, y, ls="none", marker=".", color="#bbbbbb", ms=3)
+                        continue
+                    model = findings.method_model(r.method)
+                    model = "FEM (the table names the element)" if model.startswith("FEM") else model
+                    tie = findings._is_tie(r.tie)
+                    c = palette.color(r.method)
+                    h, = ax.plot(x - 0.18, y, ls="none", marker=palette.marker(r.method), ms=5.5, mec=c,
+                                 mfc="white" if tie else c, mew=1.0)
+                    seen.setdefault(model, (c, palette.marker(r.method)))
+                    lead = "" if pd.isna(r.lead) else ("tie" if tie else f"×{r.lead:.2g}" + ("?" if tie is None else ""))
+                    ax.text(x + 0.02, y, lead, fontsize=5.5, va="center", ha="left")
+                ax.set_xlim(-0.5, len(budgets) - 0.3)
+                ax.set_ylim(len(configs) - 0.5, -0.5)
+                ax.set_xticks(range(len(budgets)))
+                ax.set_xticklabels([f"≤ {100 * b:g} %" for b in budgets], fontsize=7)
+                ax.set_yticks(range(len(configs)))
+                ax.set_yticklabels(configs, fontsize=6)
+                ax.grid(True, axis="y", alpha=0.25)
+                ax.grid(False, axis="x")
+                ax.set_title(f"{short[m]} error\n{kind_title.get(kind, kind)}", fontsize=7.5)
+        handles = [plt.Line2D([], [], ls="none", marker=mk, color=c, label=name) for name, (c, mk) in seen.items()]
+        handles += [plt.Line2D([], [], ls="none", marker="o", mfc="white", mec="k", label="hollow: tie (lead < 1 + spread)"),
+                    plt.Line2D([], [], ls="none", marker=".", color="#bbbbbb", label="no method meets the budget")]
+        fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, frameon=False, fontsize=7)
         fig.tight_layout()
         _save(plt, fig, path)
     return Figure("study_budget", "Which method for which error budget", Path(path),
-                  "From tables/budget.csv (written by the pareto study from tables/pareto.csv): for each configuration (rows) and budget on the relative L2 nodal error "
-                  "against the converged reference (columns), the fastest candidate that meets the budget (colour "
-                  "= method family), its mesh and wall time, and its lead = time of the next fastest other method "
-                  "that meets it / its time.")
+                  "From tables/budget.csv (the pareto study): for each configuration (rows), error budget (columns "
+                  "of a panel), error measure against the converged reference (panel columns: plate force or "
+                  "torque, the beam's tip deflection; volume change in units of the imposed strain; relative L2 "
+                  "of the nodal displacement) and cost (panel rows: wall time to an equilibrium; wall time per "
+                  "simulated second at half the explicit limit dt_crit), the fastest method within the budget "
+                  "(marker and colour of its model; the table names its solver and mesh) and its lead = cost of "
+                  "the next fastest other method / its cost. Hollow marker, 'tie': the lead is smaller than "
+                  "1 + the larger timing spread (median over best of the repeats).")
 
 
 def stability_map(results: Results, path: Path) -> Figure | None:

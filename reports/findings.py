@@ -32,41 +32,77 @@ def _num(v) -> float:
 
 
 # ------------------------------------------------------------------ speed against error
-def budget_answers(budget: pd.DataFrame | None) -> pd.DataFrame:
-    """The per-configuration rows of the pareto study's stored ``budget`` table
-    (:func:`studies.pareto.budget_table`): for every configuration and error budget, the fastest
-    method whose nodal error meets the budget, its time, the next fastest *other* method that
-    meets it and the lead ``t_next / t_fastest``.
+MEASURE_NAMES = {"force": "plate force or torque (beam: tip deflection)", "volume": "volume change",
+                 "field": "displacement field"}
+"""How a sentence names the budget study's error measures (:data:`studies.pareto.MEASURES`)."""
+COST_NAMES = {"static": "wall time to an equilibrium (static, implicit, FEM)",
+              "explicit": "wall time per simulated second at the stable step (explicit)"}
 
-    Columns: ``config, experiment, budget, method, mesh, time_s, error_u, next_method,
-    next_time_s, lead`` (``method`` = "none" when no candidate meets the budget; ``next_method``
-    = "none" and ``lead`` NaN when only one method does)."""
-    cols = ["config", "experiment", "budget", "method", "mesh", "time_s", "error_u", "next_method", "next_time_s",
-            "lead"]
-    if budget is None or not {"config", "method", "budget", "lead"} <= set(budget.columns):
+
+def budget_answers(budget: pd.DataFrame | None) -> pd.DataFrame:
+    """The per-configuration answers of the pareto study's stored ``budget`` table
+    (:func:`studies.pareto.budget_table`, :func:`studies.cost.budget_answer`): for every
+    configuration, error measure, cost and budget, the fastest method within it (``method`` =
+    "none" when none is), its mesh, cost and error, the runner-up, the lead and ``tie``.
+
+    Columns: ``config, experiment, nu, measure, cost_kind, budget, method, mesh, cost, error,
+    spread, runner_up, lead, tie`` (``runner_up`` = "none" and ``lead`` NaN when one method meets
+    the budget; ``tie`` True, False or NaN: undetermined, a single timing)."""
+    cols = ["config", "experiment", "nu", "measure", "cost_kind", "budget", "method", "mesh", "cost", "error",
+            "spread", "runner_up", "lead", "tie"]
+    if budget is None or not {"config", "measure", "cost_kind", "answer", "tie"} <= set(budget.columns):
         return pd.DataFrame(columns=cols)
-    df = budget[budget["config"].astype(str) != "all configurations"].copy()
+    df = budget[budget["answer"].astype(str) == "fastest"].copy()
     df["method"] = df["method"].where(df["method"].astype(str) != "none within budget", "none")
-    df["next_method"] = df["next_method"].fillna("none")
+    df["runner_up"] = df["runner_up"].fillna("").astype(str).replace("", "none")
     df["mesh"] = df["mesh"].fillna("")
     return df[cols].reset_index(drop=True)
 
 
-def budget_sentence(ans: pd.DataFrame) -> str:
+def method_model(method: str) -> str:
+    """The model (or the FEM) of a method name of the budget table: ``"corot-hex8 explicit"`` ->
+    ``"corot-hex8"``, ``"fem-hex1-linear"`` -> ``"FEM Hex1"``."""
+    m = str(method)
+    if m.startswith("fem-"):
+        return "FEM " + {"hex1": "Hex1", "hex2": "Hex2", "mixed": "mixed u–p"}.get(m.split("-")[1], m.split("-")[1])
+    return m.split(" ")[0]
+
+
+def _is_tie(v) -> bool | None:
+    if v is None or (isinstance(v, float) and math.isnan(v)) or v is pd.NA:
+        return None
+    return str(v).strip().lower() in ("true", "1", "1.0")
+
+
+def budget_sentence(ans: pd.DataFrame, budget: float | None = None) -> str:
+    """Per cost and error measure, at the middle budget: which models are fastest in how many
+    configurations (by name), how many configurations no method meets, and how many leads are
+    ties (the lead smaller than the timing spread)."""
     if ans.empty:
         return "No speed-against-error table is stored (study pareto not run)."
-    parts, fem, none = [], [], []
-    for b, g in ans.groupby("budget"):
-        mss = int((~g["method"].str.startswith("fem") & (g["method"] != "none")).sum())
-        parts.append(f"{mss} of {len(g)} at {pct(b)}")
-        fem.append(int(g["method"].str.startswith("fem").sum()))
-        none.append(int((g["method"] == "none").sum()))
-    leads = ans["lead"].dropna()
-    lead = (f"; the winner leads the next method by ×{leads.median():.2f} in the median "
-            f"(×{leads.min():.2f}–×{leads.max():.2f})" if len(leads) else "")
-    return ("A mass-spring model is the fastest method that meets the error budget in "
-            + ", ".join(parts) + " of the configurations (a FEM mesh in " + "/".join(map(str, fem))
-            + ", no method in " + "/".join(map(str, none)) + ")" + lead + ". The chart names the winner of each.")
+    budgets = sorted(ans["budget"].astype(float).unique())
+    b = budget if budget is not None else budgets[len(budgets) // 2]
+    at = ans[ans["budget"].astype(float) == b]
+    parts = []
+    for kind in [k for k in COST_NAMES if k in set(at["cost_kind"])]:
+        per = []
+        for m in [m for m in MEASURE_NAMES if m in set(at["measure"])]:
+            g = at[(at["cost_kind"] == kind) & (at["measure"] == m)]
+            won = g[g["method"] != "none"]
+            counts = won["method"].map(method_model).value_counts()
+            names = ", ".join(f"{name} {n}" for name, n in counts.items()) or "no method"
+            none = int((g["method"] == "none").sum())
+            per.append(f"by {MEASURE_NAMES[m]} error: {names}" + (f", none in {none}" if none else "")
+                       + f" (of {len(g)})")
+        parts.append(f"Cost as {COST_NAMES[kind]}, fastest within {pct(b)}, " + "; ".join(per) + ".")
+    leads = ans[ans["runner_up"] != "none"]
+    ties = leads["tie"].map(_is_tie)
+    n_tie, n_unknown = int((ties == True).sum()), int(ties.isna().sum())  # noqa: E712
+    tie_txt = (f" Of the {len(leads)} answers with a runner-up (all budgets), {n_tie} "
+               + ("is a tie" if n_tie == 1 else "are ties") + ": the lead is "
+               "smaller than 1 + the larger timing spread (median over best of the repeats)"
+               + (f"; {n_unknown} are undetermined (a single timing)" if n_unknown else "") + ".")
+    return " ".join(parts) + tie_txt + " The chart names the winner of each."
 
 
 # ------------------------------------------------------------------ performance

@@ -4,7 +4,9 @@ For each experiment (compression, tension, shear, torsion, bending) and configur
 (ν ∈ {0, ¼, 0.499} × d ∈ {5 %, 20 %}; torsion θ ∈ {1°, 45°}; bending at the publication's
 ν = ¼, E ∈ {10, 2} MPa) the candidates are
 
-- the mass-spring variants (hybmss, hybmss-fd, hybmss-cf) with each solver: static Newton, implicit
+- the models of the ``pareto`` role (:func:`pareto_models`: the mass-spring variants hybmss,
+  hybmss-fd and hybmss-cf, the corotational hexahedra corot-hex8 and corot-hex8-sri, the XPBD
+  Neo-Hookean tetrahedra xpbd-nh) with each solver: static Newton, implicit
   Euler to rest (dt = 0.25 s, at most 40 steps = 10 s, plates ramped over 1 s, c = 2 s⁻¹) and the
   publication's explicit protocol (dt = 1 ms × 10,000 steps, c = 2 s⁻¹, ramp 1 s), at the base
   resolution and its refinements (the finest beam has no explicit run of hybmss-cf, as in the
@@ -17,12 +19,12 @@ For each experiment (compression, tension, shear, torsion, bending) and configur
 
 Resolutions (:data:`LEVELS`; base → MSS refinements → reference):
 
-- ``medium`` (default): cube 3³ → 6³ → reference 6³; beam 1×1×6 → 2×2×12, 4×4×24 → reference
-  4×4×24.  The beam runs at 4×4×24 (reference, MSS static and explicit) are those of the
-  reproduction study, so ``make reproduce-paper`` computes them once.
-- ``full``: cube 5³ → 10³ → reference 10³; beam 2×2×12 → 4×4×24, 8×8×48 → reference 8×8×48 (also
-  shared with the reproduction study; the Hex2 Neo-Hookean references of the beam under gravity
-  are the long pole, tens of minutes on a loaded 2-core machine).
+- ``full`` (default, ``make reproduce-paper``): cube 5³ → 10³ → reference 10³; beam 2×2×12 →
+  4×4×24, 8×8×48 → reference 8×8×48.  The 10³ cube and the 4×4×24 and 8×8×48 beams are the
+  reproduction study's meshes, so its reference and the runs it shares (static runs of its models,
+  explicit runs of the ``explicit-tables`` models) are computed once.
+- ``medium``: cube 3³ → 6³ → reference 6³; beam 1×1×6 → 2×2×12, 4×4×24 → reference 4×4×24
+  (the former default: a ranking of 3³–6³ meshes is one of timings of a few milliseconds).
 - ``quick`` (tests): cube 2³ → 4³, beam 1×1×6 → 2×2×12, ν = ¼, 5 %, 1°, E = 10 MPa, linear law.
 
 ``run(..., experiments=..., nus=..., level=...)`` restricts the configurations (the bending ones
@@ -37,21 +39,41 @@ assumed (the clamped edges limit the smoothness; Hex2's nominal order is higher,
 is conservative).  Errors below about this estimate are not resolved.  At ν = 0 compression and
 tension are homogeneous (no lateral strain), every FEM is exact and the estimate is ~1e-15.
 
-**Error.**  Relative L2 of the nodal displacement at the shared coarse points: the particles of
-the base lattice that no plate prescribes (medium: cube 32, beam 20 points; full: cube 144, beam
-99 points).  Every
-resolution is an integer multiple of the base, so each run has a particle (or a FEM vertex) at
-every shared point: values are sampled, never interpolated.  Also a scalar per experiment:
-volume change (error |e − e*| in units of the imposed strain d), shear force F_x, torque T_z,
-tip deflection (relative errors).
+**Errors** (:data:`MEASURES`), each against the reference, each seeing ν:
 
-**Time.**  The solver-reported ``wall_time_s`` of each run (static and implicit: assembly
-included; explicit: the stepping only; FEM: meshing, assembly and solve), single-threaded, runs
-executed two at a time on a shared machine: read ratios, not absolute figures.
+- ``error_force``: relative error of the loaded plate's reaction along its motion (F_z of
+  compression and tension, F_x of shear, T_z of torsion; of the beam under gravity its tip
+  deflection, the clamp's reactions being the weight for every model);
+- ``error_volume``: ``|e − e*| / s``, the volume change e against the reference's e*, in units
+  of the imposed strain s (:func:`strain_scale`: d; the torsion's corner shear strain; the beam's
+  bending strain at the clamp); near ν = ½, e* ≈ 0 and a model whose ν is ¼ is off by about
+  (1 − 2·¼) s;
+- ``error_field`` (also ``error_u``): relative L2 of the nodal displacement at the shared coarse
+  points, the particles of the base lattice that no plate prescribes.  Every resolution is an
+  integer multiple of the base, so each run has a particle (or a FEM vertex) at every shared
+  point: values are sampled, never interpolated.  Alone it is blind to ν where the imposed motion
+  dominates the field: it let hybmss-cf, whose ν is always ¼, win budgets at ν = 0.499.
+
+**Cost** (:mod:`studies.cost`).  Static, implicit and FEM runs: ``time_s``, the best of the run
+and :data:`REPEATS` − 1 repeats of it (each its own stored run), with its spread; the solver's
+``wall_time_s`` (assembly included; FEM: meshing, assembly and solve), single-threaded, runs
+executed two at a time on a shared machine: read ratios, not absolute figures.  Explicit runs:
+the error is that of the publication's protocol run (at rest, the static equilibrium of the same
+energy); the cost is ``cost_explicit_s``, the wall time of one simulated second at the stable step
+``½ dt_crit`` (:data:`studies.cost.SAFETY`), from the best time per step of :data:`REPEATS`
+short runs of :data:`TIMING_STEPS` steps.  xpbd-nh has no explicit limit: its frame is the same
+½ dt_crit (its dt_crit: 2/ω_max of the same grid), split into the substeps its accuracy rule
+chooses (h ω_max ≤ 0.1: 10 substeps), each costing the best time per substep of its short runs
+(:func:`unlimited_frame`).
+
+**Budget answer** (:func:`budget_table`): per configuration, error measure and cost, the fastest
+method within 1, 5 and 10 %, its runner-up, the lead and whether the lead is a tie
+(:func:`studies.cost.budget_answer`: ``lead < 1 + the larger spread``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -62,6 +84,7 @@ from .compare import default_law
 from hybmss import models
 from hybmss.experiments import SceneSpec
 
+from . import cost
 from .runner import SolverSpec, Task, run_tasks
 from .store import Store
 
@@ -76,6 +99,19 @@ IMPLICIT = SolverSpec("implicit", dt=0.25, steps=40, ramp_time=1.0)
 STATIC = SolverSpec("static")
 BUDGETS = (0.01, 0.05, 0.10)
 ORDER_ASSUMED = 2.0
+DEFAULT_LEVEL = "full"
+"""The level of ``make reproduce-paper`` (meshes up to the 10³ cube and the 8×8×48 beam)."""
+REPEATS = {"quick": 3, "medium": 3, "full": 3}
+"""Timed runs of every candidate per level: the run itself and ``REPEATS − 1`` repeats
+(:attr:`SolverSpec.repeat`); the best is its time, the median's excess over it its spread."""
+TIMING_STEPS = {"quick": 50, "medium": 1000, "full": 1000}
+"""Steps of the short explicit runs timed for the cost of a step (the step's cost does not depend
+on the state, so the protocol's 10,000 steps need not be repeated)."""
+MEASURES = ("force", "volume", "field")
+"""Error measures of the budget answer (columns ``error_<measure>``, module docstring)."""
+COST_KINDS = {"static": "time_s", "explicit": "cost_explicit_s"}
+"""The two costs of the budget answer: wall time to an equilibrium (static Newton, implicit Euler
+to rest, the FEM) and wall time per simulated second at the stable step (explicit)."""
 
 
 LEVELS = {
@@ -87,8 +123,12 @@ LEVELS = {
 ``medium`` is the study of ``make reproduce-paper``; ``full`` the same design on finer bases."""
 
 
+def level_name(quick: bool, level: str | None = None) -> str:
+    return level or ("quick" if quick else DEFAULT_LEVEL)
+
+
 def bases(quick: bool, level: str | None = None) -> dict:
-    return LEVELS[level or ("quick" if quick else "medium")]
+    return LEVELS[level_name(quick, level)]
 
 
 def configs(quick: bool, experiments=EXPERIMENTS, nus=None, level: str | None = None) -> list[SceneSpec]:
@@ -143,10 +183,23 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
     cfg = config_label(spec)
     out = []
 
+    lv = level_name(quick, level)
+    repeats = REPEATS[lv]
+
     def add(role, factor, s, solver, method):
         meta = {"config": cfg, "experiment": spec.experiment, "role": role, "factor": factor,
-                "method": method, "mesh": "x".join(map(str, s.mesh)), "base": spec}
+                "method": method, "mesh": "x".join(map(str, s.mesh)), "base": spec, "repeat": 0}
         out.append((meta, Task(s, solver, "pareto")))
+        if role == "candidate":
+            # the repeats of a candidate's time; of an explicit run, short runs timing its steps
+            if solver.kind == "explicit":
+                timing = dataclasses.replace(solver, steps=TIMING_STEPS[lv])
+                ks = range(repeats)
+            else:
+                timing, ks = solver, range(1, repeats)
+            for k in ks:
+                out.append(({**meta, "role": "timing", "repeat": k},
+                            Task(s, dataclasses.replace(timing, repeat=k), "pareto")))
 
     ref_el = _ref_element(spec)
     add("reference", ref_f, _scaled(spec, ref_f), SolverSpec("fem", element=ref_el, law=law), "reference")
@@ -211,29 +264,102 @@ def shared_points(spec: SceneSpec) -> np.ndarray:
     return X[~held]
 
 
-def scalar_of(spec: SceneSpec, row: dict) -> tuple[str, float]:
+def force_of(spec: SceneSpec, row: dict) -> tuple[str, float]:
+    """The load measure of an experiment: the loaded plate's reaction along its motion (F_z of
+    compression and tension, F_x of shear, T_z of torsion); of the beam under gravity, its tip
+    deflection (the clamp's reactions are the body's weight and its moment for every model)."""
     exp = spec.experiment
-    if exp in ("compression", "tension"):
-        return "volume_change", row.get("volume_change", np.nan)
-    if exp == "shear":
-        return "force_x", row.get("force_x", np.nan)
-    if exp == "torsion":
-        return "torque_z", row.get("torque_z", np.nan)
-    return "tip_deflection", row.get("tip_deflection", np.nan)
+    name = {"compression": "force_z", "tension": "force_z", "shear": "force_x",
+            "torsion": "torque_z"}.get(exp, "tip_deflection")
+    v = row.get(name, np.nan)
+    return name, np.nan if v is None else float(v)
 
 
-def scalar_error(spec: SceneSpec, q: float, q_ref: float) -> float:
-    if spec.experiment in ("compression", "tension"):
-        return abs(q - q_ref) / spec.deformation
-    return abs(q - q_ref) / abs(q_ref) if q_ref else np.nan
+def strain_scale(spec: SceneSpec) -> float:
+    """The imposed strain the volume error is measured in: d (compression, tension, shear); the
+    torsion's largest shear strain θ r / H (r the half-diagonal of the a × a section, at the
+    corners); the beam's Euler–Bernoulli bending strain at the clamp, κ h/2 = 2 δ_EB h / L²."""
+    from hybmss.lattice import Lattice
+
+    ext = np.ptp(Lattice.from_body(spec.build().body).X, axis=0)
+    if spec.experiment == "torsion":
+        return float(np.radians(spec.angle_deg) * np.hypot(ext[0], ext[1]) / 2 / ext[2])
+    if spec.experiment == "bending":
+        return float(2 * abs(spec.euler_bernoulli_tip()) * ext[1] / ext[2] ** 2)
+    return float(abs(spec.deformation))
+
+
+def relative_error(q: float, q_ref: float) -> float:
+    return abs(q - q_ref) / abs(q_ref) if q_ref and np.isfinite(q_ref) else np.nan
+
+
+def _times(rows: list[dict]) -> list[float]:
+    return [float(r["wall_time_s"]) for r in rows
+            if r.get("status") in ("ok", "not-converged") and np.isfinite(r.get("wall_time_s", np.nan))
+            and r["wall_time_s"] > 0]
+
+
+def unlimited_frame(spec: SceneSpec) -> tuple[float, float, int]:
+    """(dt_crit, frame, substeps) of a model with no explicit limit: its frame is the stable step of
+    the others, ½ dt_crit (``dt_crit`` its own: :func:`hybmss.explicit.dt_crit`), split into the
+    substeps its stepper chooses for that frame (xpbd-nh: its accuracy rule h ω_max ≤ 0.1)."""
+    from hybmss.explicit import dt_crit
+    from hybmss.system import build
+
+    system = build(spec.build())
+    dc = float(dt_crit(system))
+    frame = cost.stable_dt(dc)
+    stepper = models.get(spec.model).stepper(system, frame, ramp_time=1.0)
+    return dc, frame, int(getattr(stepper, "substeps", 1))
+
+
+def timing_columns(solver: SolverSpec, row: dict, repeats: list[dict], frame=None) -> dict:
+    """Static, implicit and FEM: ``time_s`` (best of the run and its repeats), ``time_median_s``,
+    ``time_spread``, ``time_repeats``.  Explicit: ``time_s`` the protocol run's wall time (one
+    run); ``us_per_step`` (best of the short timed runs, per step or, with substeps, per substep;
+    ``step_spread``), ``dt_crit``, ``dt_stable`` (:func:`studies.cost.stable_dt`) and
+    ``cost_explicit_s``: wall seconds per simulated second at ``dt_stable``.  A model with no
+    explicit limit needs ``frame`` = :func:`unlimited_frame`: its cost is ``substeps / frame``
+    substeps per simulated second."""
+    out = {"time_s": np.nan, "time_median_s": np.nan, "time_spread": np.nan, "time_repeats": 0,
+           "us_per_step": np.nan, "step_spread": np.nan, "dt_crit": np.nan, "dt_stable": np.nan,
+           "cost_explicit_s": np.nan, "explicit_spread": np.nan}
+    if solver.kind != "explicit":
+        ts = _times([row, *repeats])
+        if ts:
+            out.update(cost.Timing.from_samples(ts).as_dict("time"))
+        return out
+    ts = _times([row])
+    out["time_s"] = ts[0] if ts else np.nan
+    per = [1e6 * float(r["wall_time_s"]) / float(r.get("steps") or solver.steps)
+           / float((r.get("info") or {}).get("substeps") or 1) for r in repeats if _times([r])]
+    dc = row.get("dt_crit", np.nan)
+    dc = np.nan if dc is None else float(dc)
+    if not per:
+        return out
+    t = cost.Timing.from_samples(per)
+    out.update(us_per_step=t.best, step_spread=t.spread, explicit_spread=t.spread)
+    if models.get(row["model"]).explicit_limit:
+        if np.isfinite(dc):
+            dt = cost.stable_dt(dc)
+            out.update(dt_crit=dc, dt_stable=dt, cost_explicit_s=cost.cost_per_simulated_second(t.best, dt))
+    elif frame is not None:
+        dc, dt, substeps = frame
+        out.update(dt_crit=dc, dt_stable=dt / substeps,
+                   cost_explicit_s=cost.cost_per_simulated_second(t.best, dt / substeps))
+    return out
 
 
 def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Tidy table of candidates with errors, and the reference table (one row per config)."""
+    """Tidy table of candidates with errors and costs, and the reference table (one row per config)."""
     specs = {m["config"]: m["base"] for m, _ in pairs}
     groups: dict[str, list] = {}
+    timing: dict[tuple, list] = {}
     for (meta, task), row in zip(pairs, rows):
-        groups.setdefault(meta["config"], []).append((meta, task, row))
+        if meta["role"] == "timing":
+            timing.setdefault((meta["config"], meta["method"], meta["mesh"]), []).append(row)
+        else:
+            groups.setdefault(meta["config"], []).append((meta, task, row))
     out, refs = [], []
     for cfg, items in groups.items():
         spec = specs[cfg]
@@ -247,33 +373,42 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
             a = store.arrays(part[2]["key"])
             u_p = sample(a["X"], a["u"], pts)
             ref_err = float(np.linalg.norm(u_ref - u_p) / np.linalg.norm(u_ref) / (2 ** ORDER_ASSUMED - 1))
-        sname, q_ref = scalar_of(spec, ref[2]) if ref_ok else ("", np.nan)
+        fname, f_ref = force_of(spec, ref[2]) if ref_ok else ("", np.nan)
+        e_ref = float(ref[2].get("volume_change", np.nan)) if ref_ok else np.nan
+        scale = strain_scale(spec)
         refs.append({"config": cfg, "experiment": spec.experiment, "nu": spec.nu,
                      "reference": ref[2]["solver"], "reference_mesh": ref[0]["mesh"],
                      "reference_status": ref[2]["status"], "reference_time_s": ref[2].get("wall_time_s", np.nan),
                      "reference_error_estimate": ref_err, "partner_mesh": part[0]["mesh"],
-                     "shared_points": len(pts), "scalar": sname, "scalar_reference": q_ref})
+                     "shared_points": len(pts), "force_quantity": fname, "force_reference": f_ref,
+                     "volume_change_reference": e_ref, "strain_scale": scale})
         for meta, task, row in items:
             if meta["role"] != "candidate":
                 continue
-            rec = {**{k: v for k, v in meta.items() if k != "base"}, "nu": spec.nu, "load": cfg.split(" ", 2)[2], "solver": task.solver.label,
+            rec = {**{k: v for k, v in meta.items() if k not in ("base", "repeat")}, "nu": spec.nu,
+                   "load": cfg.split(" ", 2)[2], "solver": task.solver.label,
                    "variant": task.scene.variant if task.solver.kind != "fem" else "fem",
-                   "status": row["status"], "time_s": row.get("wall_time_s", np.nan),
-                   "elapsed_s": row.get("elapsed_s", np.nan), "message": row.get("message", ""),
-                   "reference_error_estimate": ref_err}
+                   "kind": "explicit" if task.solver.kind == "explicit" else "static",
+                   "status": row["status"], "elapsed_s": row.get("elapsed_s", np.nan),
+                   "message": row.get("message", ""), "reference_error_estimate": ref_err,
+                   **timing_columns(task.solver, row, timing.get((cfg, meta["method"], meta["mesh"]), []),
+                                    frame=None if task.solver.kind != "explicit" or models.get(
+                                        task.scene.model).explicit_limit else unlimited_frame(task.scene)),
+                   "force_quantity": fname, "force_reference": f_ref, "volume_change_reference": e_ref,
+                   "strain_scale": scale}
+            for m in MEASURES:
+                rec[f"error_{m}"] = np.nan
             if row["status"] == "ok" and ref_ok:
                 a = store.arrays(row["key"])
                 u = sample(a["X"], a["u"], pts)
-                rec["error_u"] = float(np.linalg.norm(u - u_ref) / np.linalg.norm(u_ref))
-                _, q = scalar_of(spec, row)
-                rec["scalar"] = sname
-                rec["scalar_value"] = q
-                rec["scalar_reference"] = q_ref
-                rec["error_scalar"] = scalar_error(spec, q, q_ref)
+                rec["error_field"] = float(np.linalg.norm(u - u_ref) / np.linalg.norm(u_ref))
+                _, f = force_of(spec, row)
+                e = float(row.get("volume_change", np.nan))
+                rec.update(force_value=f, volume_change=e, error_force=relative_error(f, f_ref),
+                           error_volume=abs(e - e_ref) / scale)
                 vols = a.get("cell_volumes")
                 rec["inverted_cells"] = int(np.count_nonzero(vols <= 0)) if vols is not None else 0
-            else:
-                rec["error_u"] = np.nan
+            rec["error_u"] = rec["error_field"]
             out.append(rec)
     df = pd.DataFrame(out)
     df["pareto"] = False
@@ -288,52 +423,32 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
 
 
 def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
-    """For each configuration and error budget: the cheapest run within it, the next cheapest
-    run of another method within it (``next_method``, ``next_mesh``, ``next_time_s``) and the
-    lead ``next_time_s / time_s``; and per experiment, the cheapest method (variant, solver,
-    resolution) within budget in *every* configuration.  A method is a model with a solver, or
-    a FEM element with its law; its cheapest resolution within the budget represents it."""
+    """For each configuration, error measure (:data:`MEASURES`) and cost (:data:`COST_KINDS`): the
+    budget answer of :func:`studies.cost.budget_answer` (the fastest method within each budget, its
+    runner-up, the lead and whether it is a tie; the methods that meet no budget).  A method is a
+    model with a solver, or a FEM element with its law; its cheapest resolution within a budget
+    stands for it (``mesh``).  Static cost: ``time_s`` with ``time_spread``; explicit:
+    ``cost_explicit_s`` (s per simulated second at the stable step) with ``explicit_spread``."""
+    spreads = {"static": "time_spread", "explicit": "explicit_spread"}
     out = []
-    ok = df[np.isfinite(df["error_u"]) & np.isfinite(df["time_s"])]
-    for cfg, g in ok.groupby("config", sort=False):
-        for b in budgets:
-            w = g[g["error_u"] <= b].sort_values("time_s", kind="stable").drop_duplicates("method")
-            base = {"experiment": g["experiment"].iloc[0], "config": cfg, "budget": b}
-            if w.empty:
-                best = g.sort_values("error_u").iloc[0]
-                out.append({**base, "method": "none within budget", "mesh": "", "time_s": np.nan,
-                            "error_u": np.nan, "most_accurate": f"{best['method']} {best['mesh']}",
-                            "most_accurate_error": best["error_u"]})
+    for cfg, g in df.groupby("config", sort=False):
+        for kind, col in COST_KINDS.items():
+            sub = g[g["kind"] == kind] if "kind" in g else g
+            if sub.empty:
                 continue
-            r = w.iloc[0]
-            rec = {**base, "method": r["method"], "mesh": r["mesh"], "time_s": r["time_s"],
-                   "error_u": r["error_u"], "reference_error_estimate": r["reference_error_estimate"],
-                   "next_method": "none", "next_mesh": "", "next_time_s": np.nan, "lead": np.nan}
-            if len(w) > 1:
-                n = w.iloc[1]
-                rec.update(next_method=n["method"], next_mesh=n["mesh"], next_time_s=n["time_s"],
-                           lead=float(n["time_s"]) / float(r["time_s"]))
-            out.append(rec)
-    # across configurations a FEM element counts as one method whatever the reference's law
-    ok = ok.assign(method=ok["method"].str.replace(r"^(fem-(?:hex1|hex2|mixed))-.*$", r"\1 (reference law)",
-                                                   regex=True))
-    for exp, g in ok.groupby("experiment", sort=False):
-        n_cfg = df[df["experiment"] == exp]["config"].nunique()
-        for b in budgets:
-            agg = (g.assign(within=g["error_u"] <= b)
-                    .groupby(["method", "factor"])
-                    .agg(n=("within", "sum"), worst=("error_u", "max"), time_s=("time_s", "max"),
-                         mesh=("mesh", "first")))
-            agg = agg[agg["n"] == n_cfg].sort_values("time_s")
-            base = {"experiment": exp, "config": "all configurations", "budget": b}
-            if agg.empty:
-                out.append({**base, "method": "none within budget in every configuration", "mesh": "",
-                            "time_s": np.nan, "error_u": np.nan})
-            else:
-                (method, factor), r = agg.index[0], agg.iloc[0]
-                out.append({**base, "method": method, "mesh": f"base×{factor} ({r['mesh']}…)",
-                            "time_s": r["time_s"], "error_u": r["worst"]})
-    return pd.DataFrame(out)
+            for m in MEASURES:
+                err = f"error_{m}"
+                if err not in sub:
+                    continue
+                a = cost.budget_answer(sub, budgets, error=err, cost=col, spread=spreads[kind], method="method",
+                                       keep=("mesh",))
+                a.insert(0, "cost_kind", kind)
+                a.insert(0, "measure", m)
+                a.insert(0, "nu", g["nu"].iloc[0])
+                a.insert(0, "config", cfg)
+                a.insert(0, "experiment", g["experiment"].iloc[0])
+                out.append(a)
+    return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
 
 
 def tasks(quick: bool = False) -> list[Task]:

@@ -40,7 +40,9 @@ class SolverSpec:
     """How to solve a scene.  MSS: ``static`` (Newton), ``explicit`` (symplectic Euler,
     ``dt``, ``steps``, ``ramp_time``, ``kernel``), ``implicit`` (backward Euler to rest).
     FEM: ``fem`` with ``element`` (hex1, hex2, mixed, auto), ``law`` (linear, neo-hookean, svk)
-    and ``refine`` (cells split into refine³)."""
+    and ``refine`` (cells split into refine³).  ``repeat`` > 0 numbers a repeat of the same run
+    (its own stored run, for a timing's spread: :mod:`studies.cost`); 0, the run itself, leaves
+    the key as it was."""
 
     kind: str = "static"
     element: str = "hex2"
@@ -50,6 +52,7 @@ class SolverSpec:
     steps: int = 10_000
     ramp_time: float = 1.0
     kernel: str = "numba"
+    repeat: int = 0
 
     def __post_init__(self):
         if self.kind not in SOLVER_KINDS:
@@ -60,16 +63,20 @@ class SolverSpec:
             raise ValueError(f"steps must be >= 1, got {self.steps}")
         if self.refine < 1:
             raise ValueError(f"refine must be an integer >= 1, got {self.refine}")
+        if self.repeat < 0:
+            raise ValueError(f"repeat must be an integer >= 0, got {self.repeat}")
 
     def relevant(self) -> dict:
         if self.kind == "fem":
-            return {"kind": "fem", "element": self.element, "law": self.law, "refine": self.refine}
-        if self.kind == "static":
-            return {"kind": "static"}
-        if self.kind == "implicit":
-            return {"kind": "implicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time}
-        return {"kind": "explicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time,
-                "kernel": self.kernel}
+            out = {"kind": "fem", "element": self.element, "law": self.law, "refine": self.refine}
+        elif self.kind == "static":
+            out = {"kind": "static"}
+        elif self.kind == "implicit":
+            out = {"kind": "implicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time}
+        else:
+            out = {"kind": "explicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time,
+                   "kernel": self.kernel}
+        return {**out, "repeat": self.repeat} if self.repeat else out
 
     @property
     def label(self) -> str:

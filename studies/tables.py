@@ -367,6 +367,8 @@ def write_tables(store: Store, keys=None) -> dict:
     df = runs_frame(store, keys)
     if keys is not None and not df.empty:
         df = df[df["key"].isin(set(keys))].reset_index(drop=True)
+    if "solver_repeat" in df:  # a repeat of a run times it again: the same answer, not another row
+        df = df[df["solver_repeat"].fillna(0) == 0].reset_index(drop=True)
     tables = {"models": models_table()}
     if not df.empty:
         keep = [c for c in df.columns if not c.startswith("env_")] + ["env_git_revision", "env_code_version"]

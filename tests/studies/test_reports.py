@@ -563,21 +563,34 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
 
 
 def test_budget_answers_pick_the_fastest_method_that_meets_the_budget():
-    from reports.findings import budget_answers
+    from reports.findings import budget_answers, budget_sentence
     from studies.pareto import budget_table
 
-    pareto = pd.DataFrame({"config": ["c"] * 5, "experiment": ["shear"] * 5, "role": ["candidate"] * 5,
-                           "status": ["ok"] * 4 + ["diverged"], "method": ["x", "x", "y", "z", "w"],
+    n = 5
+    pareto = pd.DataFrame({"config": ["c"] * n, "experiment": ["shear"] * n, "nu": [0.25] * n,
+                           "kind": ["static"] * n, "status": ["ok"] * 4 + ["diverged"],
+                           "method": ["corot-hex8 static", "corot-hex8 static", "xpbd-nh static", "hybmss static",
+                                      "fem-hex1-linear"],
                            "mesh": ["2", "4", "2", "2", "2"], "factor": [1, 2, 1, 1, 1],
-                           "time_s": [1.0, 3.0, 2.0, 0.5, 0.1], "error_u": [0.008, 0.002, 0.004, 0.2, np.nan],
-                           "reference_error_estimate": [1e-4] * 5})
-    ans = budget_answers(budget_table(pareto, budgets=(0.001, 0.005, 0.01, 0.5))).set_index("budget")
+                           "time_s": [1.0, 3.0, 2.0, 0.5, 0.1], "time_spread": [0.01, 0.01, 0.6, 0.01, np.nan],
+                           "error_field": [0.008, 0.002, 0.004, 0.2, np.nan],
+                           "error_force": [np.nan] * n, "error_volume": [np.nan] * n})
+    ans = budget_answers(budget_table(pareto, budgets=(0.001, 0.005, 0.01, 0.5)))
+    assert set(ans["measure"]) == {"force", "volume", "field"}
+    assert (ans.loc[ans["measure"] != "field", "method"] == "none").all()  # no run has these errors
+    ans = ans[ans["measure"] == "field"].set_index("budget")
     assert ans.loc[0.001, "method"] == "none" and np.isnan(ans.loc[0.001, "lead"])
-    # at 0.5 %, x only meets it on its finer mesh (3 s): y (2 s) wins, x is next
-    assert (ans.loc[0.005, "method"], ans.loc[0.005, "next_method"]) == ("y", "x")
-    assert ans.loc[0.005, "lead"] == pytest.approx(1.5)
-    assert (ans.loc[0.01, "method"], ans.loc[0.01, "mesh"], ans.loc[0.01, "lead"]) == ("x", "2", pytest.approx(2.0))
-    assert (ans.loc[0.5, "method"], ans.loc[0.5, "lead"]) == ("z", pytest.approx(2.0))
+    # at 0.5 %, corot-hex8 only meets it on its finer mesh (3 s): xpbd-nh (2 s) wins, a tie
+    # since its spread (0.6) is larger than its lead (1.5 - 1)
+    assert (ans.loc[0.005, "method"], ans.loc[0.005, "runner_up"]) == ("xpbd-nh static", "corot-hex8 static")
+    assert ans.loc[0.005, "lead"] == pytest.approx(1.5) and bool(ans.loc[0.005, "tie"])
+    assert (ans.loc[0.01, "method"], ans.loc[0.01, "mesh"], ans.loc[0.01, "lead"]) == (
+        "corot-hex8 static", "2", pytest.approx(2.0))
+    assert not bool(ans.loc[0.01, "tie"])
+    assert (ans.loc[0.5, "method"], ans.loc[0.5, "lead"]) == ("hybmss static", pytest.approx(2.0))
+    text = budget_sentence(ans.reset_index(), budget=0.01)
+    assert "displacement field error: corot-hex8 1 (of 1)" in text and "mass-spring" not in text
+    assert "Of the 3 answers with a runner-up (all budgets), 1 is a tie" in text
 
 
 @pytest.mark.parametrize("status, inverted, state", [("converged", 0, "converged"), ("ok", 0, "converged"),

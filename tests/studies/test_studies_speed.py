@@ -66,7 +66,10 @@ def test_pareto_table_covers_every_experiment(tmp_path):
     st = df[(df["method"] == "hybmss static") & (df["experiment"] == "compression")].sort_values("factor")
     assert st["error_u"].iloc[-1] < st["error_u"].iloc[0]
     budget = tables["budget"]
-    assert set(budget["budget"]) == set(pareto.BUDGETS)
+    assert set(budget["budget"].dropna()) == set(pareto.BUDGETS)
+    # every experiment has its load, volume and field errors against the reference
+    for m in pareto.MEASURES:
+        assert df.groupby("experiment")[f"error_{m}"].apply(lambda e: np.isfinite(e).any()).all(), m
 
 
 def test_sample_refuses_points_off_the_lattice():

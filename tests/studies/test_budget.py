@@ -1,0 +1,142 @@
+"""The budget study (studies.pareto with studies.cost): its lead and ties from known timings, its
+error measures against the FEM reference, and hybmss-cf near incompressibility."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hybmss.experiments import SceneSpec
+from studies import pareto
+from studies.runner import SolverSpec, Task, compute
+from studies.store import Store
+
+STATIC = SolverSpec("static")
+
+
+def _row(t, status="ok", **kw):
+    return {"status": status, "wall_time_s": t, **kw}
+
+
+def test_budget_table_lead_and_ties_from_known_timings():
+    """Three methods meet 5 % of field error in one configuration; their stored wall times:
+    a: 1.0, 1.3, 1.2 s -> best 1.0, median 1.2, spread 0.2
+    b: 1.15, 1.2, 1.6 s -> best 1.15, median 1.2, spread 0.05/1.15 = 0.043
+    c: 3.0, 3.1, 3.0 s -> best 3.0, spread 0
+    At 5 %: a leads b by 1.15 < 1 + 0.2: a tie.  At 2 % only b and c meet it: b leads c by
+    3.0 / 1.15 = 2.61 > 1.043, no tie.  d (error 30 %) meets no budget."""
+    samples = {"a": [1.0, 1.3, 1.2], "b": [1.15, 1.2, 1.6], "c": [3.0, 3.1, 3.0], "d": [0.1, 0.1, 0.1]}
+    errors = {"a": 0.03, "b": 0.015, "c": 0.001, "d": 0.3}
+    recs = []
+    for m, ts in samples.items():
+        t = pareto.timing_columns(STATIC, _row(ts[0]), [_row(x) for x in ts[1:]])
+        recs.append({"config": "c1", "experiment": "shear", "nu": 0.25, "kind": "static", "method": m,
+                     "mesh": "4x4x4", **t, "error_field": errors[m], "error_force": np.nan, "error_volume": np.nan})
+    df = pd.DataFrame(recs)
+    assert df.set_index("method").loc["b", "time_spread"] == pytest.approx(0.05 / 1.15)
+    b = pareto.budget_table(df, budgets=(0.02, 0.05))
+    assert set(b["cost_kind"]) == {"static"}
+    # a measure no run has (no force error here): no method meets any budget
+    force = b[b["measure"] == "force"]
+    assert (force.loc[force["answer"] == "fastest", "method"] == "none within budget").all()
+    b = b[b["measure"] == "field"]
+    at = b[b["answer"] == "fastest"].set_index("budget")
+    assert (at.loc[0.05, "method"], at.loc[0.05, "runner_up"]) == ("a", "b")
+    assert at.loc[0.05, "lead"] == pytest.approx(1.15)
+    assert at.loc[0.05, "spread"] == pytest.approx(0.2)
+    assert bool(at.loc[0.05, "tie"]) is True  # 1.15 < 1 + max(0.2, 0.043)
+    assert (at.loc[0.02, "method"], at.loc[0.02, "runner_up"]) == ("b", "c")
+    assert at.loc[0.02, "lead"] == pytest.approx(3.0 / 1.15)
+    assert bool(at.loc[0.02, "tie"]) is False
+    assert list(b.loc[b["answer"] == "meets no budget", "method"]) == ["d"]
+
+
+def test_explicit_cost_at_the_stable_step_from_known_timings():
+    """Three short runs of 100 steps took 2.0, 2.4, 2.2 ms: 20 µs per step at best, spread
+    (22 − 20)/20 = 0.1; dt_crit = 4 ms -> dt = 2 ms -> 500 steps per simulated second = 10 ms."""
+    proto = SolverSpec("explicit", dt=1e-3, steps=10_000)
+    row = _row(0.3, dt_crit=4e-3, model="hybmss", steps=10_000)
+    reps = [_row(t, status="not-converged", steps=100, model="hybmss") for t in (2.0e-3, 2.4e-3, 2.2e-3)]
+    t = pareto.timing_columns(proto, row, reps)
+    assert t["us_per_step"] == pytest.approx(20.0)
+    assert t["step_spread"] == pytest.approx(0.1)
+    assert t["dt_stable"] == pytest.approx(2e-3)
+    assert t["cost_explicit_s"] == pytest.approx(0.01)
+    # xpbd-nh has no explicit limit: its short runs took 2 substeps a step (10 µs a substep at
+    # best); its frame of 2 ms (½ dt_crit) in 10 substeps is 5,000 substeps a second = 50 ms
+    xp = [{**r, "model": "xpbd-nh", "info": {"substeps": 2}} for r in reps]
+    t = pareto.timing_columns(proto, {**row, "model": "xpbd-nh", "dt_crit": None}, xp, frame=(4e-3, 2e-3, 10))
+    assert t["us_per_step"] == pytest.approx(10.0)
+    assert t["dt_stable"] == pytest.approx(2e-4) and t["cost_explicit_s"] == pytest.approx(0.05)
+    assert np.isnan(pareto.timing_columns(proto, {**row, "model": "xpbd-nh"}, xp)["cost_explicit_s"])
+
+
+def test_the_frame_of_a_model_without_explicit_limit():
+    """xpbd-nh's frame ½ dt_crit = 1/ω_max takes ceil(1/0.1) = 10 substeps of its accuracy rule."""
+    spec = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.25, model="xpbd-nh")
+    dc, frame, substeps = pareto.unlimited_frame(spec)
+    assert frame == pytest.approx(dc / 2) and substeps == 10
+
+
+# ------------------------------------------------------------------------------ quick study at ν = 0.499
+@pytest.fixture(scope="module")
+def incompressible(tmp_path_factory):
+    store = Store(tmp_path_factory.mktemp("pareto-0.499"))
+    return pareto.run(store, quick=True, jobs=2, progress=False, experiments=("compression",), nus=(0.499,))
+
+
+@pytest.mark.slow
+def test_quick_pareto_has_force_volume_and_field_errors(incompressible):
+    refs, df = incompressible["pareto_references"], incompressible["pareto"]
+    (ref,) = refs.to_dict("records")
+    assert ref["reference"].startswith("fem-") and ref["reference_status"] == "ok"
+    assert ref["force_quantity"] == "force_z" and ref["force_reference"] < 0  # the top plate pushes down
+    # near incompressibility the reference keeps its volume: |e*| within 1 % of the imposed 5 %
+    assert abs(ref["volume_change_reference"]) < 0.01 * 0.05
+    ok = df[df["status"] == "ok"]
+    assert len(ok) == len(df) and ok["method"].str.startswith("fem-").any()
+    for m in pareto.MEASURES:
+        assert np.isfinite(ok[f"error_{m}"]).all(), m
+    assert np.isfinite(ok.loc[ok["kind"] == "static", "time_spread"]).all()
+    assert np.isfinite(ok.loc[ok["kind"] == "explicit", "cost_explicit_s"]).all()
+    # hybmss-cf keeps ν = ¼: bonded plates only add to the volume loss (1 − 2ν) d of a free
+    # uniaxial compression, so its volume error is at least about ½ d
+    cf = ok[ok["variant"] == "hybmss-cf"]
+    assert (cf["error_volume"] > 0.45).all()
+    budget = incompressible["budget"]
+    assert set(budget["measure"]) == set(pareto.MEASURES)
+    assert set(budget["cost_kind"]) == {"static", "explicit"}
+
+
+@pytest.mark.slow
+def test_hybmss_cf_does_not_win_a_force_budget_at_nu_0499(incompressible):
+    """hybmss-cf has no volume energy: its springs give ν = ¼ whatever ν is asked, so its answer
+    at ν = 0.499 is its answer at ν = ¼.  Its force error is then bounded below by the triangle
+    inequality:
+
+        |F_cf − F*| ≥ |F(¼) − F*| − |F_cf − F(¼)|,
+
+    F* the reference at ν = 0.499, F(¼) the same FEM at ν = ¼ (both independent of the model),
+    |F_cf − F(¼)| the lattice's own error at ν = ¼.  Between bonded plates a cube's lateral
+    expansion is restrained near them, where the confined modulus (1 − ν)/((1 + ν)(1 − 2ν)) E
+    acts (1.2 E at ¼, 167 E at 0.499): at fixed E the force grows with ν, by 16 % on this
+    cube, and the lattice cannot follow.  The bound exceeds the largest budget (10 %)."""
+    df = incompressible["pareto"]
+    ref = incompressible["pareto_references"].iloc[0]
+    spec = SceneSpec.default("compression", mesh=tuple(int(n) for n in ref["reference_mesh"].split("x")),
+                             nu=0.25, deformation=0.05)
+    f_quarter = compute(Task(spec, SolverSpec("fem", element="auto", law="linear")))[0]["force_z"]
+    f_star = ref["force_reference"]
+    cf = df[(df["variant"] == "hybmss-cf") & (df["kind"] == "static")]
+    assert len(cf) == 2
+    for r in cf.to_dict("records"):
+        mesh = tuple(int(n) for n in r["mesh"].split("x"))
+        quarter = compute(Task(spec.replace(model="hybmss-cf", mesh=mesh), STATIC))[0]["force_z"]
+        assert quarter == pytest.approx(r["force_value"], rel=1e-9)  # ν is ignored
+        bound = (abs(f_quarter - f_star) - abs(quarter - f_quarter)) / abs(f_star)
+        assert bound > max(pareto.BUDGETS)
+        assert r["error_force"] >= bound - 1e-12
+    budget = incompressible["budget"]
+    force = budget[(budget["measure"] == "force") & (budget["answer"] == "fastest")]
+    assert len(force) == 2 * len(pareto.BUDGETS)
+    assert not force["method"].str.startswith("hybmss-cf").any()
+    assert not force["runner_up"].str.startswith("hybmss-cf").any()
