@@ -663,7 +663,9 @@ def budget_chart(results: Results, path: Path) -> Figure | None:
                         ax.plot(x, y, ls="none", marker=".", color="#bbbbbb", ms=3)
                         continue
                     model = findings.method_model(r.method)
-                    model = "FEM (the table names the element)" if model.startswith("FEM") else model
+                    if model.startswith("FEM"):  # the palette's FEM styles are by law: one entry per law
+                        law = str(r.method).split("-", 2)[-1]
+                        model = f"FEM, {law} law (the table names the element)"
                     tie = findings._is_tie(r.tie)
                     c = palette.color(r.method)
                     h, = ax.plot(x - 0.18, y, ls="none", marker=palette.marker(r.method), ms=5.5, mec=c,
