@@ -4,16 +4,9 @@ timing function ends with KeyboardInterrupt within seconds of SIGINT (its kernel
 
 from __future__ import annotations
 
-import os
-import select
 import signal
-import subprocess
-import sys
 import textwrap
-import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
 
 LONG_TIMING = textwrap.dedent("""
     import sys
@@ -29,28 +22,10 @@ LONG_TIMING = textwrap.dedent("""
 """)
 
 
-def _as_from_a_shell():
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-def test_sigint_stops_a_timed_performance_run_within_seconds():
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-c", LONG_TIMING], env=env, preexec_fn=_as_from_a_shell,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert p.stdout.readline().strip() == "timing", p.stderr.read()
-        time.sleep(1.5)  # into the timed run (the warm-up of 5 steps takes milliseconds)
-        t0 = time.perf_counter()
-        p.send_signal(signal.SIGINT)
-        ready, _, _ = select.select([p.stdout], [], [], 60.0)
-        said = p.stdout.readline().strip() if ready else "(nothing within 60 s)"
-        took = time.perf_counter() - t0
-        _, err = p.communicate(timeout=300)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    assert said == "interrupted" and p.returncode == 42, err[-2000:]
+def test_sigint_stops_a_timed_performance_run_within_seconds(signal_a_run):
+    # 1.5 s: into the timed run (the warm-up of 5 steps takes milliseconds)
+    said, took, rc, err = signal_a_run(LONG_TIMING, "timing", signal.SIGINT, after=1.5, wait=60.0)
+    assert said == "interrupted" and rc == 42, err[-2000:]
     assert took < 3.0, f"stopped {took:.2f} s after the signal"
 
 

@@ -13,14 +13,8 @@
 from __future__ import annotations
 
 import json
-import os
-import select
 import signal
-import subprocess
-import sys
 import textwrap
-import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,7 +27,6 @@ from hybmss.explicit import find_bad, plate_arrays, ramp, simulate_explicit
 from hybmss.models import ModelBase, Style
 from hybmss.system import build
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 # ------------------------------------------------------------------------------ the plug-in
@@ -275,13 +268,6 @@ LONG_RELAXATION = textwrap.dedent("""
 """)
 
 
-def _as_from_a_shell():
-    """The child's signals as a shell starts a command: not ignored (a test of this session may
-    leave SIGINT ignored here, the state a sweep's worker takes, and an ignored signal is inherited)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 ENGINE_RUN = textwrap.dedent("""
     import sys
     from hybmss.experiments import SceneSpec
@@ -301,30 +287,14 @@ SCRIPTS = {"explicit run": LONG_RUN, "xpbd-nh relaxation": LONG_RELAXATION, "muj
 
 @pytest.mark.parametrize("script", list(SCRIPTS))
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_stops_a_long_run_within_seconds(sig, script):
+def test_a_signal_stops_a_long_run_within_seconds(sig, script, signal_a_run):
     """An exit check, not a speed test: an explicit run of 10⁹ steps (of the lattice, or of
     MuJoCo's flex: an engine's steps run in the same loop), or the XPBD static relaxation of 10⁹
     iterations (hours), stops within 3 s of the signal (the calls take about 0.1 s) with
     KeyboardInterrupt."""
     if script.startswith("mujoco"):
         pytest.importorskip("mujoco")
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    code = SCRIPTS[script]
-    p = subprocess.Popen([sys.executable, "-c", code], env=env, preexec_fn=_as_from_a_shell, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True)
-    try:
-        assert p.stdout.readline().strip() == "stepping", p.stderr.read()
-        time.sleep(1.0)
-        t0 = time.perf_counter()
-        p.send_signal(sig)
-        ready, _, _ = select.select([p.stdout], [], [], 30.0)
-        said = p.stdout.readline().strip() if ready else "(nothing within 30 s)"
-        took = time.perf_counter() - t0
-        _, err = p.communicate(timeout=300)  # the interpreter's exit (numba's teardown) may be slow on a busy machine
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    assert said == "interrupted" and p.returncode == 42, err[-2000:]
+    said, took, rc, err = signal_a_run(SCRIPTS[script], "stepping", sig)
+    assert said == "interrupted" and rc == 42, err[-2000:]
     assert took < 3.0, f"stopped {took:.2f} s after the signal"
     print(f"{script}, {signal.Signals(sig).name}: KeyboardInterrupt {took:.2f} s after the signal")
