@@ -418,6 +418,10 @@ class Runner:
             finally:
                 for c in claims.values():
                     c.release()
+                if ex is not None and self.executor != "dask":
+                    # a worker killed while writing leaves its temporary file: the workers are
+                    # dead and their claims released, so it is an orphan now, not at the next run
+                    store.remove_orphans()
                 bar.close()
                 self.summary.add(s)
                 if main:

@@ -215,6 +215,26 @@ def test_results_of_other_solver_code_are_not_stored(tmp_path, monkeypatch):
     assert store.keys() == [] and not list(store.locks.iterdir())
 
 
+def test_interrupt_leaves_no_temporary_file_of_a_killed_writer(tmp_path, monkeypatch):
+    """Ctrl-C while a worker writes: the worker is killed and its temporary file is left behind;
+    the interrupted sweep deletes it before it returns (not only the next sweep)."""
+    import studies.runner as runner_mod
+    from studies.runner import Interrupted
+
+    store = Store(tmp_path)
+
+    def killed_while_writing(task, key=None):
+        store.runs.mkdir(parents=True, exist_ok=True)
+        (store.runs / f".{key}.npz.k6n8qeef.tmp").write_bytes(b"PK\x03")  # a half-written run
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner_mod, "compute", killed_while_writing)
+    with pytest.raises(Interrupted):
+        Runner(jobs=1, progress=False).run(tiny_tasks()[:1], store)
+    assert not list(store.runs.glob(".*.tmp"))
+    assert store.keys() == [] and not list(store.locks.iterdir())
+
+
 def test_rows_and_tables_of_another_code_version_are_left_out(base, tmp_path):
     """A row stored under another code hash is not among the store's rows, the tables built from
     them nor the report's rows (unless asked for every version); a table written by another code
