@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q -n 2 --durations=40
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow" --durations=10
