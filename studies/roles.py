@@ -108,8 +108,8 @@ against getting worse; the corotational hexahedra and XPBD are pinned tighter by
 Neo-Hookean stretch, the Lamé map at small strain, the substep bias), which fail on any change a
 baseline would catch, and XPBD's rest runs would add the longest cases to CI."""
 
-_ENGINE_ROLES = ("pareto",)
-_ENGINE_MESHES = {"cube": (4, 4, 4), "beam": (2, 2, 12)}
+_ENGINE_ROLES = ("tables", "pareto")
+_ENGINE_MESHES = {"cube": (5, 5, 5), "beam": (2, 2, 12)}
 _ENGINE_MESHES_SMALL = {"cube": (2, 2, 2), "beam": (1, 1, 6)}
 
 
@@ -171,19 +171,25 @@ IN_TREE = {
     "corot-hex8-sri": Part(_ALL_BUT_REGRESSION),
     "xpbd-nh": Part(_ALL_BUT_REGRESSION, run_cost=_xpbd_cost),
     # the engines (hybmss/models/mujoco, newton, pbd): static rows of four of the five experiments
-    # (``tables``: compression, tension, shear, torsion) and of the speed-against-error study
+    # (``tables``: compression, tension, shear, torsion; their stability hard cases, part (g) of
+    # studies/stability.py, are runs of those tables) and of the speed-against-error study
     # (``pareto``: the base resolution only, no beam under gravity), on coarse meshes of their own
-    # with the FEM of the same mesh, chosen for cost (studies/engines.py; measured on the quick
-    # reproduction: a damped run to rest of the cantilever under its weight takes about 3,000
-    # engine steps, 12-13 s for mujoco-quadratic and newton-semi on the quick beam, so no
-    # ``bending`` role); no explicit protocol (their stable step at ν = 0.499 is below its 1 ms), no
-    # stability bisection.  The moduli table runs every studied model, the [B09] tables those on
-    # the publications' meshes.  newton-vbd (0.18 s a step on the 1×1×6 beam: Gauss-Seidel
-    # colours; its 30 table runs were estimated at 3,500 s, more than the rest of the
-    # reproduction) and pbd-xpbd-fem (per-node Python calls of the library's bindings: 0.06 s a
-    # step on the 2³ cube, ~1,600 steps to rest) have no role in make reproduce-paper: they run in
-    # the closing study (--study engines); newton-xpbd is refused by every scene (no small-strain
-    # shear stiffness): its failure rows say so.
+    # (studies.study.experiment: ``mesh_for``) each with the study's FEM references on the same mesh.
+    # The 5³ cube and the 2×2×12 beam are the speed-against-error study's base meshes: its runs of
+    # the same scenes are the tables' runs (one key, stored once), so the tables add only the FEM
+    # of those meshes and mujoco-quadratic's runs (2³, 1×1×6: 27-node cells) to make
+    # reproduce-paper; the quick mode runs ν = 1/4 at 5 % and 1° on the quick meshes.  No
+    # ``bending``: a damped run to rest of the cantilever under its weight takes about 3,000
+    # engine steps, 12-13 s for mujoco-quadratic and newton-semi on the quick 2×2×12 beam (its
+    # slowest mode is the beam's first bending mode, ω₁ ~ 10× below the cube's, while the step
+    # stays at the cells' ω_max), more than all their other table runs together; no explicit
+    # protocol (their stable step at ν = 0.499 is below its 1 ms), no stability bisection.  The
+    # moduli table runs every studied model, the [B09] tables those on the publications' meshes.
+    # newton-vbd (0.18 s a step on the 1×1×6 beam: Gauss-Seidel colours; its 30 table runs were
+    # estimated at 3,500 s, more than the rest of the reproduction) and pbd-xpbd-fem (per-node
+    # Python calls of the library's bindings: 0.06 s a step on the 2³ cube, ~1,600 steps to rest)
+    # have no role in make reproduce-paper: they run in the closing study (--study engines);
+    # newton-xpbd is refused by every scene (no small-strain shear stiffness): its failure rows say so.
     "mujoco-tet": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
     "mujoco-trilinear": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES, run_cost=_engine_cost),
     "mujoco-quadratic": Part(_ENGINE_ROLES, meshes=_ENGINE_MESHES_SMALL, run_cost=_engine_cost),

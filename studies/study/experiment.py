@@ -20,12 +20,22 @@ study order (:meth:`hybmss.models.base.ModelBase.study_variants`), each with the
 ``large_above``), each of ``large_laws``.  The load's measure is the experiment's load
 parameter: ``deformation`` (compression, tension, shear, uniaxial), ``angle_deg`` (torsion),
 ``gravity`` (bending), by magnitude.
+
+A model whose study part gives it meshes of its own (:attr:`studies.roles.Part.meshes`: the
+engines, whose damped runs to rest cost far more than a Newton solve) runs each configuration on
+its own mesh (:func:`studies.roles.mesh_for`), with the file's FEM references solved on that mesh
+too, so that its row is compared with the FEM of its own mesh.  Its runs and their references
+follow the configuration's references (one mesh after the other, in the order the models first
+give them); a run or reference that two configurations share (the full tension study's two beams
+map to one coarse beam) is listed once, at its first place.  In the quick mode such a model runs
+the :func:`quick_case` only, and not at all when its part says ``quick=False``.
 """
 
 from __future__ import annotations
 
 import difflib
 import itertools
+import json
 import math
 import re
 
@@ -352,6 +362,19 @@ def reference_solvers(ref: dict, spec: SceneSpec) -> list:
     return [SolverSpec("fem", element=element, law=lw, refine=refine) for lw in laws]
 
 
+def quick_case(configurations: list[SceneSpec]) -> SceneSpec | None:
+    """The configuration a model with meshes of its own runs in the quick mode: the one nearest
+    ν = 1/4 at the smallest load (compression, tension, shear: ν = 1/4, d = 5 %; torsion: 1°),
+    the first of them in the file's order; ``None`` when there is none."""
+    if not configurations:
+        return None
+    return min(configurations, key=lambda s: (abs(float(s.nu) - 0.25), load_measure(s)))
+
+
+def _own_mesh(model: str) -> bool:
+    return bool(roles.part(model).meshes)
+
+
 def experiment_tasks(doc: dict, quick: bool = False) -> list:
     """The runner's tasks (:class:`studies.runner.Task`, study ``[study] name``) of the parsed
     experiment study ``doc``, at the file's ``[body.quick]`` meshes and without its
@@ -361,9 +384,20 @@ def experiment_tasks(doc: dict, quick: bool = False) -> list:
     study = doc["study"]["name"]
     order = {n: i for i, n in enumerate(models.names())}
     entries = [e for e in doc["model"] if not (quick and e.get("skip_quick", False))]
-    tasks = []
-    for spec in _configurations(doc, quick):
+    configurations = _configurations(doc, quick)
+    first = quick_case(configurations) if quick else None
+    tasks, seen = [], set()
+
+    def add(ts):
+        for t in ts:
+            k = (t.scene, json.dumps(t.solver.relevant(), sort_keys=True), t.study)
+            if k not in seen:
+                seen.add(k)
+                tasks.append(t)
+
+    for spec in configurations:
         runs = []  # (model's position, parameter set's position, entry's position, task)
+        own = {}  # a mesh of a model's own -> its runs, as ``runs``
         for j, e in enumerate(entries):
             solver, damping = _solver(e)
             if "role" in e:
@@ -374,14 +408,22 @@ def experiment_tasks(doc: dict, quick: bool = False) -> list:
                 names = [e["name"]]
                 sets = {e["name"]: [dict(e.get("params", {}))]}
             for m in names:
+                base = spec
+                if _own_mesh(m):
+                    if quick and (not roles.part(m).quick or spec is not first):
+                        continue
+                    base = roles.mesh_for(m, spec)
                 variants = [dict(v) for v in models.get(m).study_variants(spec.nu)]
                 for params in sets[m]:
-                    scene = spec.replace(model=m, **params)
+                    scene = base.replace(model=m, **params)
                     if damping is not None:
                         scene = scene.replace(damping=damping)
                     at = variants.index(params) if params in variants else len(variants)
-                    runs.append((order[m], at, j, Task(scene, solver, study)))
-        runs.sort(key=lambda r: r[:3])
-        tasks += [r[3] for r in runs]
-        tasks += [Task(spec, fs, study) for fs in reference_solvers(doc["reference"], spec)]
+                    into = runs if base.mesh == spec.mesh else own.setdefault(base, [])
+                    into.append((order[m], at, j, Task(scene, solver, study)))
+        add(r[3] for r in sorted(runs, key=lambda r: r[:3]))
+        add(Task(spec, fs, study) for fs in reference_solvers(doc["reference"], spec))
+        for base, mine in own.items():  # each mesh of a model's own, with the FEM on that mesh
+            add(r[3] for r in sorted(mine, key=lambda r: r[:3]))
+            add(Task(base, fs, study) for fs in reference_solvers(doc["reference"], base))
     return tasks
