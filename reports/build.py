@@ -36,7 +36,7 @@ STUDY_SECTIONS = (
     ("performance", "Performance against the number of volumes (Figs 11, 12)", ("study_performance",),
      ("performance_summary", "performance", "bandwidth")),
     ("stability", "Stability: time step and extreme loads", ("study_stability_map", "study_dt_stability"),
-     ("dt_stability", "stability_extreme", "stability", "stability_irregular")),
+     ("dt_stability", "stability_extreme", "stability", "stability_irregular", "stability_engines")),
     ("damping", "Damping: steps the explicit protocol needs", ("study_damping",), ("damping_steps",)),
     ("limit", "Limit stretch", ("study_limit_stretch",), ("limit_stretch",)),
     ("baudet", "[B09]'s experiments at [B09]'s parameters", ("study_b09",),

@@ -41,6 +41,21 @@ Six parts, each a table in the results store:
     step where the error crosses the tolerance for good, interpolated log-linearly between the
     two checkpoints that bracket it (:func:`tolerance_crossing`).
 
+(g) ``stability_engines``: the engines of the publication tables (the models of the ``tables``
+    role with meshes of their own, :attr:`studies.roles.Part.meshes`) on their own coarse cube
+    (:func:`studies.roles.mesh_for`; 2³ in the quick mode) at the hard cases of the publication's
+    sweep: ν = 0.499 at 5 % and 20 %, and ν = ¼ at 20 %, compression and shear (quick: ν = 0.499 at
+    20 % only).  Each engine's static answer is the rest state of its own damped run; per row the
+    ``behaviour``: ``rest`` (its run reached rest, the rest criterion of every explicit model,
+    :func:`hybmss.explicit.rest_report`), ``locks`` (at rest, but its plate force more than
+    :data:`LOCK_RATIO` times the FEM's on the same mesh: volumetric locking of its elements),
+    ``no rest`` (not at rest within its time budget), ``diverged``, or the refusal of a scene it
+    cannot represent; its engine steps, wall time and plate force (compression F_z, shear F_x)
+    against the FEM on the same mesh (linear at 5 %, Neo-Hookean at 20 %, mixed u–p at ν ≥ 0.45).
+    In the full reproduction these are runs of the experiment tables (the same keys, stored
+    once), so the part costs nothing of its own there; on the quick 2³ cube its ten runs take
+    about 10 s together (measured wall times in the table's ``wall_time_s``).
+
 ``stability`` is the extreme and irregular tables together.  Runs of (b)–(d) and (f) go through
 :func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
 call the solvers directly (bisection and custom systems).
@@ -235,6 +250,81 @@ def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict])
             "wall_time_s": r.get("wall_time_s", float("nan")),
             "fem": f["solver"] if f is not None else "", "fem_status": f["status"] if f is not None else "",
             "rel_l2_vs_fem": err, "message": r.get("message", ""),
+        })
+    return pd.DataFrame(out)
+
+
+# ------------------------------------------------------------------------------ (g) engines
+LOCK_RATIO = 1.5
+"""An engine at rest whose plate force exceeds the same-mesh FEM's by more than this factor locks."""
+ENGINE_CASES = (("compression", 0.499, 0.05), ("compression", 0.25, 0.20), ("compression", 0.499, 0.20),
+                ("shear", 0.499, 0.05), ("shear", 0.25, 0.20), ("shear", 0.499, 0.20))
+"""(experiment, ν, d) of part (g); the quick mode runs those at ν = 0.499 and 20 %."""
+ENGINE_QUICK_CUBE = (2, 2, 2)
+ENGINE_FORCE = {"compression": "force_z", "shear": "force_x"}
+
+
+def engine_models() -> tuple[str, ...]:
+    """The engines of part (g): the models of the ``tables`` role with meshes of their own."""
+    return tuple(m for m in roles.in_role("tables") if roles.part(m).meshes)
+
+
+def engine_tasks(quick: bool = False) -> list[tuple[str, Task]]:
+    """Part (g)'s runs: each engine's static answer on its own cube, then the FEM of that mesh."""
+    from .compare import default_law
+
+    out, seen = [], set()
+    cases = [c for c in ENGINE_CASES if not quick or (c[1] == 0.499 and c[2] == 0.20)]
+    for exp, nu, d in cases:
+        base = SceneSpec.default(exp, nu=nu, deformation=d)
+        for model in engine_models():
+            spec = base.replace(mesh=ENGINE_QUICK_CUBE) if quick else roles.mesh_for(model, base)
+            out.append(("engine", Task(spec.replace(model=model), STATIC, "stability")))
+            fem = ("fem", Task(spec, SolverSpec("fem", element="auto", law=default_law(spec)), "stability"))
+            if (spec.experiment, spec.mesh, spec.nu, spec.deformation) not in seen:
+                seen.add((spec.experiment, spec.mesh, spec.nu, spec.deformation))
+                out.append(fem)
+    return out
+
+
+def engine_behaviour(row: dict, ratio: float | None) -> str:
+    """``rest``, ``locks``, ``no rest``, ``diverged`` or the run's failure status (part (g))."""
+    if row.get("status") == "ok":
+        return "locks" if ratio is not None and abs(ratio) > LOCK_RATIO else "rest"
+    msg = str(row.get("message") or "")
+    if "did not come to rest" in msg:
+        return "no rest"
+    if "diverged" in msg or row.get("status") == "diverged":
+        return "diverged"
+    return str(row.get("status") or "error")
+
+
+def engine_table(tasks: list[tuple[str, Task]], rows: list[dict]) -> pd.DataFrame:
+    """Part (g)'s table: one row per engine and case (module docstring)."""
+    def where(t):
+        return (t.scene.experiment, t.scene.mesh, float(t.scene.nu), float(t.scene.deformation))
+
+    fem = {where(t): r for (kind, t), r in zip(tasks, rows) if kind == "fem"}
+    out = []
+    for (kind, t), r in zip(tasks, rows):
+        if kind == "fem":
+            continue
+        f = fem.get(where(t), {})
+        col = ENGINE_FORCE[t.scene.experiment]
+        ok = r.get("status") == "ok"
+        F = r.get(col) if ok else None
+        Ff = f.get(col) if f.get("status") == "ok" else None
+        good = F is not None and Ff is not None and math.isfinite(F) and math.isfinite(Ff) and Ff != 0
+        ratio = F / Ff if good else None
+        out.append({
+            "case": _case_name(t.scene), "experiment": t.scene.experiment, "mesh": "x".join(map(str, t.scene.mesh)),
+            "nu": float(t.scene.nu), "deformation": float(t.scene.deformation), "model": t.scene.model,
+            "behaviour": engine_behaviour(r, ratio), "status": r.get("status"),
+            "steps": r.get("solver_iterations") if ok else None, "wall_time_s": r.get("wall_time_s"),
+            "force_N": F, "force_fem_N": Ff, "force_ratio": ratio,
+            "force_rel_error": (ratio - 1.0) if ratio is not None else None,
+            "fem": f.get("solver", ""), "fem_status": f.get("status", "missing"),
+            "message": None if ok else r.get("message"),
         })
     return pd.DataFrame(out)
 
@@ -505,13 +595,15 @@ def _combined(store: Store) -> pd.DataFrame:
 def tasks(quick: bool = False) -> list[Task]:
     """The pooled runs of :func:`run` with its defaults (parts d, f, c; ``make reproduce-paper``
     computes them in the sweep's one pool, so that :func:`run` finds them stored)."""
-    return [t for part in (limit_tasks(quick), damping_tasks(quick), extreme_tasks(quick)) for _, t in part]
+    return [t for part in (limit_tasks(quick), damping_tasks(quick), extreme_tasks(quick), engine_tasks(quick))
+            for _, t in part]
 
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,
-        parts: str = "adfce", damping_mesh=None, extreme_mesh=None, runner=None) -> dict:
+        parts: str = "adfceg", damping_mesh=None, extreme_mesh=None, runner=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``dt_stability`` (a), ``limit_stretch`` (d),
-    ``damping_steps`` (f), ``stability_extreme`` (b, c) and ``stability_irregular`` (e), each as
+    ``damping_steps`` (f), ``stability_extreme`` (b, c), ``stability_irregular`` (e) and
+    ``stability_engines`` (g), each as
     soon as its part is done, and ``stability``, the last two together.
     ``parts`` selects and orders the parts; ``damping_mesh`` replaces the 10³ cube of (f),
     ``extreme_mesh`` the 6³ cube of (b, c)."""
@@ -539,6 +631,12 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
             tables["stability_extreme"] = extreme_table(store, ext, rows)
             store.write_table("stability_extreme", tables["stability_extreme"])
             tables["stability"] = _combined(store)
+        elif part == "g":
+            eng = engine_tasks(quick)
+            rows = run_tasks([t for _, t in eng], store, jobs=jobs, progress=progress,
+                             desc="stability engines", runner=runner)
+            tables["stability_engines"] = engine_table(eng, rows)
+            store.write_table("stability_engines", tables["stability_engines"])
         elif part == "e":
             tables["stability_irregular"] = irregular_table(quick, workers=jobs, store=store)
             store.write_table("stability_irregular", tables["stability_irregular"])
