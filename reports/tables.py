@@ -153,10 +153,28 @@ def _load_cell(r, load: str) -> tuple[str, str]:
     return (fmt(r[load], 3), "") if load == "angle_deg" else (fmt(100 * r[load], 3), "")
 
 
-def _method_value(results: Results, experiment: str, m: str, r, load: str, law: str, cls: str = "") -> tuple[str, str]:
-    """A method's value, or what the reader sees instead: not run at this load, failed, missing."""
+def ran_on(results: Results, experiment: str) -> set:
+    """(mesh, method) of every stored run of ``experiment``, whatever its status: a method without
+    a run on a mesh does not run there by design (the engines run on coarse meshes of their own,
+    the other models on the publication's), which a table says with "–", not "missing"."""
+    rows = results.find(experiment, ok_only=False)
+    if rows.empty:
+        return set()
+    return set(zip(rows["mesh"].astype(str), rows["method"]))
+
+
+OWN_MESH_NOTE = ("A model runs on the meshes of its rows only: the engines (MuJoCo, Newton) on coarse meshes of "
+                 "their own, each row against the FEM on that same mesh; – where a model has no run on a row's mesh.")
+
+
+def _method_value(results: Results, experiment: str, m: str, r, load: str, law: str, cls: str = "",
+                  ran: set | None = None) -> tuple[str, str]:
+    """A method's value, or what the reader sees instead: not run at this load or on this mesh
+    (``ran``: :func:`ran_on`), failed, missing."""
     v = r.get(m, np.nan)
     if pd.isna(v) and _not_in_design(m, law):
+        return "–", ""
+    if pd.isna(v) and ran is not None and (str(r["mesh"]), m) not in ran:
         return "–", ""
     if pd.isna(v):
         scene = {"mesh": r["mesh"], load: r[load], **({"nu": r["nu"]} if "nu" in r else {})}
@@ -198,6 +216,9 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
     t = t.sort_values(["mesh", "deformation", "nu"])
     methods = _method_cols(results, t)
     own, _, _ = _split_methods(results, methods)
+    t = _own_meshes(results, t, experiment, own)
+    if t.empty:
+        return None
     paper_own = [m for m in own if f"paper {m.rsplit(' ', 1)[0]}" in t]
     subject = f"{results.published_model('proposed')} static"
     pfem = "paper FEM (LS-Dyna)"
@@ -235,6 +256,12 @@ def volume_table(results: Results, name: str, experiment: str, number: int) -> T
                  f"of the publication; 'as FEM' within the FEM criterion.{_nonunique_note(rows)} [G20] ran the 10×10×10 "
                  f"cube and the 4×4×24 / 8×8×48 beams: compare meshes before reading a Δ. Other models: the next "
                  f"table. Publication: {src}", cols, rows)
+
+
+def _own_meshes(results: Results, t: pd.DataFrame, experiment: str, own: list[str]) -> pd.DataFrame:
+    """The rows of ``t`` on a mesh that one of [G20]'s models ran on (not the engines' own meshes)."""
+    ran = ran_on(results, experiment)
+    return t[[any((str(mesh), m) in ran for m in own) for mesh in t["mesh"]]]
 
 
 def _volume_verdict(d_fem: float, d_paper: float, deformation: float) -> tuple[str, str]:
@@ -278,6 +305,7 @@ def _competitor_tables(results: Results, t: pd.DataFrame, experiment: str, other
     per = MAX_COLUMNS - 4
     methods = _method_cols(results, t)
     flags = nonunique_scenes(results)
+    ran = ran_on(results, experiment)
     out = []
     for k, chunk in enumerate(_chunks(others, per)):
         cols = ["mesh", "ν", load_head, ref_head] + [f"{_short(m)} {unit}" for m in chunk]
@@ -288,12 +316,12 @@ def _competitor_tables(results: Results, t: pd.DataFrame, experiment: str, other
                    (fmt(ref), "ref") if pd.notna(ref) else ("missing", "")]
             for m in chunk:
                 v = r.get(m, np.nan)
-                cell = delta(v, ref) if pd.notna(v) else _method_value(results, experiment, m, r, load, law)
+                cell = delta(v, ref) if pd.notna(v) else _method_value(results, experiment, m, r, load, law, ran=ran)
                 row.append(_flagged(cell, flags, m, experiment, r, load))
             rows.append(row)
         suffix = f" ({k + 1} of {len(_chunks(others, per))})" if len(others) > per else ""
         out.append(Table(f"{tid}{'_' + str(k + 1) if k else ''}", title + suffix,
-                         caption + " " + SIGNS + _nonunique_note(rows), cols, rows))
+                         caption + " " + SIGNS + " " + OWN_MESH_NOTE + _nonunique_note(rows), cols, rows))
     return out
 
 
@@ -307,6 +335,9 @@ def reaction_table(results: Results, name: str, experiment: str, number: int, lo
     t = t.sort_values(["mesh", load, "nu"])
     methods = _method_cols(results, t)
     own, _, _ = _split_methods(results, methods)
+    t = _own_meshes(results, t, experiment, own)
+    if t.empty:
+        return None
     load_head = "θ (°)" if load == "angle_deg" else "d (%)"
     cols = ["mesh", "ν", load_head] + [f"{_short(m)} ({unit})" for m in own] + [f"FEM ref ({unit})"]
     cols += [f"{_short(m)} − FEM (%)" for m in own] + ["verdict"]

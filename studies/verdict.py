@@ -70,7 +70,11 @@ def _error_rows(results: Results, regime: str, quantity: str, unit: str, experim
     scene = f"{experiment}, mesh {r['mesh']}, ν = {nu:g}, " + (
         f"θ = {r[load]:g}°" if load == "angle_deg" else f"d = {100 * r[load]:g} %")
     out = []
+    here = results.find(experiment, mesh=r["mesh"], ok_only=False)
+    here = set(here["method"]) if not here.empty else set()
     for m in rivals(results, t.columns):
+        if m not in here:  # no run of it on this mesh by design (an engine's rows are on a mesh of its own)
+            continue
         v = r.get(m, np.nan)
         err = (v - ref if kind == "pp" else 100 * (v - ref) / abs(ref)) if pd.notna(v) and pd.notna(ref) else np.nan
         state = "ok" if pd.notna(err) else (run_state(results, experiment, m, mesh=r["mesh"], nu=nu,

@@ -45,3 +45,168 @@ def test_closing_table_on_the_small_cube(tmp_path):
 
 def test_the_report_says_what_each_registered_engine_is():
     assert set(roles.ENGINE_LAWS) == set(engines.engine_models())
+
+
+# ------------------------------------------------------------------ the publication's experiment tables
+def _doc(name: str, **over):
+    from studies.reproduce import load_study_file
+
+    doc = load_study_file(name)
+    for k, v in over.items():
+        section, key = k.split("__")
+        doc[section][key] = v
+    return doc
+
+
+def _engines():
+    return [m for m in roles.in_role("tables") if roles.part(m).meshes]
+
+
+@pytest.mark.parametrize("name", ["compression", "tension", "shear", "torsion"])
+def test_the_engines_run_the_experiments_on_their_own_meshes_beside_the_fem_of_that_mesh(name):
+    """Full study: every engine run is on its part's mesh, and each has the study's references
+    (law and large laws) on that same mesh and configuration; no task is listed twice."""
+    from studies.study.experiment import experiment_tasks, reference_solvers
+
+    doc = _doc(name)
+    ts = experiment_tasks(doc, quick=False)
+    assert set(_engines()) >= {"mujoco-tet", "mujoco-trilinear", "newton-semi"}
+    eng = [t for t in ts if t.scene.model in _engines() and t.solver.kind == "static"]
+    kind = "beam" if name == "tension" else "cube"
+    assert {t.scene.model for t in eng} == set(_engines())
+    for t in eng:
+        assert t.scene.mesh == tuple(roles.part(t.scene.model).meshes[kind])
+        want = {json_(fs) for fs in reference_solvers(doc["reference"], t.scene)}
+        have = {json_(r.solver) for r in ts if r.solver.kind == "fem" and r.scene.mesh == t.scene.mesh
+                and r.scene.nu == t.scene.nu and r.scene.deformation == t.scene.deformation
+                and r.scene.angle_deg == t.scene.angle_deg}
+        assert want and want <= have, (t.scene, want, have)
+    keys = [(t.scene, json_(t.solver), t.study) for t in ts]
+    assert len(keys) == len(set(keys))
+    # the other models stay on the publication's meshes
+    pub = {tuple(m) for m in doc["body"]["mesh"]}
+    assert {t.scene.mesh for t in ts if t.solver.kind != "fem" and t.scene.model not in _engines()} <= pub
+
+
+def json_(solver) -> str:
+    import json
+
+    return json.dumps(solver.relevant(), sort_keys=True)
+
+
+def test_the_quick_mode_runs_an_engine_s_first_case_only_or_none():
+    from studies.study.experiment import experiment_tasks
+
+    for name, load in (("compression", ("deformation", 0.05)), ("torsion", ("angle_deg", 1.0))):
+        eng = [t for t in experiment_tasks(_doc(name), quick=True) if t.scene.model in _engines()
+               and t.solver.kind == "static"]
+        assert {t.scene.model for t in eng} == set(_engines())
+        assert {(t.scene.nu, getattr(t.scene, load[0])) for t in eng} == {(0.25, load[1])}
+    was = roles.part("mujoco-tet")
+    roles.declare("mujoco-tet", roles.Part(was.roles, meshes=was.meshes, run_cost=was.run_cost, quick=False))
+    try:
+        models_ = {t.scene.model for t in experiment_tasks(_doc("shear"), quick=True)}
+    finally:
+        roles.withdraw("mujoco-tet")
+    assert "mujoco-tet" not in models_ and "mujoco-trilinear" in models_
+
+
+@pytest.mark.slow
+def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path):
+    """A compression study on the 6³ cube (not in the quick mode: every case of the file) with
+    hybmss and mujoco-trilinear, whose part puts it on the 5³ cube: its row is on the 5³ mesh and
+    its Δe is against the FEM solved on 5³ (recomputed here with scikit-fem directly), its plate
+    force that of corot-hex8 on the same cells (the same element: equal to 1e-6); at ν = −0.1,
+    which MuJoCo cannot represent, its cell is a failure; the 6³ rows say "–" for it, and the table
+    beside [G20] has no 5³ row."""
+    from fem_reference.solve import solve as fem_solve
+    from hybmss.solve import solve_static
+    from reports.data import Results
+    from reports.tables import competitors_volume_tables, volume_table
+    from studies.runner import run_tasks
+    from studies.study.experiment import experiment_tasks
+    from studies.tables import write_tables
+
+    doc = _doc("compression", body__mesh=[[6, 6, 6]], material__nu=[0.25, -0.1], load__deformation=[0.05])
+    ts = [t for t in experiment_tasks(doc, quick=False)
+          if t.solver.kind == "fem" or t.scene.model in ("hybmss", "mujoco-trilinear")]
+    assert {t.scene.mesh for t in ts if t.scene.model == "mujoco-trilinear" and t.solver.kind == "static"} == {(5, 5, 5)}
+    store = Store(tmp_path)
+    rows = run_tasks(ts, store, jobs=1, progress=False)
+    write_tables(store, {t.key() for t in ts})
+    results = Results(tmp_path)
+
+    tri = next(r for t, r in zip(ts, rows) if t.scene.model == "mujoco-trilinear" and t.scene.nu == 0.25
+               and t.solver.kind == "static")
+    assert tri["status"] == "ok" and tri["mesh"] == "5x5x5"
+    spec = next(t.scene for t in ts if t.scene.model == "mujoco-trilinear" and t.scene.nu == 0.25)
+    corot = solve_static(spec.replace(model="corot-hex8").build())
+    assert tri["force_z"] == pytest.approx(corot.reactions["top"].force[2], rel=1e-6)
+    fem5 = fem_solve(spec.build(), element="auto", law="linear")
+    e_tet, e_fem5 = 100 * abs(tri["volume_change"]), 100 * abs(fem5.volume_change)
+
+    tab = competitors_volume_tables(results, "table2_compression", "compression", 2)[0]
+    col = tab.columns.index("mujoco-trilinear (pp)")
+    by = {(r[0][0], r[1][0]): r for r in tab.rows}
+    cell = by[("5x5x5", "0.25")][col]
+    assert float(cell[0]) == pytest.approx(round(e_tet - e_fem5, 3), abs=1.5e-3)
+    fem6 = fem_solve(spec.replace(mesh=(6, 6, 6)).build(), element="auto", law="linear")
+    assert abs((e_tet - 100 * abs(fem6.volume_change)) - (e_tet - e_fem5)) > 2e-3  # another mesh's FEM differs
+    assert by[("5x5x5", "-0.1")][col][1] == "fail" and "not-representable" in by[("5x5x5", "-0.1")][col][0]
+    assert by[("6x6x6", "0.25")][col] == ("–", "")
+    hyb = tab.columns.index("hybmss (E-form) (pp)") if "hybmss (E-form) (pp)" in tab.columns else None
+    if hyb is not None:
+        assert by[("5x5x5", "0.25")][hyb][0] in ("–", "not in the study at this ν")
+    g20 = volume_table(results, "table2_compression", "compression", 2)
+    assert {r[0][0] for r in g20.rows} == {"6x6x6"}
+
+
+# ------------------------------------------------------------------ the stability study's hard cases
+def test_the_stability_hard_cases_of_the_engines_are_runs_of_the_tables():
+    """Full mode: every run of part (g) (engines and their same-mesh FEM) is a run of the
+    experiment tables (the same key), so the part costs make reproduce-paper nothing; each engine
+    on its own cube, at ν = 0.499 and 20 %."""
+    from studies import stability
+    from studies.reproduce import tasks_for
+
+    g = stability.engine_tasks(quick=False)
+    table_keys = {t.key() for t in tasks_for(["compression", "shear"], quick=False)}
+    assert g and all(t.key() in table_keys for _, t in g)
+    eng = [t for kind, t in g if kind == "engine"]
+    assert {t.scene.model for t in eng} == set(_engines())
+    assert all(t.scene.mesh == tuple(roles.part(t.scene.model).meshes["cube"]) for t in eng)
+    assert {(t.scene.experiment, t.scene.nu, t.scene.deformation) for t in eng} >= {
+        ("compression", 0.499, 0.20), ("shear", 0.499, 0.20)}
+    fems = {(t.scene.experiment, t.scene.mesh, t.scene.nu, t.scene.deformation) for kind, t in g if kind == "fem"}
+    assert {(t.scene.experiment, t.scene.mesh, t.scene.nu, t.scene.deformation) for t in eng} == fems
+
+
+def test_the_stability_table_says_rest_locking_no_rest_and_refusal():
+    """The behaviour of each engine row from its run and the same-mesh FEM's: a force 2× the FEM's
+    at rest locks, 1.2× is rest; a run that did not come to rest and a refused scene say so."""
+    from hybmss.experiments import SceneSpec
+    from studies import stability
+
+    spec = SceneSpec.default("compression", mesh=(5, 5, 5), nu=0.499, deformation=0.2)
+    ts = [("engine", Task(spec.replace(model=m), SolverSpec("static"), "stability"))
+          for m in ("mujoco-tet", "mujoco-trilinear", "newton-semi", "mujoco-quadratic")]
+    ts.append(("fem", Task(spec, SolverSpec("fem", element="auto", law="neo-hookean"), "stability")))
+    rows = [{"status": "ok", "force_z": -2000.0, "solver_iterations": 4000, "wall_time_s": 1.0},
+            {"status": "ok", "force_z": -1200.0, "solver_iterations": 3000, "wall_time_s": 1.0},
+            {"status": "unstable", "message": "StaticSolveError: newton-semi scene: the damped run did not come to "
+             "rest within 9 s (kinetic energy); raise the damping or the time budget", "wall_time_s": 9.0},
+            {"status": "not-representable", "message": "SceneNotRepresentable: nu must lie in [0, 0.5)"},
+            {"status": "ok", "force_z": -1000.0, "solver": "fem-auto-neo-hookean"}]
+    t = stability.engine_table(ts, rows).set_index("model")
+    assert t.loc["mujoco-tet", "behaviour"] == "locks" and t.loc["mujoco-tet", "force_ratio"] == pytest.approx(2.0)
+    assert t.loc["mujoco-trilinear", "behaviour"] == "rest"
+    assert t.loc["mujoco-trilinear", "force_rel_error"] == pytest.approx(0.2)
+    assert t.loc["newton-semi", "behaviour"] == "no rest" and pd_isna(t.loc["newton-semi", "force_N"])
+    assert t.loc["mujoco-quadratic", "behaviour"] == "not-representable"
+    assert "nu must lie" in t.loc["mujoco-quadratic", "message"]
+
+
+def pd_isna(v) -> bool:
+    import pandas as pd
+
+    return bool(pd.isna(v))
