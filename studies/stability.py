@@ -54,7 +54,9 @@ Six parts, each a table in the results store:
     against the FEM on the same mesh (linear at 5 %, Neo-Hookean at 20 %, mixed u–p at ν ≥ 0.45).
     In the full reproduction these are runs of the experiment tables (the same keys, stored
     once), so the part costs nothing of its own there; on the quick 2³ cube its ten runs take
-    about 10 s together (measured wall times in the table's ``wall_time_s``).
+    a few seconds together (the table's ``wall_time_s``, the solve's, and ``elapsed_s``, the run's with
+    its build: 0.15–0.7 s a run at load average 5 on 2 cores, the two that did not come to rest
+    included; newton-semi's first run in a process 11 s, Warp's import and kernels).
 
 ``stability`` is the extreme and irregular tables together.  Runs of (b)–(d) and (f) go through
 :func:`studies.runner.run_tasks` (cached, parallel); (a) and (e)
@@ -321,6 +323,7 @@ def engine_table(tasks: list[tuple[str, Task]], rows: list[dict]) -> pd.DataFram
             "nu": float(t.scene.nu), "deformation": float(t.scene.deformation), "model": t.scene.model,
             "behaviour": engine_behaviour(r, ratio), "status": r.get("status"),
             "steps": r.get("solver_iterations") if ok else None, "wall_time_s": r.get("wall_time_s"),
+            "elapsed_s": r.get("elapsed_s"),
             "force_N": F, "force_fem_N": Ff, "force_ratio": ratio,
             "force_rel_error": (ratio - 1.0) if ratio is not None else None,
             "fem": f.get("solver", ""), "fem_status": f.get("status", "missing"),
