@@ -154,10 +154,13 @@ def _load_cell(r, load: str) -> tuple[str, str]:
 
 
 def ran_on(results: Results, experiment: str) -> set:
-    """(mesh, method) of every stored run of ``experiment``, whatever its status: a method without
+    """(mesh, method) of every stored run of ``experiment``'s own study (of any study where it has
+    none), whatever its status: a method without
     a run on a mesh does not run there by design (the engines run on coarse meshes of their own,
     the other models on the publication's), which a table says with "–", not "missing"."""
-    rows = results.find(experiment, ok_only=False)
+    rows = results.find(experiment, study=experiment, ok_only=False)  # the experiment's own study's runs
+    if rows.empty:  # a folder whose runs another study stored
+        rows = results.find(experiment, ok_only=False)
     if rows.empty:
         return set()
     return set(zip(rows["mesh"].astype(str), rows["method"]))

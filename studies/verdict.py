@@ -70,7 +70,9 @@ def _error_rows(results: Results, regime: str, quantity: str, unit: str, experim
     scene = f"{experiment}, mesh {r['mesh']}, ν = {nu:g}, " + (
         f"θ = {r[load]:g}°" if load == "angle_deg" else f"d = {100 * r[load]:g} %")
     out = []
-    here = results.find(experiment, mesh=r["mesh"], ok_only=False)
+    here = results.find(experiment, mesh=r["mesh"], study=experiment, ok_only=False)
+    if here.empty:  # a folder whose runs another study stored
+        here = results.find(experiment, mesh=r["mesh"], ok_only=False)
     here = set(here["method"]) if not here.empty else set()
     for m in rivals(results, t.columns):
         if m not in here:  # no run of it on this mesh by design (an engine's rows are on a mesh of its own)
