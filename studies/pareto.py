@@ -13,7 +13,11 @@ For each experiment (compression, tension, shear, torsion, bending) and configur
   reproduction study); implicit for hybmss at the base resolution only (a Newton solve per step
   makes it the most expensive solver);
 - the engines of the ``pareto`` role (:mod:`studies.engines`): their static answer (the rest state
-  of their damped run) at the base resolution only, not the beam under gravity (cost);
+  of their damped run) at the base resolution only, not the beam under gravity, and only where the
+  base is not finer than the engine's own mesh (:attr:`studies.roles.Part.meshes`; cost: mujoco-quadratic's
+  27-node cells on the full level's 5³ cube took 2.6–12 s a run, 35 s for compression's six, three
+  timed runs each, about half of the engines' time in make reproduce-paper; it keeps its rows at the
+  quick level's 2³);
 - the FEM itself: Hex1 at every resolution (cube also ×3), Hex2 and mixed u–p at the resolutions
   coarser than the reference's, with the reference's law.
 
@@ -210,7 +214,8 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
         s = _scaled(spec, f)
         for model in pareto_models():
             engine = bool(roles.part(model).meshes)  # its static answer at the base resolution only
-            if engine and (f != 1 or spec.experiment == "bending" or (quick and not roles.part(model).quick)):
+            if engine and (f != 1 or spec.experiment == "bending" or (quick and not roles.part(model).quick)
+                           or roles.mesh_for(model, s) != s):  # a base finer than the engine's own mesh
                 continue
             sm = s.replace(model=model)
             add("candidate", f, sm, STATIC, f"{model} static")

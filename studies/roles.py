@@ -173,7 +173,8 @@ IN_TREE = {
     # the engines (hybmss/models/mujoco, newton, pbd): static rows of four of the five experiments
     # (``tables``: compression, tension, shear, torsion; their stability hard cases, part (g) of
     # studies/stability.py, are runs of those tables) and of the speed-against-error study
-    # (``pareto``: the base resolution only, no beam under gravity), on coarse meshes of their own
+    # (``pareto``: the base resolution only where it is not finer than their own mesh, no beam under
+    # gravity), on coarse meshes of their own
     # (studies.study.experiment: ``mesh_for``) each with the study's FEM references on the same mesh.
     # The 5³ cube and the 2×2×12 beam are the speed-against-error study's base meshes: its runs of
     # the same scenes are the tables' runs (one key, stored once), so the tables add only the FEM

@@ -210,3 +210,15 @@ def pd_isna(v) -> bool:
     import pandas as pd
 
     return bool(pd.isna(v))
+
+
+def test_the_speed_against_error_study_runs_no_engine_on_a_base_finer_than_its_own_mesh():
+    """Cost: mujoco-quadratic's 27-node cells on the full level's 5³ cube (2.6–12 s a run, three
+    timed runs each) were about half the engines' time; it keeps its rows at the quick level."""
+    from studies.engines import engine_models
+
+    for quick in (True, False):
+        ts = [t for _, t in pareto.all_tasks(quick) if t.scene.model in engine_models()]
+        assert all(roles.mesh_for(t.scene.model, t.scene) == t.scene for t in ts)
+        assert ("mujoco-quadratic" in {t.scene.model for t in ts}) == quick
+        assert {"mujoco-tet", "mujoco-trilinear", "newton-semi"} <= {t.scene.model for t in ts}
