@@ -111,14 +111,24 @@ def test_the_quick_mode_runs_an_engine_s_first_case_only_or_none():
     assert "mujoco-tet" not in models_ and "mujoco-trilinear" in models_
 
 
-@pytest.mark.slow
-def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path):
-    """A compression study on the 6³ cube (not in the quick mode: every case of the file) with
-    hybmss and mujoco-trilinear, whose part puts it on the 5³ cube: its row is on the 5³ mesh and
-    its Δe is against the FEM solved on 5³ (recomputed here with scikit-fem directly), its plate
+@pytest.fixture
+def trilinear_on_2_cubed():
+    """mujoco-trilinear's part with the 2³ cube as its own mesh (the shipped part's 5³ would make the
+    test below solve a 6³ and a 5³ study)."""
+    import dataclasses
+
+    roles.declare("mujoco-trilinear", dataclasses.replace(roles.part("mujoco-trilinear"), meshes={"cube": (2, 2, 2)}))
+    yield
+    roles.withdraw("mujoco-trilinear")
+
+
+def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path, trilinear_on_2_cubed):
+    """A compression study on the 3³ cube (not in the quick mode: every case of the file) with
+    hybmss and mujoco-trilinear, whose part puts it on the 2³ cube: its row is on the 2³ mesh and
+    its Δe is against the FEM solved on 2³ (recomputed here with scikit-fem directly), its plate
     force that of corot-hex8 on the same cells (the same element: equal to 1e-6); at ν = −0.1,
-    which MuJoCo cannot represent, its cell is a failure; the 6³ rows say "–" for it, and the table
-    beside [G20] has no 5³ row."""
+    which MuJoCo cannot represent, its cell is a failure; the 3³ rows say "–" for it, and the table
+    beside [G20] has no 2³ row."""
     from fem_reference.solve import solve as fem_solve
     from hybmss.solve import solve_static
     from reports.data import Results
@@ -127,10 +137,10 @@ def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path):
     from studies.study.experiment import experiment_tasks
     from studies.tables import write_tables
 
-    doc = _doc("compression", body__mesh=[[6, 6, 6]], material__nu=[0.25, -0.1], load__deformation=[0.05])
+    doc = _doc("compression", body__mesh=[[3, 3, 3]], material__nu=[0.25, -0.1], load__deformation=[0.05])
     ts = [t for t in experiment_tasks(doc, quick=False)
           if t.solver.kind == "fem" or t.scene.model in ("hybmss", "mujoco-trilinear")]
-    assert {t.scene.mesh for t in ts if t.scene.model == "mujoco-trilinear" and t.solver.kind == "static"} == {(5, 5, 5)}
+    assert {t.scene.mesh for t in ts if t.scene.model == "mujoco-trilinear" and t.solver.kind == "static"} == {(2, 2, 2)}
     store = Store(tmp_path)
     rows = run_tasks(ts, store, jobs=1, progress=False)
     write_tables(store, {t.key() for t in ts})
@@ -138,27 +148,27 @@ def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path):
 
     tri = next(r for t, r in zip(ts, rows) if t.scene.model == "mujoco-trilinear" and t.scene.nu == 0.25
                and t.solver.kind == "static")
-    assert tri["status"] == "ok" and tri["mesh"] == "5x5x5"
+    assert tri["status"] == "ok" and tri["mesh"] == "2x2x2"
     spec = next(t.scene for t in ts if t.scene.model == "mujoco-trilinear" and t.scene.nu == 0.25)
     corot = solve_static(spec.replace(model="corot-hex8").build())
     assert tri["force_z"] == pytest.approx(corot.reactions["top"].force[2], rel=1e-6)
-    fem5 = fem_solve(spec.build(), element="auto", law="linear")
-    e_tet, e_fem5 = 100 * abs(tri["volume_change"]), 100 * abs(fem5.volume_change)
+    fem_own = fem_solve(spec.build(), element="auto", law="linear")
+    e_tet, e_fem_own = 100 * abs(tri["volume_change"]), 100 * abs(fem_own.volume_change)
 
     tab = competitors_volume_tables(results, "table2_compression", "compression", 2)[0]
     col = tab.columns.index("mujoco-trilinear (pp)")
     by = {(r[0][0], r[1][0]): r for r in tab.rows}
-    cell = by[("5x5x5", "0.25")][col]
-    assert float(cell[0]) == pytest.approx(round(e_tet - e_fem5, 3), abs=1.5e-3)
-    fem6 = fem_solve(spec.replace(mesh=(6, 6, 6)).build(), element="auto", law="linear")
-    assert abs((e_tet - 100 * abs(fem6.volume_change)) - (e_tet - e_fem5)) > 2e-3  # another mesh's FEM differs
-    assert by[("5x5x5", "-0.1")][col][1] == "fail" and "not-representable" in by[("5x5x5", "-0.1")][col][0]
-    assert by[("6x6x6", "0.25")][col] == ("–", "")
+    cell = by[("2x2x2", "0.25")][col]
+    assert float(cell[0]) == pytest.approx(round(e_tet - e_fem_own, 3), abs=1.5e-3)
+    fem_pub = fem_solve(spec.replace(mesh=(3, 3, 3)).build(), element="auto", law="linear")
+    assert abs((e_tet - 100 * abs(fem_pub.volume_change)) - (e_tet - e_fem_own)) > 2e-3  # another mesh's FEM differs
+    assert by[("2x2x2", "-0.1")][col][1] == "fail" and "not-representable" in by[("2x2x2", "-0.1")][col][0]
+    assert by[("3x3x3", "0.25")][col] == ("–", "")
     hyb = tab.columns.index("hybmss (E-form) (pp)") if "hybmss (E-form) (pp)" in tab.columns else None
     if hyb is not None:
-        assert by[("5x5x5", "0.25")][hyb][0] in ("–", "not in the study at this ν")
+        assert by[("2x2x2", "0.25")][hyb][0] in ("–", "not in the study at this ν")
     g20 = volume_table(results, "table2_compression", "compression", 2)
-    assert {r[0][0] for r in g20.rows} == {"6x6x6"}
+    assert {r[0][0] for r in g20.rows} == {"3x3x3"}
 
 
 # ------------------------------------------------------------------ the stability study's hard cases
