@@ -452,7 +452,8 @@ def _copy_tables(results: Results, out: Path) -> None:
 def _finding(sid: str, results: Results):
     """(answer in one or two sentences, short table or None) of a study section."""
     if sid == "pareto":
-        return findings.budget_sentence(findings.budget_answers(results.table("budget"))), None
+        return (findings.budget_sentence(findings.budget_answers(results.table("budget")))
+                + figmod.no_result_note(figmod.no_result_count(results.table("pareto")))), None
     if sid == "performance":
         return (findings.performance_sentence(results.table("performance_summary")),
                 tables.performance_short(results))

@@ -553,9 +553,12 @@ def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
     """Speed against error: every candidate (time, nodal error) per configuration, front as a step line."""
     if not {"time_s", "error_u"} <= set(df.columns):
         return generic("pareto", df, path)
-    df = df.dropna(subset=["time_s", "error_u"])
     if "role" in df:
         df = df[df["role"] == "candidate"] if (df["role"] == "candidate").any() else df
+    failed = no_result_count(df)
+    if "at_rest" in df:  # a run that reached no result is no point, whatever a column holds
+        df = df[df["at_rest"].astype(str).str.lower().isin(("true", "1", "1.0"))]
+    df = df.dropna(subset=["time_s", "error_u"])
     df = df[(df["time_s"] > 0) & (df["error_u"] > 0)]
     if df.empty:
         return None
@@ -595,7 +598,27 @@ def pareto(df: pd.DataFrame, path: Path) -> Figure | None:
     return Figure("fig_pareto", "Speed against error: Pareto fronts", Path(path),
                   "From tables/pareto.csv: wall time (s) and relative L2 nodal error against the converged reference "
                   f"of every candidate (MSS solvers and FEM meshes), one panel per configuration{more}; black step "
-                  "line: the non-dominated candidates.")
+                  "line: the non-dominated candidates." + no_result_note(failed))
+
+
+def no_result_count(df: pd.DataFrame | None) -> tuple[int, int]:
+    """(candidates that reached no result, candidates) of the pareto table: ``at_rest`` False (an
+    explicit run not at rest, a static solve not converged, a failed run; column ``failure``)."""
+    if df is None or df.empty or "at_rest" not in df:
+        return 0, 0 if df is None else len(df)
+    if "role" in df and (df["role"] == "candidate").any():
+        df = df[df["role"] == "candidate"]
+    ok = df["at_rest"].astype(str).str.lower().isin(("true", "1", "1.0"))
+    return int((~ok).sum()), len(df)
+
+
+def no_result_note(counts: tuple[int, int]) -> str:
+    n, total = counts
+    if not n:
+        return ""
+    return (f" {n} of {total} candidate runs reached no result (an explicit run not at rest, a static solve "
+            "not converged, or a failed run: tables/pareto.csv, columns at_rest and failure); they are no "
+            "point here and win no budget.")
 
 
 def stable_label(g: pd.DataFrame) -> str:
@@ -696,7 +719,8 @@ def budget_chart(results: Results, path: Path) -> Figure | None:
                   "simulated second at half the explicit limit dt_crit), the fastest method within the budget "
                   "(marker and colour of its model; the table names its solver and mesh) and its lead = cost of "
                   "the next fastest other method / its cost. Hollow marker, 'tie': the lead is smaller than "
-                  "1 + the larger timing spread (median over best of the repeats).")
+                  "1 + the larger timing spread (median over best of the repeats)."
+                  + no_result_note(no_result_count(results.table("pareto"))))
 
 
 def stability_map(results: Results, path: Path) -> Figure | None:

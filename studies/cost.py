@@ -37,7 +37,10 @@ cheapest method is the runner-up and ``lead = cost(runner-up) / cost(winner)`` (
 (a lead of 1.1 with a spread of 20 % is a tie: the runner-up's best time is nearer the winner's
 best than a typical repeat of either method is to its own; a lead of 1.5 with a spread of exactly 0.5 is not).  When either
 spread is unknown (a single timing) ``tie`` is undetermined (``<NA>``); with no runner-up it is
-False.  Methods that meet no budget are listed once each, with their smallest error.
+False.  Methods that meet no budget are listed once each, with their smallest error.  A row that
+is no result (a run not at rest or failed: its ``failure`` reason is not empty) has no error: it
+neither wins nor is runner-up, and a method with no result at all is listed as :data:`NO_RESULT`
+with its reason, never with a number.
 """
 
 from __future__ import annotations
@@ -57,6 +60,8 @@ NO_BUDGET = "meets no budget"
 """``answer`` of a method that meets none of the budgets."""
 NONE_WITHIN = "none within budget"
 """``method`` of a budget that no method meets."""
+NO_RESULT = "no result"
+"""``answer`` of a method none of whose runs reached a result (not at rest, not converged, failed)."""
 
 
 @dataclass(frozen=True)
@@ -157,7 +162,8 @@ def is_tie(lead: float, spread_a: float, spread_b: float):
 
 
 def budget_answer(df: pd.DataFrame, budgets, error: str = "error", cost: str = "cost",
-                  spread: str = "spread", method: str = "method", keep: Sequence[str] = ()) -> pd.DataFrame:
+                  spread: str = "spread", method: str = "method", keep: Sequence[str] = (),
+                  failure: str | None = None) -> pd.DataFrame:
     """The fastest method within each budget of ``budgets`` (module docstring), from ``df``: one
     row per run (a method at one resolution) with its ``error``, ``cost`` (best time) and
     ``spread``.  Rows whose error or cost is not finite are left out.
@@ -168,8 +174,20 @@ def budget_answer(df: pd.DataFrame, budgets, error: str = "error", cost: str = "
     boolean), ``n_within`` (methods within the budget), and the ``keep`` columns of the winner
     (and ``runner_up_<col>``).  Then one row per method that meets no budget (``answer``
     :data:`NO_BUDGET`, ``budget`` nan, ``error`` its smallest error, ``cost`` that run's; both
-    nan when none of its runs has a finite error and cost, e.g. all failed)."""
-    ok = df[np.isfinite(df[error].astype(float)) & np.isfinite(df[cost].astype(float))]
+    nan when none of its runs has a finite error and cost, e.g. all failed).
+
+    ``failure``: a column of reasons why a row is no result (empty, None or NaN for a result).
+    Such a row is left out whatever its error; a method with no result at all is listed once
+    with ``answer`` :data:`NO_RESULT`, no error nor cost, and its first reason in a last column
+    ``failure`` (``""`` in the other rows).  Without it the output is as before (no such column)."""
+    err_v = df[error].astype(float)
+    valid = np.isfinite(err_v) & np.isfinite(df[cost].astype(float))
+    failed = pd.Series(False, index=df.index)
+    if failure is not None:
+        reason = df[failure].where(df[failure].notna(), "").astype(str).str.strip()
+        failed = reason != ""
+        valid &= ~failed
+    ok = df[valid]
     out = []
     for b in budgets:
         within = (ok[ok[error] <= b].sort_values([cost, error], kind="stable")
@@ -194,6 +212,14 @@ def budget_answer(df: pd.DataFrame, budgets, error: str = "error", cost: str = "
         out.append(rec)
     bmax = max(budgets) if len(budgets) else -math.inf
     for m, g in df.groupby(method, sort=False):
+        if failure is not None and failed[g.index].all():
+            rec = {"budget": math.nan, "answer": NO_RESULT, "method": m, "error": math.nan, "cost": math.nan,
+                   "spread": math.nan, "runner_up": "", "runner_up_error": math.nan, "runner_up_cost": math.nan,
+                   "runner_up_spread": math.nan, "lead": math.nan, "tie": False, "n_within": 0,
+                   **{k: None for k in keep}, **{f"runner_up_{k}": None for k in keep},
+                   "failure": str(reason[g.index].iloc[0])}
+            out.append(rec)
+            continue
         g = g[g.index.isin(ok.index)]
         if (g[error] <= bmax).any():
             continue
@@ -207,6 +233,9 @@ def budget_answer(df: pd.DataFrame, budgets, error: str = "error", cost: str = "
         out.append(rec)
     res = pd.DataFrame(out, columns=["budget", "answer", "method", "error", "cost", "spread", "runner_up",
                                      "runner_up_error", "runner_up_cost", "runner_up_spread", "lead", "tie",
-                                     "n_within", *keep, *[f"runner_up_{k}" for k in keep]])
+                                     "n_within", *keep, *[f"runner_up_{k}" for k in keep]]
+                       + (["failure"] if failure is not None else []))
+    if failure is not None:
+        res["failure"] = res["failure"].fillna("")
     res["tie"] = res["tie"].astype("boolean")
     return res

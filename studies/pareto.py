@@ -70,6 +70,14 @@ short runs of :data:`TIMING_STEPS` steps.  xpbd-nh has no explicit limit: its fr
 chooses (h ω_max ≤ 0.1: 10 substeps), each costing the best time per substep of its short runs
 (:func:`unlimited_frame`).
 
+**No result, no value.**  A candidate whose run reached no result (``at_rest`` False: an explicit
+run that did not come to rest by :func:`hybmss.explicit.rest_report`, the runner's status
+"not-converged"; a static solve that did not converge; a failed run) has no error and no
+``time_s`` (NaN in the CSV); ``failure`` says why (:func:`studies.runner.no_result_because`,
+``""`` for a result), nor any measured cost (:data:`NO_RESULT_COSTS`: a cost of no result).  It
+is on no Pareto front, wins no budget and is no runner-up; a method with no result at all is
+listed in the budget table as :data:`studies.cost.NO_RESULT` with that reason.
+
 **Budget answer** (:func:`budget_table`): per configuration, error measure and cost, the fastest
 method within 1, 5 and 10 %, its runner-up, the lead and whether the lead is a tie
 (:func:`studies.cost.budget_answer`: ``lead < 1 + the larger spread``).
@@ -89,7 +97,7 @@ from hybmss import models
 from hybmss.experiments import SceneSpec
 
 from . import cost
-from .runner import SolverSpec, Task, run_tasks
+from .runner import SolverSpec, Task, no_result_because, run_tasks
 from .store import Store
 
 EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending")
@@ -355,6 +363,11 @@ def timing_columns(solver: SolverSpec, row: dict, repeats: list[dict], frame=Non
     return out
 
 
+NO_RESULT_COSTS = ("elapsed_s", "time_s", "time_median_s", "time_spread", "us_per_step", "step_spread",
+                   "explicit_spread", "cost_explicit_s")
+"""The measured costs a candidate that reached no result does not show (NaN): a cost of no result."""
+
+
 def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Tidy table of candidates with errors and costs, and the reference table (one row per config)."""
     specs = {m["config"]: m["base"] for m, _ in pairs}
@@ -403,7 +416,11 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
                    "strain_scale": scale}
             for m in MEASURES:
                 rec[f"error_{m}"] = np.nan
-            if row["status"] == "ok" and ref_ok:
+            rec["at_rest"] = row["status"] == "ok"
+            rec["failure"] = no_result_because(row)
+            if not rec["at_rest"]:  # no time to a solution, nor a cost of one
+                rec.update({k: np.nan for k in NO_RESULT_COSTS})
+            if rec["at_rest"] and ref_ok:
                 a = store.arrays(row["key"])
                 u = sample(a["X"], a["u"], pts)
                 rec["error_field"] = float(np.linalg.norm(u - u_ref) / np.linalg.norm(u_ref))
@@ -418,7 +435,7 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
     df = pd.DataFrame(out)
     df["pareto"] = False
     for cfg, g in df.groupby("config"):
-        ok = g[np.isfinite(g["error_u"]) & np.isfinite(g["time_s"])].sort_values(["time_s", "error_u"])
+        ok = g[g["at_rest"] & np.isfinite(g["error_u"]) & np.isfinite(g["time_s"])].sort_values(["time_s", "error_u"])
         best = np.inf
         for i, r in ok.iterrows():
             if r["error_u"] < best:
@@ -446,7 +463,7 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
                 if err not in sub:
                     continue
                 a = cost.budget_answer(sub, budgets, error=err, cost=col, spread=spreads[kind], method="method",
-                                       keep=("mesh",))
+                                       keep=("mesh",), failure="failure" if "failure" in sub else None)
                 a.insert(0, "cost_kind", kind)
                 a.insert(0, "measure", m)
                 a.insert(0, "nu", g["nu"].iloc[0])

@@ -226,6 +226,29 @@ def failure_row(exc: Exception) -> dict:
     return row
 
 
+def no_result_because(row: dict | None) -> str:
+    """Why a stored row is no result, on one line; ``""`` for a result (``status`` ok: a static
+    solve that converged, an explicit run at rest by :func:`hybmss.explicit.rest_report`).  A run
+    not at rest ("not-converged") without a message of its own reads "not at rest after n steps"
+    (a static solve: "not converged"); a failed run, its status and message."""
+    if row is None:
+        return "missing: not computed"
+    status = str(row.get("status") or "missing")
+    if status == "ok":
+        return ""
+    msg = row.get("message")
+    msg = "" if msg is None or (isinstance(msg, float) and np.isnan(msg)) else " ".join(str(msg).split())
+    if status == "not-converged" and not msg:
+        steps = row.get("steps", row.get("solver_steps"))
+        explicit = str(row.get("solver", "")).endswith("explicit")
+        if explicit:
+            msg = (f"not at rest after {int(steps)} steps" if steps is not None and np.isfinite(float(steps))
+                   else "not at rest")
+        else:
+            msg = "not converged"
+    return f"{status}: {msg}" if msg else status
+
+
 def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
     the process that runs the sweep stores them)."""

@@ -140,3 +140,79 @@ def test_hybmss_cf_does_not_win_a_force_budget_at_nu_0499(incompressible):
     assert len(force) == 2 * len(pareto.BUDGETS)
     assert not force["method"].str.startswith("hybmss-cf").any()
     assert not force["runner_up"].str.startswith("hybmss-cf").any()
+
+
+def test_a_run_that_reached_no_result_neither_wins_nor_is_runner_up():
+    """Four methods in one configuration.  'a' is the fastest (0.1 s) and its error (0.1 %) is the
+    smallest, but its run is not at rest: whatever numbers its row holds, it is no candidate.
+    So b (0.5 s, 2 %) wins 5 % and 10 % with c (2.0 s, 0.4 %) the runner-up, lead 2.0 / 0.5 = 4;
+    at 1 % only c.  'a' is listed once as 'no result' with its reason, and so is 'd', whose run
+    failed (no error at all); neither is listed as meeting no budget."""
+    from studies import cost
+
+    df = pd.DataFrame({
+        "method": ["a", "b", "c", "d"], "mesh": "2x2x2",
+        "error": [0.001, 0.02, 0.004, np.nan], "cost": [0.1, 0.5, 2.0, 0.05], "spread": [0.0, 0.01, 0.01, 0.0],
+        "failure": ["not-converged: not at rest after 200 steps", "", None, "diverged: |v| > 1e6 m/s"]})
+    ans = cost.budget_answer(df, (0.01, 0.05, 0.10), keep=("mesh",), failure="failure")
+    fastest = ans[ans["answer"] == "fastest"].set_index("budget")
+    assert list(fastest["method"]) == ["c", "b", "b"]
+    assert "a" not in set(fastest["runner_up"]) and "d" not in set(fastest["runner_up"])
+    assert list(fastest["runner_up"]) == ["", "c", "c"]
+    assert fastest.loc[0.05, "lead"] == pytest.approx(4.0)
+    assert (fastest["failure"] == "").all()
+    none = ans[ans["answer"] == cost.NO_RESULT].set_index("method")
+    assert set(none.index) == {"a", "d"}
+    assert none.loc["a", "failure"].startswith("not-converged: not at rest")
+    assert none[["error", "cost", "budget"]].isna().all().all()  # no number for a failure
+    assert (ans["answer"] != cost.NO_BUDGET).all()
+    # without the reasons the same table lets the run not at rest win every budget: the reason decides
+    plain = cost.budget_answer(df, (0.01, 0.05, 0.10), keep=("mesh",))
+    assert (plain.loc[plain["answer"] == "fastest", "method"] == "a").all()
+    assert "failure" not in plain
+
+
+@pytest.mark.slow
+def test_a_candidate_not_at_rest_has_no_error_and_wins_nothing(tmp_path, monkeypatch):
+    """The quick study with the explicit protocol cut at 200 steps of 1 ms: the load ramp takes
+    1 s, so after 0.2 s the plates are at a fifth of their motion and no explicit run can be at
+    rest (the first condition of the rest test).  Each explicit candidate then has no error and
+    no time (NaN, also in the CSV), says why, is on no front, neither wins nor is runner-up in any
+    budget, is listed as 'no result' and counted by the report's caption; the static candidates
+    still answer (the test is not vacuous)."""
+    import dataclasses
+
+    from reports.figures import no_result_count
+    from studies import cost
+
+    monkeypatch.setattr(pareto, "PROTOCOL", dataclasses.replace(pareto.PROTOCOL, steps=200))
+    monkeypatch.setattr(pareto, "pareto_models", lambda: ("hybmss", "hybmss-cf"))
+    store = Store(tmp_path)
+    t = pareto.run(store, quick=True, jobs=1, progress=False, experiments=("compression",))
+    df = t["pareto"]
+    ex = df[df["kind"] == "explicit"]
+    assert len(ex) == 4  # two models on two meshes
+    assert not ex["at_rest"].any()
+    assert ex["failure"].str.fullmatch(r"not-converged: not at rest after 200 steps").all()
+    for m in pareto.MEASURES:
+        assert ex[f"error_{m}"].isna().all(), m
+    assert ex["error_u"].isna().all() and ex["time_s"].isna().all() and not ex["pareto"].any()
+    assert ex[list(pareto.NO_RESULT_COSTS)].isna().all().all()  # nor a cost: a cost of no result
+    assert np.isfinite(ex["dt_crit"]).all()  # the lattice's limit is no result of the run
+    static = df[df["kind"] == "static"]
+    assert static["at_rest"].all() and (static["failure"] == "").all()
+    assert np.isfinite(static["error_field"]).all() and static["pareto"].any()
+    csv = pd.read_csv(tmp_path / "tables" / "pareto.csv")
+    cut = csv[csv["kind"] == "explicit"]
+    assert cut[[f"error_{m}" for m in pareto.MEASURES] + ["time_s"]].isna().all().all()
+    budget = t["budget"]
+    fastest = budget[budget["answer"] == "fastest"]
+    named = set(fastest["method"]) | set(fastest["runner_up"])
+    assert not named & set(ex["method"])
+    assert (fastest.loc[fastest["cost_kind"] == "static", "method"] != cost.NONE_WITHIN).any()
+    assert (fastest.loc[fastest["cost_kind"] == "explicit", "method"] == cost.NONE_WITHIN).all()
+    none = budget[budget["answer"] == cost.NO_RESULT]
+    for m in pareto.MEASURES:
+        assert set(none.loc[(none["measure"] == m) & (none["cost_kind"] == "explicit"), "method"]) == set(ex["method"])
+    assert none["failure"].str.contains("not at rest").all() and none["error"].isna().all()
+    assert no_result_count(df) == (4, len(df))
