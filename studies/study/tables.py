@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from .. import cost
+from ..runner import no_result_because
 from ..store import Store
 from .metrics import errors
 from .tasks import is_reference
@@ -26,13 +27,14 @@ BUDGET_ERROR = "u_rel_l2"
 
 
 def loaded_runs(study, out) -> list[dict]:
-    """Every task of the study with its stored row and arrays (``None`` when not stored ok)."""
+    """Every task of the study with its stored row and arrays (``None`` when not stored ok: a run
+    that reached no result, e.g. an explicit run not at rest, has no field to measure)."""
     store = Store(Path(out))
     runs = []
     for task in study.tasks():
         key = task.key()
         row = store.row(key) if store.has(key) else None
-        ok = row is not None and row.get("status") in ("ok", "not-converged")
+        ok = row is not None and row.get("status") == "ok"
         runs.append({"task": task, "key": key, "row": row, "arrays": store.arrays(key) if ok else None})
     return runs
 
@@ -59,8 +61,16 @@ def error_rows(study, runs: list[dict]) -> list[dict]:
             supports = {p.name: p.motion.kind for p in s.build().plates}
             row.update(errors(r, ref, study.metrics, s.cell_size, supports))
         row.update(_cost(task, r["row"] or {}))
+        row["failure"] = no_result_because(r["row"])
+        if row["failure"]:  # the wall time of a run that reached no result is no cost of a result
+            row.update({k: np.nan for k in NO_RESULT_COST if k in row})
         out.append(row)
     return out
+
+
+NO_RESULT_COST = ("time_s", "time_median_s", "time_spread", "us_per_step", "wall_per_simulated_s",
+                  "wall_per_simulated_s_stable")
+"""The costs of a run that reached no result: not shown (NaN)."""
 
 
 def _cost(task, row: dict) -> dict:
@@ -92,7 +102,8 @@ def budget_answer(rows: pd.DataFrame, budgets) -> pd.DataFrame:
     parts = []
     for cfg, grp in rows.groupby(keys, sort=False):
         ans = cost.budget_answer(grp, budgets, error=BUDGET_ERROR, cost="time_s", spread="time_spread",
-                                 method="model", keep=("cell_size_m",))
+                                 method="model", keep=("cell_size_m",),
+                                 failure="failure" if "failure" in grp else None)
         for k, v in zip(keys, cfg):
             ans.insert(0, k, v)
         parts.append(ans[keys + [c for c in ans.columns if c not in keys]])
@@ -130,7 +141,7 @@ def study_tables(study, out) -> dict[str, pd.DataFrame]:
     for case in study.load_cases:
         sub = rows[rows["load_case"] == case.name]
         err_cols = [c for c in sub.columns if c not in COST_ONLY and c not in
-                    ("load_case", "cells", "repeats", "steps", "message", "solver")] + ["message"]
+                    ("load_case", "cells", "repeats", "steps", "message", "solver", "failure")] + ["message"]
         tables[f"errors_{case.name}"] = sub[[c for c in err_cols if c in sub]].reset_index(drop=True)
         tables[f"cost_{case.name}"] = sub[[c for c in COST_COLUMNS if c in sub]].reset_index(drop=True)
         tables[f"budget_{case.name}"] = budget_answer(sub, study.budgets)

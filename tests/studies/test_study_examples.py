@@ -238,22 +238,60 @@ def test_auto_reference_refines_until_its_own_estimate_meets_the_target(tmp_path
 @pytest.mark.slow
 def test_explicit_cost_columns(tmp_path):
     """µs per step, dt_crit and the wall time of one simulated second of an explicit run, from
-    the best of its repeats; the run is stable (dt below its dt_crit)."""
+    the best of its repeats; the run is stable (dt below its dt_crit) and ends at rest (a cost is
+    that of a result)."""
     from study_files import small_study
     from studies.study import Study
 
     doc = small_study()
     doc["study"]["repeats"] = 2
-    doc["model"] = [{"name": "corot-hex8", "solver": {"kind": "explicit", "dt": 1e-4, "steps": 300,
+    doc["model"] = [{"name": "corot-hex8", "solver": {"kind": "explicit", "dt": 1e-4, "steps": 3000,
                                                       "ramp_time": 0.01, "damping": 50.0}}]
     study = Study.from_toml(write(doc, tmp_path / "explicit.toml"))
     study.run(tmp_path / "out", jobs=1, progress=False)
-    cost = study.tables(tmp_path / "out")["cost_press"].iloc[0]
-    assert math.isclose(cost["us_per_step"], 1e6 * cost["time_s"] / 300, rel_tol=1e-12)
-    assert math.isclose(cost["wall_per_simulated_s"], cost["time_s"] / 300 / 1e-4, rel_tol=1e-12)
-    assert math.isclose(cost["wall_per_simulated_s_stable"], cost["time_s"] / 300 / (0.5 * cost["dt_crit_s"]),
+    tables = study.tables(tmp_path / "out")
+    assert list(tables["errors_press"]["status"]) == ["ok"]
+    cost = tables["cost_press"].iloc[0]
+    assert math.isclose(cost["us_per_step"], 1e6 * cost["time_s"] / 3000, rel_tol=1e-12)
+    assert math.isclose(cost["wall_per_simulated_s"], cost["time_s"] / 3000 / 1e-4, rel_tol=1e-12)
+    assert math.isclose(cost["wall_per_simulated_s_stable"], cost["time_s"] / 3000 / (0.5 * cost["dt_crit_s"]),
                         rel_tol=1e-12)
     assert cost["dt_s"] == 1e-4 < cost["dt_crit_s"] and cost["time_spread"] >= 0
+
+
+@pytest.mark.slow
+def test_a_run_not_at_rest_has_no_error_nor_cost_and_wins_no_budget(tmp_path):
+    """corot-hex8 stepped 300 × 0.1 ms with its plates ramped over 0.01 s: 0.02 s after the ramp
+    the damping c = 50 s⁻¹ has taken a vibration down by e^(−50 · 0.02 / 2) ≈ 0.6 only, where the
+    rest test asks for about 10⁻³ of it: the run is no result.  Beside a static hybmss, it has no
+    error, no cost, is neither fastest nor runner-up in any budget (a generous one, 50 %, that the
+    static run meets), and is listed as 'no result' with its reason."""
+    from study_files import small_study
+    from studies.cost import NO_RESULT
+    from studies.study import Study
+
+    doc = small_study()
+    doc["study"]["budgets"] = [0.05, 0.5]
+    doc["model"] = [{"name": "hybmss"},
+                    {"name": "corot-hex8", "solver": {"kind": "explicit", "dt": 1e-4, "steps": 300,
+                                                      "ramp_time": 0.01, "damping": 50.0}}]
+    study = Study.from_toml(write(doc, tmp_path / "cut.toml"))
+    study.run(tmp_path / "out", jobs=1, progress=False)
+    t = study.tables(tmp_path / "out")
+    err, cost, budget = t["errors_press"], t["cost_press"], t["budget_press"]
+    cut = err["status"] != "ok"
+    assert list(err.loc[cut, "status"]) == ["not-converged"] and (~cut).sum() == 1
+    measures = [c for c in err.columns if c not in ("model", "cell_size_m", "E", "nu", "rho", "status", "message")]
+    assert measures and err.loc[cut, measures].isna().all().all()
+    assert np.isfinite(err.loc[~cut, "u_rel_l2"]).all()
+    assert cost.loc[cut.values, ["time_s", "us_per_step", "wall_per_simulated_s", "u_rel_l2"]].isna().all().all()
+    explicit = err.loc[cut, "model"].iloc[0]
+    fastest = budget[budget["answer"] == "fastest"]
+    assert explicit not in set(fastest["method"]) | set(fastest["runner_up"])
+    assert fastest.loc[fastest["budget"] == 0.5, "method"].iloc[0] == err.loc[~cut, "model"].iloc[0]
+    none = budget[budget["answer"] == NO_RESULT]
+    assert list(none["method"]) == [explicit]
+    assert none["failure"].iloc[0] == "not-converged: not at rest after 300 steps"
 
 
 def test_an_experiment_study_file_gives_the_experiment_tasks():
