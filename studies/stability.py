@@ -247,7 +247,8 @@ def extreme_table(store: Store, tasks: list[tuple[str, Task]], rows: list[dict])
             "part": "b" if t.scene.experiment == "compression" else "c",
             "case": _case_name(t.scene), "mesh": "x".join(map(str, t.scene.mesh)), "nu": t.scene.nu,
             "variant": t.scene.variant, "solver": t.solver.label, "status": _status(r, inv),
-            "inverted_cells": inv, "volume_change": r.get("volume_change", float("nan")),
+            "inverted_cells": inv,
+            "volume_change": r.get("volume_change", float("nan")) if r["status"] == "ok" else float("nan"),
             "load_steps": r.get("load_steps", float("nan")), "iterations": r.get("solver_iterations", float("nan")),
             "wall_time_s": r.get("wall_time_s", float("nan")),
             "fem": f["solver"] if f is not None else "", "fem_status": f["status"] if f is not None else "",
@@ -391,13 +392,15 @@ def limit_table(store: Store, tasks, rows) -> pd.DataFrame:
                **p,
                "stretch_lo": 1.0 + D_MAX * (1.0 if reached else p["s_last"]),
                "stretch_hi": float("nan") if reached else 1.0 + D_MAX * p["s_fail"],
-               "volume_change_at_end": r.get("volume_change", float("nan")),
+               "volume_change_at_end": r.get("volume_change", float("nan")) if reached else float("nan"),
                "message": r.get("message", "")}
         for what in ("static20", "explicit20"):
             if what in d:
                 inv = _inverted(store, d[what])
                 row[f"{what}_status"] = _status(d[what], inv)
-                row[f"{what}_volume_change"] = d[what].get("volume_change", float("nan"))
+                # a run that reached no result (not at rest, failed) shows its status, not a value
+                row[f"{what}_volume_change"] = (d[what].get("volume_change", float("nan"))
+                                                if d[what].get("status") == "ok" else float("nan"))
                 row[f"{what}_message"] = d[what].get("message", "")
         out.append(row)
     return pd.DataFrame(out)

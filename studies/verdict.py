@@ -126,7 +126,7 @@ def explicit_cost(results: Results) -> pd.DataFrame:
     on the largest mesh that every model ran, that run's dt_crit (s), and the cost of one simulated
     second at the stable step :func:`studies.cost.stable_dt` (wall s per simulated s)."""
     df = results.rows
-    cols = ["variant", "experiment", "mesh", "us_per_step", "dt_crit", "cost"]
+    cols = ["variant", "experiment", "mesh", "us_per_step", "dt_crit", "cost", "status"]
     ex = df[(df["solver"] == "mss-explicit") & (df["nu"].astype(float) == 0.25)
             & (df["experiment"] == "compression")] if not df.empty else df
     ex = ex[~ex["variant"].astype(str).str.contains("E-form", regex=False)] if not ex.empty else ex
@@ -136,12 +136,18 @@ def explicit_cost(results: Results) -> pd.DataFrame:
     mesh = max(n_models[n_models == n_models.max()].index, key=lambda m: int(np.prod([int(v) for v in m.split("x")])))
     recs = []
     for v, g in ex[ex["mesh"] == mesh].groupby("variant"):
-        r = g.iloc[0]
+        ok = g[g["status"] == "ok"]
+        r = ok.iloc[0] if len(ok) else g.iloc[0]
+        if r["status"] != "ok":  # a run that reached no result (not at rest, diverged) prices nothing
+            recs.append(dict(variant=v, experiment="compression", mesh=mesh, us_per_step=np.nan, dt_crit=np.nan,
+                             cost=np.nan, status=r["status"]))
+            continue
         info = r["info"] if isinstance(r.get("info"), dict) else {}
         us = 1e6 * float(r["elapsed_s"]) / float(r["solver_steps"])
         dtc = float(info.get("dt_crit") or np.nan)
         c = cost.cost_per_simulated_second(us, cost.stable_dt(dtc)) if np.isfinite(dtc) else np.nan
-        recs.append(dict(variant=v, experiment="compression", mesh=mesh, us_per_step=us, dt_crit=dtc, cost=c))
+        recs.append(dict(variant=v, experiment="compression", mesh=mesh, us_per_step=us, dt_crit=dtc, cost=c,
+                         status="ok"))
     return pd.DataFrame(recs, columns=cols)
 
 
@@ -166,7 +172,7 @@ def _cost_rows(results: Results) -> list[dict]:
     at = f"at the stable step {cost.SAFETY:g} dt_crit"
     for _, r in c.iterrows():
         scene = f"compression, mesh {r['mesh']}"
-        no_limit = "no dt limit"
+        no_limit = "no dt limit" if r["status"] == "ok" else f"failed ({r['status']})"
         out.append(dict(regime="cost", quantity=f"wall time per simulated second {at}, ν = 0.25", unit="ms/s",
                         scene=scene, method=r["variant"], value=1e3 * r["cost"],
                         state="ok" if pd.notna(r["cost"]) else no_limit))
@@ -174,7 +180,8 @@ def _cost_rows(results: Results) -> list[dict]:
         value = 1e3 * cost.cost_per_simulated_second(r["us_per_step"], cost.stable_dt(dtc)) if pd.notna(dtc) else np.nan
         out.append(dict(regime="cost", quantity=f"the same at ν = 0.499 (dt_crit of the stability study)", unit="ms/s",
                         scene=scene, method=r["variant"], value=value,
-                        state="ok" if pd.notna(value) else (no_limit if pd.isna(r["cost"]) else "missing")))
+                        state="ok" if pd.notna(value) and r["status"] == "ok"
+                        else (no_limit if pd.isna(r["cost"]) else "missing")))
     return out
 
 
