@@ -442,6 +442,69 @@ def test_a_failed_run_shows_no_value(report):
     assert shown and all(c[0] == "–" for c in shown)
 
 
+STATUS_HEADERS = ("status", "state", "at_rest", "answer")
+"""Columns that say whether a row's run reached a result."""
+RESULT_TEXT = ("ok", "converged", "inverted", "yes", "fastest", "meets no budget", "", "–")
+"""Their texts for a result ('inverted': an equilibrium with inverted cells is one); a material
+whose measured moduli are outside the stable range ('unstable material ...') is a result too."""
+VALUE_HEADER = re.compile(r"error|err_|rel|signed e|e explicit|Δ|‖|\|u\||speed|time|_s$|disp|force|volume|_eff"
+                          r"|value|cost|deflection|_pct|per_step|spread|^de_", re.I)
+"""Columns that hold a measure of the row's own run."""
+OTHER_RUN = re.compile(r"fem|static|ref|paper|g20|b09|quantity", re.I)
+"""Columns of another run beside it (the reference, the static twin, the publication) or names."""
+
+
+def _no_result(text: str) -> bool:
+    t = text.strip()
+    return t not in RESULT_TEXT and not t.startswith("unstable material")
+
+
+def _number(text: str) -> bool:
+    try:
+        float(text.replace("−", "-").replace("×", "").replace("%", "").strip())
+    except ValueError:
+        return False
+    return True
+
+
+def values_of_no_result(tables) -> list:
+    """(table, header, text) of every number shown in a measure column of a row whose run reached
+    no result (status, state, at_rest or answer says so)."""
+    shown = []
+    for tid, t in tables.items():
+        status = [i for i, c in enumerate(t.columns) if c.strip().lower() in STATUS_HEADERS]
+        values = [i for i, c in enumerate(t.columns) if VALUE_HEADER.search(c) and not OTHER_RUN.search(c)]
+        for r in t.rows:
+            if any(_no_result(r[i][0]) for i in status):
+                shown += [(tid, t.columns[i], r[i][0]) for i in values if _number(r[i][0])]
+    return shown
+
+
+@pytest.mark.slow
+def test_no_table_shows_a_value_of_a_run_without_result(report):
+    """Every table of the page (HTML, the PDF's included) with a status column: a row whose run
+    reached no result (not at rest, diverged, unstable, no result) shows '–' in every column that
+    measures its own run; the fixture's diverged run and the engines' unstable moduli are such rows."""
+    res, _ = report
+    checked = [tid for tid, t in res.tables.items() if any(c.strip().lower() in STATUS_HEADERS for c in t.columns)
+               and any(_no_result(r[i][0]) for r in t.rows for i, c in enumerate(t.columns)
+                       if c.strip().lower() in STATUS_HEADERS)]
+    assert {"table_runs", "table_explicit", "table_moduli"} <= set(checked), checked
+    assert values_of_no_result(res.tables) == []
+
+
+def test_the_check_of_values_without_result_sees_one():
+    """The check above on a table made here: a diverged run's time and a pareto row not at rest
+    with an error are found; the reference's value beside them and an ok row are not."""
+    from reports.tables import Table
+
+    t = Table("t", "t", "c.", ["scene", "status", "time (s)", "e static (%)", "error_field", "at_rest"],
+              [[("a", ""), ("diverged", ""), ("0.025", ""), ("4.9", ""), ("–", ""), ("", "")],
+               [("b", ""), ("ok", ""), ("0.5", ""), ("4.9", ""), ("0.01", ""), ("yes", "")],
+               [("c", ""), ("not-converged", ""), ("–", ""), ("4.9", ""), ("0.02", ""), ("no", "")]])
+    assert values_of_no_result({"t": t}) == [("t", "time (s)", "0.025"), ("t", "error_field", "0.02")]
+
+
 @pytest.mark.slow
 def test_a_failed_run_reads_failed_with_its_reason(report):
     res, _ = report
