@@ -1,6 +1,8 @@
 """The budget study (studies.pareto with studies.cost): its lead and ties from known timings, its
 error measures against the FEM reference, and hybmss-cf near incompressibility."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -216,3 +218,14 @@ def test_a_candidate_not_at_rest_has_no_error_and_wins_nothing(tmp_path, monkeyp
         assert set(none.loc[(none["measure"] == m) & (none["cost_kind"] == "explicit"), "method"]) == set(ex["method"])
     assert none["failure"].str.contains("not at rest").all() and none["error"].isna().all()
     assert no_result_count(df) == (4, len(df))
+    # the report of these tables: no number of a run without result, and the count said
+    from test_reports import _visible_text, values_of_no_result
+
+    from reports.build import build
+
+    res = build(tmp_path, tmp_path / "report")
+    assert values_of_no_result(res.tables) == []
+    assert "table_pareto" in res.tables and "table_budget" in res.tables
+    text = _visible_text(res.html.read_text(encoding="utf-8"))
+    assert f"4 of {len(df)} candidate runs reached no result" in text
+    assert not re.search(r"\bnan\b", text, re.I)

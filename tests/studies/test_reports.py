@@ -447,9 +447,9 @@ STATUS_HEADERS = ("status", "state", "at_rest", "answer")
 RESULT_TEXT = ("ok", "converged", "inverted", "yes", "fastest", "meets no budget", "", "–")
 """Their texts for a result ('inverted': an equilibrium with inverted cells is one); a material
 whose measured moduli are outside the stable range ('unstable material ...') is a result too."""
-VALUE_HEADER = re.compile(r"error|err_|rel|signed e|e explicit|Δ|‖|\|u\||speed|time|_s$|disp|force|volume|_eff"
+VALUE_HEADER = re.compile(r"error|err_|rel|signed e|e explicit|Δ|‖|\|u\||speed|time(?!_repeats)|_s$|disp|force|volume|_eff"
                           r"|value|cost|deflection|_pct|per_step|spread|^de_", re.I)
-"""Columns that hold a measure of the row's own run."""
+"""Columns that hold a measure of the row's own run (not the count of its timed repeats)."""
 OTHER_RUN = re.compile(r"fem|static|ref|paper|g20|b09|quantity", re.I)
 """Columns of another run beside it (the reference, the static twin, the publication) or names."""
 
