@@ -236,6 +236,6 @@ def budget_answer(df: pd.DataFrame, budgets, error: str = "error", cost: str = "
                                      "n_within", *keep, *[f"runner_up_{k}" for k in keep]]
                        + (["failure"] if failure is not None else []))
     if failure is not None:
-        res["failure"] = res["failure"].fillna("")
+        res["failure"] = res["failure"].astype(object).fillna("")  # all-NaN column: float64 otherwise
     res["tie"] = res["tie"].astype("boolean")
     return res
