@@ -31,7 +31,7 @@ from .data import Results
 TEMPLATES = Path(__file__).parent / "templates"
 #: study sections: (id, title, figures, stored tables kept in the HTML only, collapsed)
 STUDY_SECTIONS = (
-    ("pareto", "Speed against error: which method for which error budget", ("study_budget", "study_pareto"),
+    ("pareto", "Speed against error: which method for which error budget", ("study_budget", "study_budget_explicit", "study_pareto"),
      ("budget", "pareto_front", "pareto_references", "pareto")),
     ("performance", "Performance against the number of volumes (Figs 11, 12)", ("study_performance",),
      ("performance_summary", "performance", "bandwidth")),

@@ -657,17 +657,18 @@ STATE_COLORS = {"converged": "#4daf4a", "unstable": "#ff7f00", "diverged": "#e41
                 "missing": "#d9d9d9"}
 
 
-def budget_chart(results: Results, path: Path) -> Figure | None:
-    """The budget answer: one panel per cost (rows: static, explicit) and error measure (columns:
-    force, volume, field); in a panel, configurations down and budgets across, each cell the
-    winner's marker in its model's colour (hollow: a tie; grey dot: no method meets the budget)
-    and its lead over the runner-up."""
+def budget_chart(results: Results, path: Path, kind: str = "static") -> Figure | None:
+    """The budget answer of one cost (``static``: time to an equilibrium; ``explicit``: per simulated
+    second), a figure each so that each fills a page: one panel per error measure (force, volume,
+    field); in a panel, configurations down and budgets across, each cell the winner's marker in its
+    model's colour (hollow: a tie; grey dot: no method meets the budget) and its lead over the
+    runner-up."""
     ans = findings.budget_answers(results.table("budget"))
-    if ans.empty:
+    if ans.empty or kind not in set(ans["cost_kind"]):
         return None
     configs = list(dict.fromkeys(ans["config"]))
     budgets = sorted(ans["budget"].astype(float).unique())
-    kinds = [k for k in findings.COST_NAMES if k in set(ans["cost_kind"])]
+    kinds = [kind]
     measures = [m for m in findings.MEASURE_NAMES if m in set(ans["measure"])]
     short = {"force": "force", "volume": "volume change", "field": "field (nodal L2)"}
     kind_title = {"static": "time to equilibrium", "explicit": "per simulated s, explicit"}
@@ -711,12 +712,14 @@ def budget_chart(results: Results, path: Path) -> Figure | None:
         fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, frameon=False, fontsize=7)
         fig.tight_layout()
         _save(plt, fig, path)
-    return Figure("study_budget", "Which method for which error budget", Path(path),
+    cost_text = {"static": "wall time to an equilibrium (static, implicit and FEM solves, engines' runs to rest)",
+                 "explicit": "wall time per simulated second at half the explicit limit dt_crit (explicit runs)"}
+    return Figure("study_budget" + ("" if kind == "static" else f"_{kind}"),
+                  f"Which method for which error budget: {kind_title.get(kind, kind)}", Path(path),
                   "From tables/budget.csv (the pareto study): for each configuration (rows), error budget (columns "
-                  "of a panel), error measure against the converged reference (panel columns: plate force or "
+                  "of a panel) and error measure against the converged reference (panels: plate force or "
                   "torque, the beam's tip deflection; volume change in units of the imposed strain; relative L2 "
-                  "of the nodal displacement) and cost (panel rows: wall time to an equilibrium; wall time per "
-                  "simulated second at half the explicit limit dt_crit), the fastest method within the budget "
+                  f"of the nodal displacement), at the cost {cost_text.get(kind, kind)}: the fastest method within the budget "
                   "(marker and colour of its model; the table names its solver and mesh) and its lead = cost of "
                   "the next fastest other method / its cost. Hollow marker, 'tie': the lead is smaller than "
                   "1 + the larger timing spread (median over best of the repeats)."
@@ -856,7 +859,12 @@ def b09_errors(results: Results, path: Path) -> Figure | None:
 STUDY_PLOTS = {"performance": performance, "pareto": pareto, "dt_stability": dt_stability}
 """Plots of one stored study table each (table name -> function of the table)."""
 
-STUDY_FIGURES = {"budget": budget_chart, "stability_map": stability_map, "limit_stretch": limit_stretch,
+def budget_chart_explicit(results: Results, path: Path) -> Figure | None:
+    """:func:`budget_chart` of the explicit cost (per simulated second at ½ dt_crit)."""
+    return budget_chart(results, path, kind="explicit")
+
+
+STUDY_FIGURES = {"budget": budget_chart, "budget_explicit": budget_chart_explicit, "stability_map": stability_map, "limit_stretch": limit_stretch,
                  "damping": damping, "b09": b09_errors}
 """Figures of the study sections that read several tables (id -> function of the results)."""
 
