@@ -282,7 +282,8 @@ def build_parser() -> tuple[Parser, Options]:
     def no_guard(q):
         opts.add(q, "--no-guard", action="store_true",
                  help="run even when the estimated memory does not fit this machine or the estimated time "
-                      f"is over {sizing.duration(sizing.TIME_LIMIT_S)} (studies/sizing.py)")
+                      f"is over {sizing.duration(sizing.TIME_LIMIT_S)} (a sweep of run: "
+                      f"{sizing.duration(sizing.SWEEP_TIME_LIMIT_S)}; studies/sizing.py)")
 
     q = command("info", "lattice counts of a scene's body (SPEC Table 6)", commands.info)
     opts.add(q, "--scene", choices=SCENES, default="compression", help="scene whose body is counted "
