@@ -400,6 +400,10 @@ def bending_table(results: Results) -> Table | None:
         return None
     methods = _method_cols(results, t)
     own, fem, _ = _split_methods(results, methods)
+    t = _own_meshes(results, t, "bending", own)
+    if t.empty:
+        return None
+    ran = ran_on(results, "bending")
     nh = next((m for m in fem if m.endswith("neo-hookean")), None)
     cols = ["mesh", "E (MPa)"] + [f"{_short(m)} (m)" for m in own + fem] + ["Euler–Bernoulli (m)"]
     cols += [f"{_short(m)} vs FEM NH (%)" for m in own] + [f"{_short(m)} vs E–B (%)" for m in own]
@@ -407,7 +411,7 @@ def bending_table(results: Results) -> Table | None:
     for _, r in t.sort_values(["mesh", "E"]).iterrows():
         row = [(r["mesh"], ""), (fmt(r["E"] / 1e6, 3), "")]
         row += [(fmt(r[m]), "ref" if m == nh else "") if pd.notna(r[m]) else
-                _method_value(results, "bending", m, r, "E", "") for m in own + fem]
+                _method_value(results, "bending", m, r, "E", "", ran=ran) for m in own + fem]
         eb = r.get("euler_bernoulli_tip", np.nan)
         row.append((fmt(eb), "paper"))
         ref = r.get(nh, np.nan) if nh else np.nan
@@ -431,6 +435,7 @@ def bending_others_tables(results: Results) -> list[Table]:
     nh = next((m for m in fem if m.endswith("neo-hookean")), None)
     if not others or nh is None:
         return []
+    ran = ran_on(results, "bending")
     out = []
     chunks = _chunks(others, MAX_COLUMNS - 3)
     for k, chunk in enumerate(chunks):
@@ -439,13 +444,14 @@ def bending_others_tables(results: Results) -> list[Table]:
         for _, r in t.sort_values(["mesh", "E"]).iterrows():
             row = [(r["mesh"], ""), (fmt(r["E"] / 1e6, 3), ""), (fmt(r[nh]), "ref")]
             row += [_rel_cell(_deflection_rel(r[m], r[nh])) if pd.notna(r[m]) else
-                    _method_value(results, "bending", m, r, "E", "") for m in chunk]
+                    _method_value(results, "bending", m, r, "E", "", ran=ran) for m in chunk]
             rows.append(row)
         out.append(Table(f"table_bending_others{'_' + str(k + 1) if k else ''}",
                          "Beam under gravity, other models: tip deflection against FEM NH (%)"
                          + (f" ({k + 1} of {len(chunks)})" if len(chunks) > 1 else ""),
                          f"The beam of the previous table; each other model's tip deflection against the Neo-Hookean "
-                         f"FEM. {BENDING_SIGNS} Values: tables/bending.csv.", cols, rows))
+                         f"FEM of the same mesh. {BENDING_SIGNS} {OWN_MESH_NOTE} Values: tables/bending.csv.",
+                         cols, rows))
     return out
 
 

@@ -108,7 +108,7 @@ against getting worse; the corotational hexahedra and XPBD are pinned tighter by
 Neo-Hookean stretch, the Lamé map at small strain, the substep bias), which fail on any change a
 baseline would catch, and XPBD's rest runs would add the longest cases to CI."""
 
-_ENGINE_ROLES = ("tables", "pareto")
+_ENGINE_ROLES = ("tables", "bending", "pareto")
 _ENGINE_MESHES = {"cube": (5, 5, 5), "beam": (2, 2, 12)}
 _ENGINE_MESHES_SMALL = {"cube": (2, 2, 2), "beam": (1, 1, 6)}
 
@@ -170,20 +170,19 @@ IN_TREE = {
     "corot-hex8": Part(_ALL_BUT_REGRESSION),
     "corot-hex8-sri": Part(_ALL_BUT_REGRESSION),
     "xpbd-nh": Part(_ALL_BUT_REGRESSION, run_cost=_xpbd_cost),
-    # the engines (hybmss/models/mujoco, newton, pbd): static rows of four of the five experiments
+    # the engines (hybmss/models/mujoco, newton, pbd): static rows of the five experiments
     # (``tables``: compression, tension, shear, torsion; their stability hard cases, part (g) of
-    # studies/stability.py, are runs of those tables) and of the speed-against-error study
-    # (``pareto``: the base resolution only where it is not finer than their own mesh, no beam under
-    # gravity), on coarse meshes of their own
+    # studies/stability.py, are runs of those tables; ``bending``: the cantilever under its weight)
+    # and of the speed-against-error study (``pareto``: the base resolution only where it is not
+    # finer than their own mesh, no beam under gravity), on coarse meshes of their own
     # (studies.study.experiment: ``mesh_for``) each with the study's FEM references on the same mesh.
     # The 5³ cube and the 2×2×12 beam are the speed-against-error study's base meshes: its runs of
     # the same scenes are the tables' runs (one key, stored once), so the tables add only the FEM
     # of those meshes and mujoco-quadratic's runs (2³, 1×1×6: 27-node cells) to make
-    # reproduce-paper; the quick mode runs ν = 1/4 at 5 % and 1° on the quick meshes.  No
-    # ``bending``: a damped run to rest of the cantilever under its weight takes about 3,000
-    # engine steps, 12-13 s for mujoco-quadratic and newton-semi on the quick 2×2×12 beam (its
-    # slowest mode is the beam's first bending mode, ω₁ ~ 10× below the cube's, while the step
-    # stays at the cells' ω_max), more than all their other table runs together; no explicit
+    # reproduce-paper; the quick mode runs ν = 1/4 at 5 % and 1° (bending: E = 10 MPa) on the quick
+    # meshes.  A damped run to rest of the cantilever under its weight takes about 3,000 engine
+    # steps (its slowest mode is the beam's first bending mode, ω₁ ~ 10× below the cube's, while
+    # the step stays at the cells' ω_max): 5-13 s a run on the 2×2×12 beam, eight runs.  No explicit
     # protocol (their stable step at ν = 0.499 is below its 1 ms), no stability bisection.  The
     # moduli table runs every studied model, the [B09] tables those on the publications' meshes.
     # newton-vbd (0.18 s a step on the 1×1×6 beam: Gauss-Seidel colours; its 30 table runs were

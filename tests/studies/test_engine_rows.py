@@ -62,7 +62,7 @@ def _engines():
     return [m for m in roles.in_role("tables") if roles.part(m).meshes]
 
 
-@pytest.mark.parametrize("name", ["compression", "tension", "shear", "torsion"])
+@pytest.mark.parametrize("name", ["compression", "tension", "shear", "torsion", "bending"])
 def test_the_engines_run_the_experiments_on_their_own_meshes_beside_the_fem_of_that_mesh(name):
     """Full study: every engine run is on its part's mesh, and each has the study's references
     (law and large laws) on that same mesh and configuration; no task is listed twice."""
@@ -72,14 +72,14 @@ def test_the_engines_run_the_experiments_on_their_own_meshes_beside_the_fem_of_t
     ts = experiment_tasks(doc, quick=False)
     assert set(_engines()) >= {"mujoco-tet", "mujoco-trilinear", "newton-semi"}
     eng = [t for t in ts if t.scene.model in _engines() and t.solver.kind == "static"]
-    kind = "beam" if name == "tension" else "cube"
+    kind = "beam" if name in ("tension", "bending") else "cube"
     assert {t.scene.model for t in eng} == set(_engines())
     for t in eng:
         assert t.scene.mesh == tuple(roles.part(t.scene.model).meshes[kind])
         want = {json_(fs) for fs in reference_solvers(doc["reference"], t.scene)}
         have = {json_(r.solver) for r in ts if r.solver.kind == "fem" and r.scene.mesh == t.scene.mesh
                 and r.scene.nu == t.scene.nu and r.scene.deformation == t.scene.deformation
-                and r.scene.angle_deg == t.scene.angle_deg}
+                and r.scene.angle_deg == t.scene.angle_deg and r.scene.E == t.scene.E}
         assert want and want <= have, (t.scene, want, have)
     keys = [(t.scene, json_(t.solver), t.study) for t in ts]
     assert len(keys) == len(set(keys))
@@ -169,6 +169,23 @@ def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path, t
         assert by[("2x2x2", "0.25")][hyb][0] in ("–", "not in the study at this ν")
     g20 = volume_table(results, "table2_compression", "compression", 2)
     assert {r[0][0] for r in g20.rows} == {"3x3x3"}
+
+
+def test_bending_row_of_mujoco_trilinear_is_corot_hex8_on_the_same_cells():
+    """The cantilever under its weight on the engine's own beam: MuJoCo's trilinear cells are
+    corotational linear Hex8, corot-hex8's element, so the engine's damped run to rest gives the tip
+    deflection of corot-hex8's Newton solve on the same cells (to the rest test's tolerance), a
+    stored row of the study's table beside the FEM of that mesh."""
+    from studies.study.experiment import experiment_tasks
+
+    ts = experiment_tasks(_doc("bending"), quick=True)
+    tri = next(t for t in ts if t.scene.model == "mujoco-trilinear")
+    assert tri.scene.mesh == tuple(roles.part("mujoco-trilinear").meshes["beam"])
+    row, _ = compute(tri)
+    corot, _ = compute(Task(tri.scene.replace(model="corot-hex8"), tri.solver, "bending"))
+    assert row["status"] == corot["status"] == "ok"
+    assert row["tip_deflection"] == pytest.approx(corot["tip_deflection"], rel=1e-5)
+    assert row["tip_deflection"] < 0
 
 
 # ------------------------------------------------------------------ the stability study's hard cases

@@ -47,6 +47,29 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # no greeting nor module-load lines on stdout (a --json command's)
 
+
+def _init_quietly() -> None:
+    """``wp.init()`` with file descriptor 2 on /dev/null: on a machine without an NVIDIA driver Warp's
+    native CUDA probe (warp/native/cuda_util.cpp) prints "Warp CUDA warning: Could not find or load
+    the NVIDIA CUDA driver" to the process's stderr, once per process, a line that is not the
+    command's (a sweep's workers would each add one).  Errors still raise; the device that ran is
+    in each run's info."""
+    import os
+    import sys
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            wp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+_init_quietly()
+
 import newton  # noqa: E402
 from newton._src.solvers.semi_implicit.kernels_particle import eval_tetrahedra_forces  # noqa: E402
 from newton._src.solvers.vbd.particle_vbd_kernels import (  # noqa: E402
