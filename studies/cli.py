@@ -2,7 +2,8 @@
 
 Subcommands: ``info`` (lattice counts), ``moduli`` (effective E, ν, G of a model), ``bench``
 (speed of the kernels), ``fem`` (the FEM reference of one scene), ``compare`` (one scene on the
-mass-spring system and the FEM, side by side), ``run`` (the publication's studies) and ``study``
+mass-spring system and the FEM, side by side), ``modes`` (a model's natural
+frequencies beside the FEM's), ``run`` (the publication's studies) and ``study``
 (a user's study file).  Their
 implementations are in :mod:`studies.commands`.
 
@@ -27,7 +28,7 @@ import warnings
 from hybmss.experiments import DEFAULTS, SceneSpec, field_default
 from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, parse_mesh
 
-from . import commands, sizing
+from . import commands, modes_command, sizing
 from .executors import EXECUTORS
 from .store import strict
 from .commands import MSS_SOLVERS, SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, flag, model_choices, \
@@ -337,6 +338,25 @@ def build_parser() -> tuple[Parser, Options]:
              help="load steps of the mass-spring static solver: at least N, each at most 1/N of the load "
                   "(integer >= 1; default: adaptive from one step)")
     add_fem_options(q, opts)
+    no_guard(q)
+
+    q = command("modes", "one model's lowest natural frequencies beside the FEM reference's: errors per mode "
+                "and MAC", modes_command.modes)
+    opts.add(q, "scene", nargs="?", choices=SCENES, default=None, help="experiment (or --scene-json)")
+    opts.add(q, "--scene-json", default=None, metavar="FILE",
+             help="the body and supports of a stored Scene (Scene.to_dict JSON) instead of an experiment")
+    add_scene_options(q, opts)
+    add_model_options(q, opts)
+    opts.add(q, "-k", "--modes", dest="k", type=positive_int, default=6,
+             help=f"number of modes (integer in [1, {modes_command.K_MAX}]; default 6)")
+    g = q.add_argument_group("FEM reference")
+    opts.add(g, "--element", "--fem", choices=ELEMENTS, default="auto",
+             help=f"hex1, hex2, mixed (Hex2 x Hex1 u-p, pressure condensed) or auto (mixed for nu >= "
+                  f"{NEARLY_INCOMPRESSIBLE_NU:g}, else hex2; default)")
+    opts.add(g, "--refine", type=positive_int, default=None,
+             help=f"split each cell into r^3 elements (integer >= 1; default {SOLVER_DEFAULTS['refine']})")
+    opts.add(g, "--mass", choices=modes_command.MASSES, default="consistent",
+             help="the FEM's mass matrix: consistent (default) or lumped (row sums)")
     no_guard(q)
 
     q = command("run", "run the publication's studies and store their results", commands.run)
