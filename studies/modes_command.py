@@ -4,8 +4,10 @@ The model's lattice (:func:`hybmss.modes.lattice_modes`: its tangent at rest, lu
 the FEM (:func:`fem_reference.modal.modes`: the element of ``--element``, ``auto`` as in
 ``compare``, consistent or lumped mass) of the same body and supports, k modes each.  The FEM's
 shapes are taken at the lattice particles (nodal values) and each FEM mode is paired with one
-model mode by MAC (:func:`hybmss.modes.match`); the frequency error of a mode is
-``f_model / f_fem − 1`` of the pair (and, apart, of the modes in ascending order).
+of the model's lowest 2k modes by MAC (:func:`hybmss.modes.match`: a lattice with spurious low
+modes, e.g. hourglass-like ones, still finds its counterpart of a FEM mode); the frequency error
+of a mode is ``f_model / f_fem − 1`` of the pair (and, apart, of the k lowest in ascending order).
+The MAC matrix has the FEM's k modes as rows and the model's 2k as columns.
 """
 
 from __future__ import annotations
@@ -83,7 +85,7 @@ def modes(args):
         raise InputError(f"-k = {args.k} is not allowed: this lattice has {n_free} free components; allowed: "
                          f"[1, {n_free - 1}]")
     t0 = time.perf_counter()
-    lm = lattice_modes(scene, args.k, system)
+    lm = lattice_modes(scene, min(2 * args.k, n_free - 1), system)  # spare modes for the pairing
     t1 = time.perf_counter()
     fm = fem_modes(scene, args.k, element, refine, mass=args.mass)
     t2 = time.perf_counter()
@@ -97,7 +99,8 @@ def modes(args):
     out = {"scene": spec.to_dict() if spec is not None else scene.to_dict(), "scene_digest": scene.digest(),
            "model": scene.model.name, "k": args.k,
            "fem": {"element": element, "refine": refine, "mass": args.mass, "freq_hz": fm.freq.tolist()},
-           "model_freq_hz": lm.freq.tolist(), "modes": rows, "mac": m["mac"], "fem_groups": m["groups"],
+           "model_freq_hz": lm.freq[:args.k].tolist(), "model_modes_paired_from": len(lm.freq),
+           "modes": rows, "mac": m["mac"], "fem_groups": m["groups"],
            "about": "small vibrations about the rest state: the plates hold their constrained components at "
                     "rest; gravity, loads and plate motions do not enter",
            "units": {"frequency": "Hz", "relative_error": "fraction f_model / f_fem - 1", "mac": "[0, 1]"},

@@ -32,7 +32,7 @@ def test_corot_hex8_against_fem_hex1_lumped_is_exact(cli_in_process, tmp_path):
     assert p.returncode == 0, p.stderr
     out = _strict(p.stdout)
     assert out["status"] == "ok" and out["model"] == "corot-hex8" and out["fem"]["element"] == "hex1"
-    assert len(out["modes"]) == 5 and len(out["mac"]) == 5
+    assert len(out["modes"]) == 5 and len(out["mac"]) == 5 and len(out["mac"][0]) == 10
     for r in out["modes"]:
         assert abs(r["relative_error"]) < 1e-9 and abs(r["relative_error_by_order"]) < 1e-9
         assert r["mac"] == pytest.approx(1.0, abs=1e-9)
