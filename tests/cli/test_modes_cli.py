@@ -61,3 +61,21 @@ def test_refusals(cli_in_process, tmp_path, argv, fragment):
 
 def test_needs_a_scene(cli_in_process, tmp_path):
     _refused(cli_in_process("modes", "--json", cwd=tmp_path), "modes needs an experiment")
+
+
+def test_scene_json_and_a_free_body(cli_in_process, tmp_path):
+    from hybmss.scene import Body, Material, Model, Plate, Region, Scene
+
+    held = Scene(Body.box(1, 1, 3, 0.5), Material(1e6, 0.3, 500.0), plates=(Plate("clamp", Region("z-")),),
+                 model=Model("hybmss"))
+    free = Scene(Body.box(1, 1, 3, 0.5), Material(1e6, 0.3, 500.0), plates=(), model=Model("hybmss"))
+    for name, sc in (("held.json", held), ("free.json", free)):
+        (tmp_path / name).write_text(json.dumps(sc.to_dict()))
+    p = cli_in_process("modes", "--scene-json", tmp_path / "held.json", "-k", "2", "--json", cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    out = _strict(p.stdout)
+    assert out["scene_digest"] == held.digest() and len(out["model_freq_hz"]) == 2
+    _refused(cli_in_process("modes", "--scene-json", tmp_path / "free.json", "--json", cwd=tmp_path),
+             "rigid-body motion not prevented")
+    _refused(cli_in_process("modes", "bending", "--scene-json", tmp_path / "held.json", "--json", cwd=tmp_path),
+             "--scene-json is not allowed with")
