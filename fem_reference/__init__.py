@@ -11,6 +11,7 @@
   element's pressure eliminated on its Schur complement, or SuperLU) / AMG-preconditioned solves,
   chosen by size and separator;
 - :mod:`~fem_reference.convergence`: refinement studies, observed order, Richardson error;
+- :mod:`~fem_reference.modal`: natural frequencies and mode shapes (consistent or lumped mass);
 - :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``.
 
 The ``hybmss fem`` subcommand (:mod:`studies.cli`) runs it on one scene.
