@@ -16,6 +16,7 @@ from pathlib import Path
 from ..outcomes import expected_not_at_rest, not_at_rest
 from ..runner import no_result_because
 from ..store import Store
+from .keys import close
 from .tasks import is_reference
 
 NO_RESULT_KINDS = ("not-at-rest", "not-converged", "diverged", "unstable", "non-finite", "error",
@@ -28,7 +29,9 @@ def read_expected(t) -> tuple[str, ...]:
     of :data:`NO_RESULT_KINDS`, none by default."""
     value = t.raw("expect_no_result", [])
     if not isinstance(value, list) or not all(isinstance(v, str) and v in NO_RESULT_KINDS for v in value):
-        raise t.error("expect_no_result", value, f"a list of kinds of no result: {', '.join(NO_RESULT_KINDS)}")
+        bad = next((v for v in value if v not in NO_RESULT_KINDS), "") if isinstance(value, list) else value
+        raise t.error("expect_no_result", value, f"a list of kinds of no result: {', '.join(NO_RESULT_KINDS)}"
+                      f"{close(str(bad), NO_RESULT_KINDS)}")
     return tuple(dict.fromkeys(value))
 
 

@@ -84,7 +84,8 @@ def test_a_run_not_at_rest_fails_unless_the_file_expects_it(tmp_path, cli_in_pro
 def test_expect_no_result_is_checked_before_work(tmp_path, cli_in_process):
     f = _study(tmp_path, lambda d: _cut_explicit(d, ["not at rest"]))
     proc = cli_in_process("study", f, "--out", tmp_path / "out", "--no-progress")
-    assert proc.returncode == 2 and "model[1].expect_no_result" in proc.stderr and "not-at-rest" in proc.stderr
+    assert proc.returncode == 2 and "model[1].expect_no_result" in proc.stderr
+    assert "(did you mean not-at-rest?)" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
 
 
