@@ -20,10 +20,11 @@ quantity the reference puts near zero (a plate force in a twist, a volume change
 - a volume change ΔV/V0 on the load's strain scale ``ε_load = max |u_FEM| / L`` (``L`` the body's
   largest bounding-box edge: the volume change of a body of volume V0 strained by ε_load):
   ``volume_<formula>_err = |ΔV − ΔV_FEM| / (V0 ε_load)``;
-- the displacement field on its own magnitude (``u_rel_l2``, ``u_rel_max``), a load-defined scale.
+- the displacement field on its own magnitude (``u_rel_l2``, ``u_rel_max``), a load-defined scale;
+  a named point's displacement on the largest, max |u_FEM|: ``point_<name>_err``.
 
 The relative errors ``|q − q_FEM| / |q_FEM|`` (``force_<s>_rel``, ``torque_<s>_rel``,
-``volume_<formula>_rel``) are published only where the reference's ``q_FEM`` is neither near zero
+``volume_<formula>_rel``, ``point_<name>_rel``) are published only where the reference's ``q_FEM`` is neither near zero
 on its scale (below :data:`NEAR_ZERO` of it) nor below the reference's own error estimate
 (``reference_error_estimate``, relative to the same scales, when the study refines its reference
 "auto"); otherwise they are NaN, and so is ``u_rel_l2`` (the budgets' ranking) when the estimate
@@ -172,7 +173,8 @@ def errors(model: dict, ref: dict, metrics, le: float, supports: dict, radii: di
     info_m, info_f = model["row"].get("info", {}), ref["row"].get("info", {})
     radii = {name: (radii or {}).get(name, le) for name in supports}
     sc = load_scales(info_f, radii, u_f, X)
-    est = float(info_f.get("reference_error_estimate", np.nan) or np.nan)
+    est = info_f.get("reference_error_estimate")
+    est = float(est) if est is not None else float("nan")
     out: dict = {"force_scale_N": sc["force_N"], "strain_scale": sc["strain"], "reference_error_estimate": est}
     for name in metrics.plate_force:
         if name in supports:
@@ -192,7 +194,8 @@ def errors(model: dict, ref: dict, metrics, le: float, supports: dict, radii: di
         i = nearest_node(X, p)
         out[f"point_{name}_u_m"] = float(np.linalg.norm(u_m[i]))
         out[f"point_{name}_fem_u_m"] = float(np.linalg.norm(u_f[i]))
-        out[f"point_{name}_rel"] = relative(u_m[i], u_f[i])
+        out[f"point_{name}_err"] = scaled(u_m[i], u_f[i], sc["u_m"])
+        out[f"point_{name}_rel"] = published_relative(u_m[i], u_f[i], sc["u_m"], est)
     return out
 
 

@@ -73,7 +73,8 @@ def test_a_reference_below_its_own_estimate_ranks_nothing():
     u_m = 1.02 * u_f
 
     class M:
-        plate_force, volume_change, displacement, points = ("top",), True, True, ()
+        plate_force, volume_change, displacement = ("top",), True, True
+        points = (("corner", (1.0, 1.0, 1.0)), ("floor", (1.0, 1.0, 0.0)))
 
     info = {"reaction_top_fx": 0.0, "reaction_top_fy": 0.0, "reaction_top_fz": -10.0}
     info_m = {"reaction_top_fx": 0.0, "reaction_top_fy": 0.0, "reaction_top_fz": -10.2}
@@ -83,6 +84,14 @@ def test_a_reference_below_its_own_estimate_ranks_nothing():
         out = errors(run, ref, M, 1.0, {"top": "translate"}, {"top": 0.5})
         assert np.isclose(out["force_scale_N"], 10.0) and np.isclose(out["force_top_err"], 0.02)
         assert np.isfinite(out["u_rel_l2"]) == ranked and np.isfinite(out["force_top_rel"]) == ranked
+        assert np.isclose(out["point_corner_err"], 0.02) and np.isfinite(out["point_corner_rel"]) == ranked
+    # a point the FEM barely moves (1 % of max |u|) has an error on max |u| and no relative error
+    u_f[6] = [0.0, 0.0, -1e-4]
+    ref = {"arrays": {"X": X, "u": u_f, "cells": cells}, "row": {"info": info}}
+    run = {"arrays": {"X": X, "u": u_f + [0.0, 0.0, -2e-4], "cells": cells}, "row": {"info": info_m}}
+    M.points = (("side", (0.0, 1.0, 1.0)),)
+    out = errors(run, ref, M, 1.0, {"top": "translate"}, {"top": 0.5})
+    assert np.isclose(out["point_side_err"], 2e-4 / 0.01) and np.isnan(out["point_side_rel"])
     assert np.isclose(published_relative([0.2], [0.1], 1.0, 0.0), 1.0)  # 10 % of its scale: not near zero
     assert np.isnan(published_relative([1.2], [1.0], 1.0, 1.5))    # below its own estimate (1.5 x scale)
     assert np.isclose(published_relative([1.2], [1.0], 1.0, 0.5), 0.2)
