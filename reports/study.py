@@ -29,6 +29,7 @@ VIEW_SIZE = (360, 300)
 
 def build_study_report(study, out, pdf: bool = False) -> Path:
     """Write the report of ``study`` from the results folder ``out``; returns the HTML path."""
+    from studies.study.outcome import outcome_line, study_outcome
     from studies.study.tables import loaded_runs
 
     out = Path(out)
@@ -40,7 +41,9 @@ def build_study_report(study, out, pdf: bool = False) -> Path:
     sections = [_case_section(study, case, tables, runs, folder) for case in study.load_cases]
     sections = [s for s in sections if s is not None]
     chart = error_cost_chart(study, tables, folder / "error-cost.png")
-    page = _render(study, sections, chart, tables.get("reference"), len(vtu))
+    outcome = study_outcome(study, out)
+    outcome["line"] = outcome_line(outcome)
+    page = _render(study, sections, chart, tables.get("reference"), len(vtu), outcome)
     path = folder / f"{study.name}.html"
     path.write_text(page)
     if pdf:
@@ -215,14 +218,14 @@ def _html_table(df) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _render(study, sections, chart, reference, n_vtu: int) -> str:
+def _render(study, sections, chart, reference, n_vtu: int, outcome: dict | None = None) -> str:
     import jinja2
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
                              autoescape=jinja2.select_autoescape(["html", "j2"]))
     css = (TEMPLATES / "report.css").read_text()
     return env.get_template("study.html.j2").render(
-        study=study, sections=sections, chart=chart, n_vtu=n_vtu, css=css,
+        study=study, sections=sections, chart=chart, n_vtu=n_vtu, css=css, outcome=outcome,
         reference=None if reference is None or reference.empty else _html_table(reference),
         generated=time.strftime("%Y-%m-%d %H:%M"))
 

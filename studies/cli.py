@@ -19,6 +19,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import logging
 import math
 import os
 import sys
@@ -427,6 +428,30 @@ def stdout_to_stderr(out):
                 os.close(saved)
 
 
+class _Kept(logging.Handler):
+    def __init__(self, records: list):
+        super().__init__(logging.WARNING)
+        self.records = records
+
+    def emit(self, record) -> None:
+        self.records.append(record)
+
+
+@contextlib.contextmanager
+def libraries_logged(records: list):
+    """While a command runs without ``--debug``, the libraries' log records of level WARNING and
+    above (VTK's through pyvista, on a file it cannot read) are kept in ``records`` instead of
+    printed: the command's stderr stays one line.  A root handler of its own also stops
+    ``logging.error`` from installing one that prints."""
+    root = logging.getLogger()
+    handler = _Kept(records)
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+
+
 def _flag_in(argv, name: str) -> bool:
     head = argv[:argv.index("--")] if "--" in argv else argv
     return name in head
@@ -438,15 +463,16 @@ def main(argv=None) -> int:
     as_json, debug = _flag_in(argv, "--json"), _flag_in(argv, "--debug")
     out, err = sys.stdout, sys.stderr
 
-    def fail(status: int, kind: str, message: str) -> int:
+    def fail(status: int, kind: str, message: str, result: dict | None = None) -> int:
         message = _one_line(message)
         err.write(f"hybmss: {kind}: {message}\n")
         if as_json:
             kind_ = {2: "invalid", 3: "failed"}.get(status, "interrupted")
-            out.write(dump({"status": kind_, "message": message}) + "\n")
+            out.write(dump({"status": kind_, "message": message, **(result or {})}) + "\n")
         return status
 
     caught: list = []
+    logged: list = []
     try:
         parser, opts = build_parser()
         args = parser.parse_args(opts.join_values(argv))
@@ -454,7 +480,7 @@ def main(argv=None) -> int:
             if debug:
                 obj, text = args.func(args)
             else:
-                with warnings.catch_warnings(record=True) as caught:
+                with warnings.catch_warnings(record=True) as caught, libraries_logged(logged):
                     warnings.simplefilter("default")
                     obj, text = args.func(args)
     except SystemExit as exc:  # --help
@@ -473,8 +499,9 @@ def main(argv=None) -> int:
         if debug:
             traceback.print_exc()
         msg = str(exc) if isinstance(exc, SolveFailure) else f"{type(exc).__name__}: {exc}"
-        return fail(3, "failed", msg)
-    notes = sorted({_one_line(f"{w.category.__name__}: {w.message}") for w in caught})
+        return fail(3, "failed", msg, getattr(exc, "result", None))
+    notes = sorted({_one_line(f"{w.category.__name__}: {w.message}") for w in caught}
+                   | {_one_line(f"{r.levelname} {r.name}: {r.getMessage()}") for r in logged})
     if as_json:
         obj = {"status": "ok", **obj}
         if notes:

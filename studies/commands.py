@@ -39,7 +39,13 @@ class InputError(ValueError):
 
 
 class SolveFailure(RuntimeError):
-    """A valid simulation that failed (exit status 3); the message says the cause and remedy."""
+    """A valid simulation that failed (exit status 3); the message says the cause and remedy.
+    ``result``: what was done all the same (a study's counts, tables and report), the fields of
+    the ``--json`` object beside ``status`` and ``message``."""
+
+    def __init__(self, message: str, result: dict | None = None):
+        super().__init__(message)
+        self.result = result
 
 
 def model_choices() -> tuple[str, ...]:
@@ -759,22 +765,39 @@ def study(args):
     obj = {"study": spec.name, "title": spec.title, "out": str(out), "quick": args.quick,
            "summary": runner.summary.as_dict(), **done, "report": report, "budget": budget,
            "wall_time_s": time.perf_counter() - t0}
+    if done.get("failed"):
+        first = done["failures"][0]
+        raise SolveFailure(f"{done['failed']} of {done['runs']} runs of study {spec.name} reached no result "
+                           f"(first: {first}); tables{' and report' if report else ''} written in {out}; remedy: "
+                           "change the failing model's solver or load, or list the kind of no result the study "
+                           "expects in that model's expect_no_result (docs/study-format.md)", obj)
     return obj, _study_text(spec, out, runner.summary.line(), budget, report, done)
+
+
+def _budget_line(b: dict) -> str:
+    """One row of a budget table on one line: the fastest model within a budget (or none), a model
+    that meets no budget (its smallest error), a model without result (its reason)."""
+    if b["answer"] == "no result":
+        return f"  {b['load_case']}: {b['method']} no result ({b.get('failure') or 'no run reached one'})"
+    if b["answer"] != "fastest":
+        err = b["error"]
+        best = f"smallest error {err:.3g}" if err is not None else "no error measured"
+        return f"  {b['load_case']}: {b['method']} {b['answer']} ({best})"
+    head = f"  {b['load_case']}: u_rel_l2 <= {b['budget']:g}: "
+    if not b["n_within"]:
+        return head + "no model meets it"
+    head += f"{b['method']} at {b['cell_size_m']:g} m, {b['cost']:.3g} s"
+    if b["runner_up"]:
+        tie = {True: "a tie", False: "not a tie"}.get(b["tie"], "tie undetermined")
+        lead = f"{b['lead']:.2f}x" if b["lead"] is not None else "an unmeasured lead"
+        head += f"; lead {lead} over {b['runner_up']} ({tie})"
+    return head
 
 
 def _study_text(spec, out, line: str, budget: list[dict], report, done: dict) -> str:
     lines = [f"{spec.title}", f"{out}: {line}"]
-    for b in budget:
-        if b["answer"] != "fastest":
-            lines.append(f"  {b['load_case']}: {b['method']} {b['answer']} (smallest error {b['error']:.3g})")
-            continue
-        head = f"  {b['load_case']}: u_rel_l2 <= {b['budget']:g}: {b['method']}"
-        if b["n_within"]:
-            head += f" at {b['cell_size_m']:g} m, {b['cost']:.3g} s"
-        if b["runner_up"]:
-            tie = {True: "a tie", False: "not a tie"}.get(b["tie"], "tie undetermined")
-            head += f"; lead {b['lead']:.2f}x over {b['runner_up']} ({tie})"
-        lines.append(head)
+    lines += [_budget_line(b) for b in budget]
     lines += [f"  failed: {f}" for f in done.get("failures", [])]
+    lines += [f"  no result, as expected: {f}" for f in done.get("expected_no_result", [])]
     lines.append(f"tables: {out}/tables/{spec.name}_*.csv" + (f"; report: {report}" if report else ""))
     return "\n".join(lines)

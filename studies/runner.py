@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 from collections import deque
 from dataclasses import asdict, dataclass, field
 
@@ -30,6 +31,7 @@ from hybmss.scene import nearly_incompressible
 
 from .scenes import BEAM_LENGTH, SceneSpec
 from .executors import EXECUTORS, SweepError, WorkerDied, local_executor
+from .outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
 from .store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
 SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
@@ -255,11 +257,26 @@ def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     row = base_row(task, key)
     t0 = time.perf_counter()
     arrays = None
+    with warnings.catch_warnings(record=True) as caught:  # kept in the row, never printed by a worker
+        warnings.simplefilter("always")
+        row, arrays = _compute(task, row)
+    if caught:
+        row["warnings"] = warning_lines(caught)
+    row["elapsed_s"] = time.perf_counter() - t0
+    return row, arrays
+
+
+def _compute(task: Task, row: dict) -> tuple[dict, dict | None]:
+    arrays = None
     try:
         res = solve(task)
         row.update(measure(task.scene, res))
         row["status"] = "ok" if res.converged else "not-converged"
         row["message"] = str(res.info.get("warning", "") or "")
+        bad = non_finite(res)
+        if bad:
+            row.update(status="non-finite", message=f"non-finite result: {bad}; the scene's numbers (E, loads, "
+                       "sizes) are out of the range double precision resolves: rescale the units or the load")
         from hybmss.lattice import Lattice
 
         arrays = {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
@@ -269,7 +286,6 @@ def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     except Exception as exc:  # noqa: BLE001 - every failure becomes a stored, reported row
         row.update(failure_row(exc))
         row["traceback"] = traceback.format_exc(limit=4)
-    row["elapsed_s"] = time.perf_counter() - t0
     return row, arrays
 
 
@@ -297,20 +313,40 @@ def _expected_cost(task: Task) -> float:
 @dataclass
 class Summary:
     """What a sweep did: runs asked for, computed here, found stored, computed meanwhile by
-    another process, failed (stored with their message), damaged runs moved aside."""
+    another process, damaged runs moved aside; and over every run asked for (computed or stored),
+    ``failed``: the runs without result that were not expected, and ``expected``: the runs without
+    result that were (a run not at rest within its step budget), counted by ``"study: reason"`` in
+    ``expected_by``."""
 
     runs: int = 0
     computed: int = 0
     stored: int = 0
     by_other: int = 0
     failed: int = 0
+    expected: int = 0
     orphans: int = 0
     damaged: list[str] = field(default_factory=list)
+    expected_by: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: "Summary") -> None:
-        for k in ("runs", "computed", "stored", "by_other", "failed", "orphans"):
+        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "orphans"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
         self.damaged += other.damaged
+        for k, n in other.expected_by.items():
+            self.expected_by[k] = self.expected_by.get(k, 0) + n
+
+    def count(self, task, row: dict | None, expected) -> None:
+        """Count one run asked for by its stored ``row``: a result, an expected non-answer
+        (``expected(task, row)``) or a failure."""
+        if no_result_because(row) == "":
+            return
+        if expected(task, row):
+            self.expected += 1
+            why = "not at rest within its step budget" if not_at_rest(row) else no_result_because(row).split(":")[0]
+            where = f"{task.study}, {why}" if task.study else why
+            self.expected_by[where] = self.expected_by.get(where, 0) + 1
+        else:
+            self.failed += 1
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -319,6 +355,9 @@ class Summary:
         out = (f"{self.runs} runs: {self.computed} computed, {self.stored} already stored"
                f"{f', {self.by_other} computed by another process' if self.by_other else ''}, "
                f"{self.failed} failed")
+        if self.expected:
+            parts = "; ".join(f"{k}: {n}" for k, n in sorted(self.expected_by.items()))
+            out += f", {self.expected} without result as expected ({parts})"
         if self.damaged:
             out += f", {len(self.damaged)} damaged (moved to damaged/ and computed again)"
         return out
@@ -328,7 +367,7 @@ class Interrupted(KeyboardInterrupt):
     """A sweep stopped by SIGINT: finished runs are stored, running ones were abandoned."""
 
     def __init__(self, summary: Summary):
-        super().__init__(f"interrupted: {summary.computed} runs computed and stored before the "
+        super().__init__(f"{summary.computed} runs computed and stored before the "
                          "interrupt, running ones abandoned; rerun to resume")
         self.summary = summary
 
@@ -399,10 +438,12 @@ class Runner:
         tqdm.write(msg, file=sys.stderr)
 
     # -------------------------------------------------------------- one sweep
-    def run(self, tasks: list[Task], store: Store, desc: str = "runs") -> list[dict]:
+    def run(self, tasks: list[Task], store: Store, desc: str = "runs", expected=expected_not_at_rest) -> list[dict]:
         """Compute the tasks not yet stored (or stored damaged); return every task's row, in
-        task order.  SIGINT stops at once: runs finished are kept, running ones abandoned, the
-        workers shut down (:class:`Interrupted`); a second SIGINT exits immediately."""
+        task order; every run asked for the first time is counted in :attr:`summary` as a
+        result, an expected non-answer (``expected(task, row)``) or a failure.  SIGINT stops at
+        once: runs finished are kept, running ones abandoned, the workers shut down
+        (:class:`Interrupted`); a second SIGINT exits immediately."""
         from tqdm import tqdm
 
         store.check_writable()
@@ -410,7 +451,8 @@ class Runner:
         unique: dict[str, Task] = {}
         for t, k in zip(tasks, keys):  # two studies may share a run
             unique.setdefault(k, t)
-        s = Summary(runs=len(set(unique) - self._seen), orphans=len(store.remove_orphans()))
+        new = set(unique) - self._seen
+        s = Summary(runs=len(new), orphans=len(store.remove_orphans()))
         todo = []
         for k, t in unique.items():
             if store.has(k):
@@ -465,8 +507,11 @@ class Runner:
         if own:
             self.close()
         bar.close()
+        rows = {k: store.row(k) for k in unique}
+        for k in new:
+            s.count(unique[k], rows[k], expected)
         self.summary.add(s)
-        return [store.row(k) for k in keys]
+        return [rows[k] for k in keys]
 
     def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict) -> None:
         pending = deque(todo)
@@ -510,7 +555,6 @@ class Runner:
                 stored = store.save(k, row, arrays)
                 claims.pop(k).release()
                 s.computed += 1
-                s.failed += stored.get("status") != "ok"
                 bar.set_postfix_str(str(stored.get("label", ""))[:40], refresh=False)
                 bar.update(1)
             elif waiting:
@@ -523,13 +567,13 @@ class Runner:
 
 
 def run_tasks(tasks: list[Task], store: Store, jobs: int | None = None, progress: bool = True,
-              desc: str = "runs", runner: Runner | None = None) -> list[dict]:
+              desc: str = "runs", runner: Runner | None = None, expected=expected_not_at_rest) -> list[dict]:
     """Run the tasks not yet stored; return the rows of all tasks (in task order).  ``runner``
     (a :class:`Runner`) chooses the executor; without one, the local process pool of ``jobs``
     workers."""
     if runner is None:
         runner = Runner(jobs=jobs, progress=progress)
-    return runner.run(tasks, store, desc=desc)
+    return runner.run(tasks, store, desc=desc, expected=expected)
 
 
 def task_dict(task: Task) -> dict:

@@ -9,8 +9,26 @@ that is not one of them.
 
 **Volume change, two formulas, each applied to both fields:** ``volume_avg_edges`` (Σ a·(b×c) of
 the averaged cell edges, the mass-spring systems' formula) and ``volume_detF`` (∫ det F of the
-trilinear interpolation of the nodal positions, 2×2×2 Gauss points per cell).  The relative error
-of a volume change is ``|ΔV_model − ΔV_FEM| / |ΔV_FEM|``.
+trilinear interpolation of the nodal positions, 2×2×2 Gauss points per cell).  
+
+**Every error is measured on a scale the load defines** (:func:`load_scales`), never on a
+quantity the reference puts near zero (a plate force in a twist, a volume change in a shear):
+
+- the reactions on the load's force scale ``F_load = max over supports s of max(|F_s|, |T_s| / R_s)``
+  (the FEM's reactions; ``R_s`` the support's radius, the largest distance of its nodes from their
+  centroid): ``force_<s>_err = |F − F_FEM| / F_load``, ``torque_<s>_err = |T − T_FEM| / (F_load R_s)``;
+- a volume change ΔV/V0 on the load's strain scale ``ε_load = max |u_FEM| / L`` (``L`` the body's
+  largest bounding-box edge: the volume change of a body of volume V0 strained by ε_load):
+  ``volume_<formula>_err = |ΔV − ΔV_FEM| / (V0 ε_load)``;
+- the displacement field on its own magnitude (``u_rel_l2``, ``u_rel_max``), a load-defined scale;
+  a named point's displacement on the largest, max |u_FEM|: ``point_<name>_err``.
+
+The relative errors ``|q − q_FEM| / |q_FEM|`` (``force_<s>_rel``, ``torque_<s>_rel``,
+``volume_<formula>_rel``, ``point_<name>_rel``) are published only where the reference's ``q_FEM`` is neither near zero
+on its scale (below :data:`NEAR_ZERO` of it) nor below the reference's own error estimate
+(``reference_error_estimate``, relative to the same scales, when the study refines its reference
+"auto"); otherwise they are NaN, and so is ``u_rel_l2`` (the budgets' ranking) when the estimate
+reaches the displacement scale itself.
 """
 
 from __future__ import annotations
@@ -18,6 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 GAUSS = 0.5 + np.array([-1.0, 1.0]) / (2.0 * np.sqrt(3.0))
+NEAR_ZERO = 0.05
+"""A reference quantity below this fraction of its load scale is near zero: no relative error."""
 
 
 def match_nodes(X_model: np.ndarray, X_ref: np.ndarray, le: float) -> np.ndarray:
@@ -32,11 +52,68 @@ def match_nodes(X_model: np.ndarray, X_ref: np.ndarray, le: float) -> np.ndarray
     return idx
 
 
+def norm(v) -> float:
+    """The Euclidean norm of ``v``, scaled by its largest entry first (no overflow to inf for
+    entries near the largest double, no underflow to 0 for tiny ones)."""
+    v = np.asarray(v, dtype=float).ravel()
+    top = float(np.max(np.abs(v))) if v.size else 0.0
+    if top == 0.0 or not np.isfinite(top):
+        return top
+    return top * float(np.sqrt(np.sum((v / top) ** 2)))
+
+
 def relative(a, b) -> float:
     """``|a − b| / |b|`` (vectors: norms); NaN when the reference is 0."""
+    return _ratio(difference(a, b), norm(b))
+
+
+def difference(a, b) -> float:
+    """``|a − b|`` (vectors: norm), both scaled by their largest entry first (no overflow)."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    ref = float(np.linalg.norm(b))
-    return float(np.linalg.norm(a - b) / ref) if ref > 0 else float("nan")
+    top = max(float(np.max(np.abs(a), initial=0.0)), float(np.max(np.abs(b), initial=0.0)))
+    if top == 0.0 or not np.isfinite(top):
+        return top
+    return top * norm(a / top - b / top)
+
+
+def _ratio(num: float, den: float) -> float:
+    return float(num / den) if den > 0 and np.isfinite(den) else float("nan")
+
+
+def scaled(a, b, scale: float) -> float:
+    """``|a − b| / scale`` (vectors: norms); NaN without a positive scale."""
+    return _ratio(difference(a, b), scale)
+
+
+def published_relative(a, b, scale: float, estimate: float) -> float:
+    """:func:`relative`, or NaN where the reference ``b`` is near zero on ``scale``
+    (:data:`NEAR_ZERO`) or below its own error estimate (``estimate`` × ``scale``)."""
+    floor = max(NEAR_ZERO, estimate if np.isfinite(estimate) else 0.0) * scale
+    return relative(a, b) if norm(b) >= floor and norm(b) > 0 else float("nan")
+
+
+def support_radius(X: np.ndarray, selected: np.ndarray, le: float) -> float:
+    """The largest distance of a support's nodes ``X[selected]`` from their centroid (``le`` for a
+    single node): the lever arm of its torque."""
+    P = X[selected]
+    if len(P) == 0:
+        return le
+    r = float(np.linalg.norm(P - P.mean(axis=0), axis=1).max())
+    return r if r > 0 else le
+
+
+def load_scales(info_f: dict, radii: dict, u_f: np.ndarray, X: np.ndarray) -> dict:
+    """The load's scales from the reference (module docstring): ``force_N`` (F_load over every
+    support in ``radii``, name → R_s), ``u_m`` (max |u_FEM|) and ``strain`` (ε_load)."""
+    force = 0.0
+    for name, R in radii.items():
+        f = [info_f.get(f"reaction_{name}_f{c}", np.nan) for c in "xyz"]
+        t = [info_f.get(f"reaction_{name}_t{c}", np.nan) for c in "xyz"]
+        for v in (norm(f), norm(t) / R):
+            force = max(force, v) if np.isfinite(v) else force
+    u = float(np.linalg.norm(u_f, axis=1).max()) if len(u_f) else 0.0
+    L = float((X.max(axis=0) - X.min(axis=0)).max()) if len(X) else 0.0
+    return {"force_N": force, "u_m": u, "strain": u / L if L > 0 else float("nan")}
 
 
 def averaged_edge_volumes(P: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -86,37 +163,55 @@ def nearest_node(X: np.ndarray, point) -> int:
     return int(np.argmin(np.linalg.norm(X - np.asarray(point, dtype=float), axis=1)))
 
 
-def errors(model: dict, ref: dict, metrics, le: float, supports: dict) -> dict:
+def errors(model: dict, ref: dict, metrics, le: float, supports: dict, radii: dict | None = None) -> dict:
     """Every named error of one model run (``model``/``ref``: ``row`` and ``arrays``) against
-    the reference; ``supports`` maps support names to their motion kind."""
+    the reference; ``supports`` maps support names to their motion kind, ``radii`` to their radius
+    (m, :func:`support_radius`; ``le`` where not given).  The load's scales (:func:`load_scales`)
+    are columns of their own: ``force_scale_N``, ``strain_scale``."""
     X, u_m, cells = model["arrays"]["X"], model["arrays"]["u"], model["arrays"]["cells"]
     u_f = ref["arrays"]["u"][match_nodes(X, ref["arrays"]["X"], le)]
-    out: dict = {}
     info_m, info_f = model["row"].get("info", {}), ref["row"].get("info", {})
+    radii = {name: (radii or {}).get(name, le) for name in supports}
+    sc = load_scales(info_f, radii, u_f, X)
+    est = info_f.get("reference_error_estimate")
+    est = float(est) if est is not None else float("nan")
+    out: dict = {"force_scale_N": sc["force_N"], "strain_scale": sc["strain"], "reference_error_estimate": est}
     for name in metrics.plate_force:
-        if name not in supports:
-            continue
-        f_m = [info_m.get(f"reaction_{name}_f{c}", np.nan) for c in "xyz"]
-        f_f = [info_f.get(f"reaction_{name}_f{c}", np.nan) for c in "xyz"]
-        out[f"force_{name}_N"], out[f"force_{name}_fem_N"] = _signed_norm(f_m, f_f), _signed_norm(f_f, f_f)
-        out[f"force_{name}_rel"] = relative(f_m, f_f)
-        if supports[name] == "rotate":
-            t_m = [info_m.get(f"reaction_{name}_t{c}", np.nan) for c in "xyz"]
-            t_f = [info_f.get(f"reaction_{name}_t{c}", np.nan) for c in "xyz"]
-            out[f"torque_{name}_rel"] = relative(t_m, t_f)
+        if name in supports:
+            out.update(_reaction_errors(name, supports[name], info_m, info_f, sc["force_N"], radii[name], est))
     if metrics.volume_change:
         vm, vf = volume_changes(X, u_m, cells, le), volume_changes(X, u_f, cells, le)
         for k in vm:
             out[f"{k}"], out[f"{k}_fem"] = vm[k], vf[k]
-            out[f"{k}_rel"] = abs(vm[k] - vf[k]) / abs(vf[k]) if vf[k] != 0 else float("nan")
+            out[f"{k}_err"] = scaled(vm[k], vf[k], sc["strain"])
+            out[f"{k}_rel"] = published_relative(vm[k], vf[k], sc["strain"], est)
         out["volume_fem_own_detF"] = info_f.get("volume_detF", np.nan) / (len(cells) * le ** 3) - 1.0
     if metrics.displacement:
         out.update(field_errors(u_m, u_f))
+        if np.isfinite(est) and est >= 1.0:  # the reference is below its own error estimate
+            out.update(u_rel_l2=float("nan"), u_rel_max=float("nan"))
     for name, p in metrics.points:
         i = nearest_node(X, p)
         out[f"point_{name}_u_m"] = float(np.linalg.norm(u_m[i]))
         out[f"point_{name}_fem_u_m"] = float(np.linalg.norm(u_f[i]))
-        out[f"point_{name}_rel"] = relative(u_m[i], u_f[i])
+        out[f"point_{name}_err"] = scaled(u_m[i], u_f[i], sc["u_m"])
+        out[f"point_{name}_rel"] = published_relative(u_m[i], u_f[i], sc["u_m"], est)
+    return out
+
+
+def _reaction_errors(name: str, kind: str, info_m: dict, info_f: dict, force: float, R: float, est: float) -> dict:
+    """Force (and for a rotate support torque) of support ``name``: the values, the error on the
+    load's scale (``force`` N, ``force`` × ``R`` N m) and the published relative error."""
+    f_m = [info_m.get(f"reaction_{name}_f{c}", np.nan) for c in "xyz"]
+    f_f = [info_f.get(f"reaction_{name}_f{c}", np.nan) for c in "xyz"]
+    out = {f"force_{name}_N": _signed_norm(f_m, f_f), f"force_{name}_fem_N": _signed_norm(f_f, f_f),
+           f"force_{name}_err": scaled(f_m, f_f, force),
+           f"force_{name}_rel": published_relative(f_m, f_f, force, est)}
+    if kind == "rotate":
+        t_m = [info_m.get(f"reaction_{name}_t{c}", np.nan) for c in "xyz"]
+        t_f = [info_f.get(f"reaction_{name}_t{c}", np.nan) for c in "xyz"]
+        out[f"torque_{name}_err"] = scaled(t_m, t_f, force * R)
+        out[f"torque_{name}_rel"] = published_relative(t_m, t_f, force * R, est)
     return out
 
 
@@ -124,4 +219,4 @@ def _signed_norm(v, ref) -> float:
     """|v| with the sign of its component along the reference's largest component."""
     v, ref = np.asarray(v, dtype=float), np.asarray(ref, dtype=float)
     k = int(np.argmax(np.abs(ref)))
-    return float(np.sign(v[k]) * np.linalg.norm(v)) if v[k] != 0 else float(np.linalg.norm(v))
+    return float(np.sign(v[k]) * norm(v)) if v[k] != 0 else float(norm(v))

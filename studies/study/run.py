@@ -8,21 +8,22 @@ from pathlib import Path
 
 from ..runner import Runner, run_tasks
 from ..store import Store
+from .outcome import expectation, study_outcome
 from .tables import study_tables
 
 
 def run_study(study, out, jobs=None, runner: Runner | None = None, progress: bool = True) -> dict:
-    """Compute what is not stored yet, write the tables; returns what the sweep did and the
-    tables' paths."""
+    """Compute what is not stored yet, write the tables; returns the tables' paths and what the
+    runs came to (:func:`studies.study.outcome.study_outcome`: the runs without result that were
+    not expected are ``failed``, each in ``failures``)."""
     store = Store(Path(out))
     store.check_writable()
     tasks = study.tasks()
-    rows = run_tasks(tasks, store, jobs=jobs, progress=progress, desc=study.name, runner=runner)
-    failed = [r for r in rows if r.get("status") not in ("ok", "not-converged")]
+    run_tasks(tasks, store, jobs=jobs, progress=progress, desc=study.name, runner=runner,
+              expected=expectation(study))
     tables = study.tables(out) if study.experiment is None else {}
     paths = {name: str(store.write_table(f"{study.name}_{name}", df)) for name, df in tables.items()}
-    return {"runs": len(tasks), "failed": len(failed), "tables": paths,
-            "failures": [f"{r.get('label')}: {r.get('message')}" for r in failed][:10]}
+    return {**study_outcome(study, out), "tables": paths}
 
 
 __all__ = ["run_study", "study_tables"]

@@ -27,6 +27,7 @@ from hybmss.scene import Load, Material, NU_OPEN_RANGE, Scene, plates_cross
 
 from .body import BodySource, Voxels, cell_sizes, folder_of, read_source
 from .errors import StudyError
+from .outcome import read_expected
 from .keys import Table, close
 from .regions import SupportSpec, TractionSpec, held_modes, read_support, read_traction
 
@@ -59,6 +60,7 @@ class ModelRun:
     steps: int = 10_000
     ramp_time: float = 1.0
     damping: float = 0.0
+    expect_no_result: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -262,8 +264,9 @@ def _read_model(t: Table) -> ModelRun:
         raise t.error("params", params, f"model {name}'s parameters ({' '.join(str(exc).split())})") from None
     label = t.text("label", default=spec.variant(values))
     solver = _read_solver(t, spec)
+    expect = read_expected(t)
     t.done()
-    return ModelRun(name, tuple(sorted(params.items())), label, **solver)
+    return ModelRun(name, tuple(sorted(params.items())), label, **solver, expect_no_result=expect)
 
 
 def _read_solver(t: Table, spec) -> dict:

@@ -19,7 +19,7 @@ import pandas as pd
 from .. import cost
 from ..runner import no_result_because
 from ..store import Store
-from .metrics import errors
+from .metrics import errors, support_radius
 from .tasks import is_reference
 
 BUDGET_ERROR = "u_rel_l2"
@@ -58,8 +58,10 @@ def error_rows(study, runs: list[dict]) -> list[dict]:
                "status": (r["row"] or {}).get("status", "missing"), "message": (r["row"] or {}).get("message", "")}
         ref = refs[_config(task)]
         if r["arrays"] is not None and ref["arrays"] is not None:
-            supports = {p.name: p.motion.kind for p in s.build().plates}
-            row.update(errors(r, ref, study.metrics, s.cell_size, supports))
+            plates, X = s.build().plates, r["arrays"]["X"]
+            supports = {p.name: p.motion.kind for p in plates}
+            radii = {p.name: support_radius(X, p.region.select(X, s.build().body), s.cell_size) for p in plates}
+            row.update(errors(r, ref, study.metrics, s.cell_size, supports, radii))
         row.update(_cost(task, r["row"] or {}))
         row["failure"] = no_result_because(r["row"])
         if row["failure"]:  # the wall time of a run that reached no result is no cost of a result

@@ -99,21 +99,18 @@ def _timed(scene: Scene, solver: SolverSpec, repeats: int):
 
 
 def _auto_reference(scene: Scene, solver: SolverSpec, largest: int, target: float):
-    """Refine (1, 2, ... ``largest``) until the Richardson estimate of the reference's own
-    relative error (largest over max |u| and the plates' forces, expected order of the element)
-    is below ``target``; the result of the last refinement, with the estimate in its ``info``."""
+    """Refine (1, 2, ... ``largest``) until the Richardson estimate of the reference's own error
+    (expected order of the element; max |u| on itself, the plates' forces and torques on the load's
+    force scale, :func:`reference_estimate`) is below ``target``; the result of the last
+    refinement, with the estimate in its ``info``."""
     from dataclasses import replace
-
-    from fem_reference.convergence import EXPECTED_ORDER, analyze
 
     results, estimate = [], float("nan")
     for r in range(1, largest + 1):
         results.append(solve_scene(scene, replace(solver, refine=r)))
         if len(results) < 2:
             continue
-        order = EXPECTED_ORDER[results[-1].info["element"]]
-        estimate = max(analyze([r - 1, r], [q(x) for x in results[-2:]], order).relative_error_finest
-                       for q in _outputs(scene))
+        estimate = reference_estimate(scene, results[-2:], [r - 1, r])
         if estimate <= target:
             break
     res = results[-1]
@@ -122,11 +119,33 @@ def _auto_reference(scene: Scene, solver: SolverSpec, largest: int, target: floa
     return res
 
 
-def _outputs(scene: Scene):
-    outs = [lambda r: r.max_displacement]
-    for p in scene.plates:
-        outs.append(lambda r, n=p.name: float(sum(f * f for f in r.reactions[n].force)) ** 0.5)
-    return outs
+def reference_estimate(scene: Scene, results, refinements) -> float:
+    """The largest Richardson error estimate of the finest of ``results`` (``fem_reference.
+    convergence.analyze``) over max |u|, on its extrapolated value, and each plate's force and torque norms, on
+    the load's force scale ``F_load`` and ``F_load R_s`` (:func:`studies.study.metrics.load_scales`
+    and ``support_radius``): a reaction the load puts near zero is not measured on itself."""
+    import numpy as np
+
+    from fem_reference.convergence import EXPECTED_ORDER, analyze
+    from hybmss.lattice import Lattice
+
+    from .metrics import norm, support_radius
+
+    order = EXPECTED_ORDER[results[-1].info["element"]]
+    X = Lattice.from_body(scene.body).X
+    radii = {p.name: support_radius(X, p.region.select(X, scene.body), scene.body.le) for p in scene.plates}
+    last = results[-1].reactions
+    force = max([0.0] + [max(norm(last[n].force), norm(last[n].torque) / R) for n, R in radii.items()])
+
+    def err(q) -> float:
+        return analyze(refinements, [q(x) for x in results], order).error_finest
+
+    out = [analyze(refinements, [x.max_displacement for x in results], order).relative_error_finest]
+    for name, R in radii.items():
+        if force > 0:
+            out.append(err(lambda x, n=name: norm(x.reactions[n].force)) / force)
+            out.append(err(lambda x, n=name: norm(x.reactions[n].torque)) / (force * R))
+    return float(max(out)) if np.isfinite(out).all() else float("inf")
 
 
 # ---------------------------------------------------------------------------- the task list
