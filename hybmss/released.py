@@ -107,13 +107,13 @@ def released_transient(scene: Scene, model, dt: float, t_end: float, point, *, r
     loaded = with_model(scene, model)
     if not loaded.has_gravity and not loaded.loads and start is None:
         raise ValueError("the scene has no load (gravity or surface load) to release")
-    x_s = static_state(loaded) if start is None else np.asarray(start, dtype=float)
     system = build(released_scene(loaded, damping))
     st = _stepper(system, dt, kernel, precision)
     nodes = st.node_system() if hasattr(st, "node_system") else system
     if nodes.n != system.n:
         raise ValueError(f"model {loaded.model.name}: its nodes are not the lattice particles ({nodes.n} nodes, "
                          f"{system.n} particles); a released state on its own nodes is not available")
+    x_s = static_state(loaded) if start is None else np.asarray(start, dtype=float)
     x, v = initial_state(nodes, x_s, None, 0.0)
     st.load(x, v)
     if hasattr(st, "advance"):
