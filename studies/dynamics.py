@@ -12,7 +12,9 @@ component along which the reference moves most):
 - **damping ratio** ``ζ`` by the logarithmic decrement: the peak ``|x − x̄|`` of every half cycle
   between two crossings (a parabola through the largest sample and its neighbours), ``ln A_k``
   fitted linearly in ``t_k``: slope ``−σ``, decrement per period ``δ = σ T``, and
-  ``ζ = δ / √(4π² + δ²)`` (exact for a damped sinusoid);
+  ``ζ = δ / √(4π² + δ²)`` (exact for a damped sinusoid).  It is the decay of that component: energy
+  passed to another mode (e.g. the other bending plane of a mesh whose tetrahedral split couples
+  the two) counts as damping here;
 - **phase error after N periods**: ``2π (t_m − t_r) / T_r`` between the crossings of index
   ``2N − 1`` of the model and the reference (each fitted line's value there), radians;
 - **L2 trajectory error**: ``√(∫ |u_m − u_r|² dt / t_span) / max |u_r|``, the model interpolated at
