@@ -36,6 +36,16 @@ def tet_volumes(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) / 6.0
 
 
+def positive(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """The tetrahedra ``tets`` with the vertices of each ordered to a positive signed volume
+    (:func:`tet_volumes`) at the reference positions ``X`` (the last two swapped where it is
+    negative): the orientation the readouts' volume and inverted count take."""
+    tets = np.array(tets, dtype=np.int64)
+    neg = tet_volumes(X, tets) < 0.0
+    tets[neg] = tets[neg][:, [0, 1, 3, 2]]
+    return tets
+
+
 @dataclasses.dataclass
 class Nodes:
     """The engine's nodes: reference positions (N, 3), masses (N,), the vertex of each lattice
