@@ -43,8 +43,9 @@ class SolveFailure(RuntimeError):
 
 
 def model_choices() -> tuple[str, ...]:
-    """The mass-spring models a user can pick (the registry's)."""
-    return tuple(models.names())
+    """The models a user can name (the registry's, and those it lists as unavailable: naming one is
+    refused with the reason and the install command)."""
+    return tuple(models.names()) + tuple(models.unavailable())
 
 
 def model_parameters() -> dict[str, tuple[dataclasses.Field, tuple[str, ...]]]:

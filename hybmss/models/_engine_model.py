@@ -16,12 +16,17 @@ state after each step (no engine here has a kinematic plate that follows the sce
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
 import importlib.util
 import math
-import warnings
+import re
 
 from ..solve.errors import StaticSolveError
 from .base import ModelBase, NoParameters
+
+INSTALL = "pip install 'hybmss[engines]'"
+"""The command that installs every engine with the versions the engine models were measured on."""
+
 
 def installed(*packages: str) -> bool:
     """Whether every one of ``packages`` is installed (found, not imported)."""
@@ -31,14 +36,65 @@ def installed(*packages: str) -> bool:
         return False
 
 
-def models_if_installed(module: str, packages: tuple[str, ...], make, missing: str) -> tuple:
-    """``make()`` (the models of an engine folder) when every one of ``packages`` is installed;
-    else ``()`` and one warning line ``missing`` (no source line under it): the models are left
-    out and nothing else changes."""
-    if installed(*packages):
-        return tuple(make())
-    warnings.warn_explicit(missing, RuntimeWarning, module, 0, module=module)
-    return ()
+def _release(version: str) -> tuple[int, ...]:
+    """The release numbers of a version string (``"1.19.0rc1"`` → ``(1, 19, 0)``)."""
+    out = []
+    for part in version.split("."):
+        digits = re.match(r"\d*", part).group()
+        if not digits:
+            break
+        out.append(int(digits))
+        if len(digits) < len(part):
+            break
+    return tuple(out)
+
+
+def in_range(version: str, spec: str) -> bool:
+    """Whether ``version`` satisfies ``spec``, clauses ``>=A`` and ``<B`` joined by commas (the
+    forms the engines' requirements use), compared on release numbers (padded with zeros)."""
+    v = _release(version)
+    for clause in filter(None, (c.strip() for c in spec.split(","))):
+        op, bound = (clause[:2], clause[2:]) if clause.startswith(">=") else (clause[:1], clause[1:])
+        b = _release(bound)
+        n = max(len(v), len(b))
+        a, b = v + (0,) * (n - len(v)), b + (0,) * (n - len(b))
+        if (op == ">=" and a < b) or (op == "<" and a >= b) or op not in (">=", "<"):
+            return False
+    return True
+
+
+def missing_engine(requires: tuple[tuple[str, str, str], ...]) -> str | None:
+    """Why an engine's models cannot run, or None: a package of ``requires`` ((module,
+    distribution, version range), e.g. ``("warp", "warp-lang", ">=1.19,<1.20")``) that is not
+    installed, or installed at a version outside the range the models' laws were read and
+    measured at; the reason ends with the install command."""
+    for module, dist, spec in requires:
+        pin = f"'{dist}{spec}'"
+        if not installed(module):
+            return f"the {dist} package is not installed; {INSTALL} (or pip install {pin})"
+        try:
+            version = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            return f"the {dist} package has no version metadata (expected {spec}); {INSTALL} (or pip install {pin})"
+        if not in_range(version, spec):
+            return (f"{dist} {version} is installed, the models' laws were read and measured at {dist}{spec}; "
+                    f"{INSTALL} (or pip install {pin})")
+    return None
+
+
+def engine_models(requires: tuple[tuple[str, str, str], ...], models: tuple) -> tuple[tuple, dict[str, str]]:
+    """``(MODELS, UNAVAILABLE)`` of an engine folder: its ``models`` when :func:`missing_engine`
+    finds nothing, else none and each model's name with the reason (the registry lists them as
+    unavailable and refuses them with it).  Nothing is imported."""
+    reason = missing_engine(requires)
+    if reason is None:
+        return tuple(models), {}
+    return (), {m.name: reason for m in models}
+
+
+def requirement_lines(requires: tuple[tuple[str, str, str], ...]) -> tuple[str, ...]:
+    """The pip requirements (``dist`` + range) of ``requires``: the ``engines`` extra's lines."""
+    return tuple(dist + spec for _, dist, spec in requires)
 
 
 class SceneNotRepresentable(ValueError, StaticSolveError):

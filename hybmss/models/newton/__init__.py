@@ -60,7 +60,7 @@ forces (:func:`hybmss.models.newton.engine.xpbd_constraint_forces`) on one cell,
 from __future__ import annotations
 
 
-from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
+from .._engine_model import EngineModel, SceneNotRepresentable, engine_models
 from ..base import Style
 
 STATIC_REST_RTOL = 1e-3
@@ -133,6 +133,8 @@ class NewtonSemi(NewtonModel):
     order = 45
 
 
-MODELS = models_if_installed(__name__, ('newton', 'warp'), lambda: (NewtonSemi(), NewtonVBD(), NewtonXPBD()),
-                             "the newton package (or warp-lang) is not installed: the newton-* models are left out "
-                             "(pip install 'newton>=1.8')")
+REQUIRES = (("newton", "newton", ">=1.8,<1.9"), ("warp", "warp-lang", ">=1.19,<2"))
+"""The engine and the versions its laws were read and measured at: the engine imports Newton's
+private kernels (``newton._src.solvers``), which may change in any minor version."""
+
+MODELS, UNAVAILABLE = engine_models(REQUIRES, (NewtonSemi(), NewtonVBD(), NewtonXPBD()))

@@ -35,7 +35,7 @@ Refused before any work: surface loads, ν outside [0, 0.49], two threads, float
 from __future__ import annotations
 
 
-from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
+from .._engine_model import EngineModel, SceneNotRepresentable, engine_models
 from ..base import Style
 
 NU_MAX = 0.49
@@ -84,6 +84,8 @@ class PbdXpbdFem(PbdModel):
     order = 46
 
 
-MODELS = models_if_installed(__name__, ('pypbd',), lambda: (PbdXpbdFem(),),
-                             "the pypbd package is not installed: the pbd-* models are left out "
-                             "(pip install 'pypbd>=2.2')")
+REQUIRES = (("pypbd", "pypbd", ">=2.2,<2.3"),)
+"""The library and the versions its constraint's law (and :func:`hybmss.models.pbd.engine.svk_forces`,
+its formulas re-implemented) were read and measured at."""
+
+MODELS, UNAVAILABLE = engine_models(REQUIRES, (PbdXpbdFem(),))
