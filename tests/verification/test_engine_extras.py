@@ -102,3 +102,15 @@ def test_missing_engine_in_a_study_file(tmp_path):
              "try:\n    spec._read_model(t)\nexcept Exception as e:\n    print(type(e).__name__, e)\n")
     assert p.returncode == 0, p.stderr
     assert "models[0].name" in p.stdout and "mujoco-tet is unavailable" in p.stdout and "hybmss[engines]" in p.stdout
+
+
+def test_pbd_forces_said_to_be_the_harness_s():
+    """pbd-xpbd-fem's forces are svk_forces, the harness's re-implementation: its label and
+    docstring, and the report's engines section, say so."""
+    pbd = pytest.importorskip("hybmss.models.pbd")
+    from reports.engines import findings
+
+    assert "re-implemented" in pbd.PbdXpbdFem.label
+    assert "svk_forces" in pbd.PbdXpbdFem.__doc__ and "re-implementation" in pbd.__doc__
+    text = findings(None, None)
+    assert "pbd-xpbd-fem's forces" in text and "re-implementation" in text and "svk_forces" in text

@@ -2,7 +2,11 @@
 ``pbd-xpbd-fem`` (its XPBD FEM tetrahedron constraint, ``solidSimulationMethod`` 3).
 
 The engine runs its own code from its own package (``pypbd`` ≥ 2.2, imported only when the model
-runs: :mod:`hybmss.models.pbd.engine`, which also says how a scene becomes a PBD model).  The
+runs: :mod:`hybmss.models.pbd.engine`, which also says how a scene becomes a PBD model): its step
+moves the nodes.  Its forces are not the engine's: the bindings expose no force nor constraint
+multiplier, so the forces the harness reads (plate reactions, the rest test's residual, the
+stiffness of the static step) are its re-implementation of the library's formulas
+(:func:`hybmss.models.pbd.engine.svk_forces`, checked against one projection of the engine).  The
 wheel declares ``pygame`` and ``pyopengl`` (its demos' GUI) as requirements; the bindings import
 neither and run headless.
 
@@ -77,9 +81,11 @@ class PbdModel(EngineModel):
 
 
 class PbdXpbdFem(PbdModel):
+    """The library's XPBD FEM step; its forces are the harness's re-implementation (``svk_forces``)."""
+
     name = "pbd-xpbd-fem"
     method = "xpbd-fem"
-    label = "PositionBasedDynamics (pypbd) XPBD FEM tetrahedra, St Venant-Kirchhoff"
+    label = "PositionBasedDynamics (pypbd) XPBD FEM tetrahedra, St Venant-Kirchhoff (forces re-implemented)"
     style = Style("#e377c2", "P", "-.")
     order = 46
 
