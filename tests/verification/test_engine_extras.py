@@ -114,3 +114,49 @@ def test_pbd_forces_said_to_be_the_harness_s():
     assert "svk_forces" in pbd.PbdXpbdFem.__doc__ and "re-implementation" in pbd.__doc__
     text = findings(None, None)
     assert "pbd-xpbd-fem's forces" in text and "re-implementation" in text and "svk_forces" in text
+
+
+# ---------------------------------------------------------------------------- the law check per engine version
+def test_law_check_measured_once_per_version(tmp_path, monkeypatch):
+    """mujoco-trilinear's law check (its own forces on one cell against (λ + 2μ) ε and μ γ) runs
+    once per installed version: cached under the version's key, measured again for another."""
+    pytest.importorskip("mujoco")
+    from hybmss import models
+
+    cache = tmp_path / "laws.json"
+    monkeypatch.setenv("HYBMSS_ENGINE_CACHE", str(cache))
+    model = models.get("mujoco-trilinear")
+    calls = []
+    real = type(model).law_errors
+    monkeypatch.setattr(type(model), "law_errors", lambda self: calls.append(1) or real(self))
+    model.check_law()
+    model.check_law()
+    assert len(calls) == 1
+    key = f"mujoco-trilinear | mujoco {importlib.metadata.version('mujoco')}"
+    import json
+
+    stored = json.loads(cache.read_text())[key]
+    assert stored["uniaxial"] < 1e-9 and stored["shear"] < 1e-5  # corotational linear: exact at small strain
+    version = importlib.metadata.version
+    monkeypatch.setattr(importlib.metadata, "version", lambda d: "4.0.99" if d == "mujoco" else version(d))
+    model.check_law()
+    assert len(calls) == 2 and "mujoco-trilinear | mujoco 4.0.99" in json.loads(cache.read_text())
+
+
+def test_changed_law_makes_the_model_unavailable(tmp_path, monkeypatch):
+    """newton-semi with the builder's Lamé parameters taken as they are (k_mu = μ, k_lambda = λ,
+    the law its docstring derives against: μ 25 % low): the law check finds the shear stress 25 %
+    off, and a run is refused (a ValueError: exit 2) naming the version and the install command."""
+    pytest.importorskip("newton")
+    from hybmss import Material, Model
+    from hybmss.models import _engine_model as em
+    from hybmss.models.newton import engine
+    from hybmss.moduli import measure_moduli
+
+    monkeypatch.setenv("HYBMSS_ENGINE_CACHE", str(tmp_path / "laws.json"))
+    monkeypatch.setattr(engine, "lame", lambda m: (float(m.G), float(m.lam)))
+    with pytest.raises(ValueError, match="newton-semi is unavailable") as e:
+        measure_moduli(Model("newton-semi"), Material(1e4, 0.3, 1000.0), strain=3e-3)
+    assert isinstance(e.value, em.EngineUnavailable)
+    assert "the shear stress 25 % off" in str(e.value) and "newton 1.8" in str(e.value)
+    assert "pip install 'hybmss[engines]'" in str(e.value)

@@ -53,9 +53,15 @@ def _engine():
     return engine
 
 
+REQUIRES = (("mujoco", "mujoco", ">=4.0,<4.1"),)
+"""The engine and the versions its laws were read and measured at (module docstring): MuJoCo
+changes its flex elements between minor versions (``flex_stiffness``, the interpolated kinds)."""
+
+
 class MujocoModel(EngineModel):
     """A MuJoCo flex of one element kind (module docstring)."""
 
+    requires = REQUIRES
     kind: str = "tet"
     engine = "MuJoCo"
     precisions = ("f64",)
@@ -97,9 +103,5 @@ class MujocoQuadratic(MujocoModel):
     style = Style("#8c564b", "D", "--")
     order = 42
 
-
-REQUIRES = (("mujoco", "mujoco", ">=4.0,<4.1"),)
-"""The engine and the versions its laws were read and measured at (module docstring): MuJoCo
-changes its flex elements between minor versions (``flex_stiffness``, the interpolated kinds)."""
 
 MODELS, UNAVAILABLE = engine_models(REQUIRES, (MujocoTet(), MujocoTrilinear(), MujocoQuadratic()))

@@ -77,9 +77,15 @@ def _engine():
     return engine
 
 
+REQUIRES = (("newton", "newton", ">=1.8,<1.9"), ("warp", "warp-lang", ">=1.19,<2"))
+"""The engine and the versions its laws were read and measured at: the engine imports Newton's
+private kernels (``newton._src.solvers``), which may change in any minor version."""
+
+
 class NewtonModel(EngineModel):
     """Newton's tetrahedra with one of its solvers (module docstring)."""
 
+    requires = REQUIRES
     solver: str = "semi"
     engine = "Newton"
     precisions = ("f32",)
@@ -133,9 +139,5 @@ class NewtonSemi(NewtonModel):
     style = Style("#76b900", "^", "--")
     order = 45
 
-
-REQUIRES = (("newton", "newton", ">=1.8,<1.9"), ("warp", "warp-lang", ">=1.19,<2"))
-"""The engine and the versions its laws were read and measured at: the engine imports Newton's
-private kernels (``newton._src.solvers``), which may change in any minor version."""
 
 MODELS, UNAVAILABLE = engine_models(REQUIRES, (NewtonSemi(), NewtonVBD(), NewtonXPBD()))

@@ -60,9 +60,16 @@ def _engine():
     return engine
 
 
+REQUIRES = (("pypbd", "pypbd", ">=2.2,<2.3"),)
+"""The library and the versions its constraint's law (and :func:`hybmss.models.pbd.engine.svk_forces`,
+its formulas re-implemented) were read and measured at."""
+
+
 class PbdModel(EngineModel):
     """The library's tetrahedra with one of its solid methods (module docstring)."""
 
+    requires = REQUIRES
+    law_checked = False  # its forces are the harness's svk_forces: a law check would measure the harness
     method: str = "xpbd-fem"
     engine = "PositionBasedDynamics"
     precisions = ("f64",)
@@ -89,9 +96,5 @@ class PbdXpbdFem(PbdModel):
     style = Style("#e377c2", "P", "-.")
     order = 46
 
-
-REQUIRES = (("pypbd", "pypbd", ">=2.2,<2.3"),)
-"""The library and the versions its constraint's law (and :func:`hybmss.models.pbd.engine.svk_forces`,
-its formulas re-implemented) were read and measured at."""
 
 MODELS, UNAVAILABLE = engine_models(REQUIRES, (PbdXpbdFem(),))
