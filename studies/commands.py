@@ -223,7 +223,9 @@ def moduli(args):
         f"  E_eff  = {m['E_eff']:.6g} Pa   (input {mat.E:g}, rel. error {m['E_eff'] / mat.E - 1:+.2e})",
         f"  nu_eff = {m['nu_eff']:.6g}      (input {mat.nu:g}, error {m['nu_eff'] - mat.nu:+.2e})",
         f"  G_eff  = {m['G_eff']:.6g} Pa   (E/(2(1+nu)) = {G:.6g}, rel. error {m['G_eff'] / G - 1:+.2e})",
-    ])
+    ] + ([f"  float32 equilibrium error: E_eff +/-{m['equilibrium_error']['E_eff']:.2e}, nu_eff "
+          f"+/-{m['equilibrium_error']['nu_eff']:.2e}, G_eff +/-{m['equilibrium_error']['G_eff']:.2e} (resolved from "
+          f"strain {m['resolvable_strain']:.2g} on)"] if "equilibrium_error" in m else []))
     return {**model.to_dict(), "model": model.name, "variant": model.variant, "E": mat.E, "nu": mat.nu, **m}, table
 
 

@@ -93,7 +93,7 @@ def test_missing_engine_compare_exits_2_with_install_command():
     assert "['mujoco-quadratic', 'mujoco-tet', 'mujoco-trilinear'] False" in p.stdout
 
 
-def test_missing_engine_in_a_study_file(tmp_path):
+def test_missing_engine_in_a_study_file():
     """A study file naming a model whose engine is missing is refused at its dotted key with the
     reason (the study spec's reader)."""
     p = _run("from studies.study import spec\nfrom studies.study.keys import Table\n"

@@ -105,8 +105,12 @@ def test_resolved_moduli_at_3e_3():
 
 
 def test_command_refuses_an_unresolved_strain(capsys):
+    """Strain 3e-6: exit 3, one line naming the smallest strain; 3e-3: the answer with its
+    float32 equilibrium error."""
     from studies.cli import main
 
     assert main(["moduli", "--model", "newton-semi", "--nu", "0.45", "--strain", "3e-6"]) == 3
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "float32" in err[0] and "smallest strain it resolves is" in err[0]
+    assert main(["moduli", "--model", "newton-semi", "--nu", "0.45", "--strain", "3e-3"]) == 0
+    assert "float32 equilibrium error: E_eff +/-" in capsys.readouterr().out
