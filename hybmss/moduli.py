@@ -24,6 +24,12 @@ three states must be near an equilibrium (the largest net force on a free partic
 :data:`EQUILIBRIUM_TOL` of the largest plate force: a relaxation that stopped where it started is
 not one), and the moduli must lie within the bounds of a stable isotropic solid (E > 0, G > 0,
 −1 < ν < ½).
+
+A float32 engine's states (a ``resolution_N`` in their rest report) are equilibria only to their
+free-force residual r: the answer carries ``equilibrium_error`` (:func:`float32_errors`: what the
+residuals and the positions' rounding leave uncertain in E_eff, ν_eff, G_eff) and
+``resolvable_strain`` (the smallest strain at which that is within :data:`PRECISION`, the errors
+scaling as 1/ε); with ``judge=True`` an answer outside it is refused with that strain.
 """
 
 from __future__ import annotations
@@ -51,6 +57,11 @@ modulus is read from.  Measured: Newton's equilibria 1e-10 and less; xpbd-nh's r
 are equilibria of its energy only to O((h ω)²) for a substep h, 8e-4 (10 substeps, h ω_max = 0.1),
 9e-3 (3) and 0.29 (1 substep, h ω_max = 1: the shear test); a relaxation that never moved
 (``substeps = 1e12``: a substep of 1e-13 s projects nothing) 0.99999."""
+
+
+PRECISION = 1e-3
+"""Largest equilibrium error of a float32 engine's moduli answer (relative in E and G, absolute in
+ν) that ``judge=True`` accepts: the precision the moduli are compared at."""
 
 
 class MeasurementError(RuntimeError):
@@ -110,7 +121,49 @@ def _uniaxial(scene: Scene, judge: bool = False):
     xm = np.isclose(X[:, 0], 0.0)
     xp = np.isclose(X[:, 0], n * le)
     lateral = (u[xp, 0].mean() - u[xm, 0].mean()) / (n * le)
-    return r.reactions["top"].force[2], lateral
+    return r.reactions["top"].force[2], lateral, r
+
+
+def float32_errors(material: Material, strain: float, uniaxial: tuple, shear, H: float, V: float) -> dict | None:
+    """The equilibrium error of a moduli answer read from float32 states (None when no state has a
+    ``resolution_N``: a float64 model).  With r₁, r₂ the free-force residuals (N) of the two
+    uniaxial states and r_s the shear state's, A = H²:
+
+    - E_eff = (4F₁ − F₂)/(2εA): an unbalanced free force r may end on either plate, so
+      ``δE/E = (4r₁ + r₂)/(2εAE)``;
+    - ν_eff from the faces' mean lateral displacements, each position rounded to
+      ``ulp(|X|max)/2``: ``δν = 5 ulp/(2εH)``;
+    - G_eff = σ̄_xz/γ, σ̄ = (1/V) Σ R ⊗ x over the held nodes: a residual r_s over the height H,
+      ``δG/G = r_s H/(VγG)``.
+
+    Returns ``{"equilibrium_error": {...}, "resolvable_strain": ε · max(errors)/PRECISION,
+    "resolved": max(errors) <= PRECISION}``."""
+    rests = [r.info.get("rest") or {} for r in (*uniaxial, shear)]
+    if not any(float(rr.get("resolution_N", 0.0)) > 0.0 for rr in rests):
+        return None
+    r1, r2, rs = (float(rr["residual_N"]) for rr in rests)
+    ulp = float(np.spacing(np.float32(np.abs(uniaxial[0].X).max())))
+    err = {"E_eff": (4.0 * r1 + r2) / (2.0 * strain * H * H * material.E),
+           "nu_eff": 5.0 * ulp / (2.0 * strain * H),
+           "G_eff": rs * H / (V * strain * material.G)}
+    worst = max(err.values())
+    return {"equilibrium_error": err, "residuals_N": [r1, r2, rs], "resolvable_strain": strain * worst / PRECISION,
+            "resolved": bool(worst <= PRECISION)}
+
+
+def _unresolved(variant: str, strain: float, f32: dict) -> MeasurementError:
+    """The refusal of a float32 answer whose equilibrium error exceeds :data:`PRECISION`."""
+    e, lo_hi = f32["equilibrium_error"], STRAIN_RANGE
+    need = f32["resolvable_strain"]
+    step = 10.0 ** (math.floor(math.log10(need)) - 1)
+    need = math.ceil(need / step) * step  # two digits, rounded up
+    where = (f"the smallest strain it resolves is {need:.2g}: use --strain {need:.2g} or larger" if need <= lo_hi[1]
+             else f"it would need strain {need:.2g}, above the allowed {lo_hi[1]:g}")
+    return MeasurementError(
+        f"{variant}'s float32 states resolve the moduli at strain {strain:g} only to E_eff +/-{100 * e['E_eff']:.2g} %, "
+        f"nu_eff +/-{e['nu_eff']:.2g}, G_eff +/-{100 * e['G_eff']:.2g} % (free-force residuals "
+        f"{', '.join(f'{r:.2g}' for r in f32['residuals_N'])} N), more than the {PRECISION:g} a modulus is judged "
+        f"at; {where}")
 
 
 def shear_stress_from_reactions(scene: Scene, result) -> float:
@@ -139,8 +192,8 @@ def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: in
     H = n * le
     A = H * H
     base = uniaxial_scene(model, material, strain, n, le)
-    F1, lat1 = _uniaxial(base, judge)
-    F2, lat2 = _uniaxial(uniaxial_scene(model, material, 2.0 * strain, n, le), judge)
+    F1, lat1, u1 = _uniaxial(base, judge)
+    F2, lat2, u2 = _uniaxial(uniaxial_scene(model, material, 2.0 * strain, n, le), judge)
     E_eff = (4.0 * F1 - F2) / (2.0 * strain * A)
     nu_eff = -(4.0 * lat1 - lat2) / (2.0 * strain)
     shear = shear_scene(model, material, strain, 3, le)
@@ -154,4 +207,9 @@ def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: in
         W = sh.energy.get("springs", 0.0) + sh.energy.get("volume", 0.0)
         G_eff = 2.0 * W / (strain**2 * sh.volume0)
     m = {"E_eff": float(E_eff), "nu_eff": float(nu_eff), "G_eff": float(G_eff)}
+    f32 = float32_errors(material, strain, (u1, u2), sh, H, shear.body.volume)
+    if f32 is not None:
+        m.update(f32)
+        if judge and not f32["resolved"]:
+            raise _unresolved(model.variant, strain, f32)
     return check_moduli(m, model.variant) if judge else m

@@ -117,7 +117,9 @@ def findings(closing: pd.DataFrame | None, timing: pd.DataFrame | None) -> str:
            "ignore it): Newton's builder Lamé parameters are not SolverSemiImplicit's (μ 25 % low as "
            "documented); SolverXPBD has no small-strain shear stiffness; pypbd's FEM constraint silently does "
            "nothing for ν < 0 or ν > 0.49 and below an absolute threshold of 1e-6; MuJoCo refuses joint "
-           "damping on a flex; SolverVBD cannot hold a sliding plate.",
+           "damping on a flex; SolverVBD cannot hold a sliding plate. pbd-xpbd-fem's forces (its plate "
+           "reactions, its rest test) are the harness's re-implementation of the library's formulas (svk_forces, "
+           "checked against one projection of the engine), not the engine's: its bindings expose no force.",
            "In the tables of the five experiments the engines of the tables and bending roles have rows on "
            "coarse meshes of their own (the 5³ cube and the 2×2×12 beam; mujoco-quadratic 2³ and 1×1×6), each "
            "against the FEM solved on the same mesh (the tables of the other models, with the mesh in the row); "

@@ -49,8 +49,9 @@ class SolveFailure(RuntimeError):
 
 
 def model_choices() -> tuple[str, ...]:
-    """The mass-spring models a user can pick (the registry's)."""
-    return tuple(models.names())
+    """The models a user can name (the registry's, and those it lists as unavailable: naming one is
+    refused with the reason and the install command)."""
+    return tuple(models.names()) + tuple(models.unavailable())
 
 
 def model_parameters() -> dict[str, tuple[dataclasses.Field, tuple[str, ...]]]:
@@ -228,7 +229,9 @@ def moduli(args):
         f"  E_eff  = {m['E_eff']:.6g} Pa   (input {mat.E:g}, rel. error {m['E_eff'] / mat.E - 1:+.2e})",
         f"  nu_eff = {m['nu_eff']:.6g}      (input {mat.nu:g}, error {m['nu_eff'] - mat.nu:+.2e})",
         f"  G_eff  = {m['G_eff']:.6g} Pa   (E/(2(1+nu)) = {G:.6g}, rel. error {m['G_eff'] / G - 1:+.2e})",
-    ])
+    ] + ([f"  float32 equilibrium error: E_eff +/-{m['equilibrium_error']['E_eff']:.2e}, nu_eff "
+          f"+/-{m['equilibrium_error']['nu_eff']:.2e}, G_eff +/-{m['equilibrium_error']['G_eff']:.2e} (resolved from "
+          f"strain {m['resolvable_strain']:.2g} on)"] if "equilibrium_error" in m else []))
     return {**model.to_dict(), "model": model.name, "variant": model.variant, "E": mat.E, "nu": mat.nu, **m}, table
 
 

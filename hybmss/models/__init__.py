@@ -10,6 +10,11 @@ registry holds
   (``importlib.metadata``); an entry point names a model object or a class to instantiate;
 - models added at run time with :func:`register` (and removed with :func:`unregister`).
 
+A module may also define ``UNAVAILABLE`` (name → reason): models it would define whose engine
+is missing or at a version outside the one they were measured at (:mod:`hybmss.models._engine_model`).
+They are not among :func:`names`; :func:`unavailable` lists them, and :func:`get` refuses them
+with the reason and the install command (a :class:`ValueError`: exit 2 of a command).
+
 Modules and entry points are loaded at the first look-up, so importing :mod:`hybmss.scene` does
 not load every model.  :func:`names` and :func:`all_models` list models in their declared
 ``order``, then by name.
@@ -26,7 +31,7 @@ from .base import KERNELS, NO_SPRINGS, SOLVER_KINDS, ModelBase, NoParameters, St
 
 __all__ = ["ENTRY_POINT_GROUP", "KERNELS", "NO_SPRINGS", "SOLVER_KINDS", "ModelBase", "NoParameters", "REGISTRY",
            "Registry", "Style", "all_models", "check", "default_name", "get", "names", "parameter_fields", "register",
-           "unregister"]
+           "unavailable", "unregister"]
 
 ENTRY_POINT_GROUP = "hybmss.models"
 
@@ -36,6 +41,7 @@ class Registry:
     def __init__(self, package: str, path):
         self._package, self._path = package, path
         self._models: dict[str, ModelBase] = {}
+        self._unavailable: dict[str, str] = {}
         self._discovered = False
 
     def register(self, model, *, replace: bool = False) -> ModelBase:
@@ -65,6 +71,7 @@ class Registry:
             mod = importlib.import_module(f"{self._package}.{info.name}")
             for model in (mod.MODELS if hasattr(mod, "MODELS") else (mod.MODEL,)):
                 self.register(model)
+            self._unavailable.update(getattr(mod, "UNAVAILABLE", {}))
         for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
             try:
                 obj = ep.load()
@@ -80,7 +87,15 @@ class Registry:
         try:
             return self._models[name]
         except (KeyError, TypeError):
-            raise ValueError(f"model must be one of {', '.join(self.names())}; got {name!r}") from None
+            pass
+        if isinstance(name, str) and name in self._unavailable:
+            raise ValueError(f"model {name} is unavailable: {self._unavailable[name]}") from None
+        raise ValueError(f"model must be one of {', '.join(self.names())}; got {name!r}") from None
+
+    def unavailable(self) -> dict[str, str]:
+        """Models of the in-tree folders that cannot run here (not registered), with the reason."""
+        self.discover()
+        return {k: v for k, v in self._unavailable.items() if k not in self._models}
 
     def all(self) -> tuple[ModelBase, ...]:
         self.discover()
@@ -108,6 +123,12 @@ def unregister(name: str) -> None:
 def get(name: str) -> ModelBase:
     """The model registered as ``name``; :class:`ValueError` listing the known names if none."""
     return REGISTRY.get(name)
+
+
+def unavailable() -> dict[str, str]:
+    """The models whose engine is missing or at an unsupported version: name → reason, ending with
+    the install command (not among :func:`names`; :func:`get` refuses them with it)."""
+    return REGISTRY.unavailable()
 
 
 def all_models() -> tuple[ModelBase, ...]:

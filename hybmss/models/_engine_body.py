@@ -36,6 +36,16 @@ def tet_volumes(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) / 6.0
 
 
+def positive(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """The tetrahedra ``tets`` with the vertices of each ordered to a positive signed volume
+    (:func:`tet_volumes`) at the reference positions ``X`` (the last two swapped where it is
+    negative): the orientation the readouts' volume and inverted count take."""
+    tets = np.array(tets, dtype=np.int64)
+    neg = tet_volumes(X, tets) < 0.0
+    tets[neg] = tets[neg][:, [0, 1, 3, 2]]
+    return tets
+
+
 @dataclasses.dataclass
 class Nodes:
     """The engine's nodes: reference positions (N, 3), masses (N,), the vertex of each lattice
@@ -88,9 +98,10 @@ class EngineBody:
     fd_step = 1e-7
     """Finite-difference step of :meth:`omega_max`, in cell edges."""
     resolution_N = 0.0
-    """Force resolution of the engine's state (N): the change of the free nodes' force norm under
-    position changes of one unit in the last place (0: a float64 engine, negligible).  A rest
-    state cannot have a smaller residual, so :meth:`rest` accepts one within it."""
+    """Force resolution of the engine's state (N): the largest change of the free nodes' force norm
+    under the rounding of the positions to the engine's precision (0: a float64 engine, negligible;
+    float32: ``‖K‖₂ · ulp(|X|max)/2 · √(3N)``, :meth:`hybmss.models.newton.engine.NewtonBody.force_resolution`).
+    A rest state cannot have a smaller residual, so the rest test accepts one within it."""
 
     def setup(self, system: System, order: int, dt: float, ramp_time: float, damping: float | None,
               density: float | None, gravity) -> None:
@@ -191,11 +202,21 @@ class EngineBody:
 
     # ------------------------------------------------------------------ frequencies
     def omega_max(self, iterations: int = 60) -> float:
-        """Highest frequency (rad/s) of ``M⁻¹K`` at rest on the free components, K from MuJoCo's
-        own forces (finite differences of ``qfrc_spring`` about the reference), by power
-        iteration (Rayleigh quotient of the last iterate, a lower bound converging from below)."""
+        """Highest frequency (rad/s) of ``M⁻¹K`` at rest on the free components, K from the
+        engine's own forces (finite differences about the reference), by power iteration
+        (Rayleigh quotient of the last iterate, a lower bound converging from below)."""
         free = ~self.nodes.fixed.ravel()
-        minv = np.repeat(1.0 / self.nodes.mass, 3)
+        return math.sqrt(max(self._largest_eigenvalue(np.repeat(1.0 / self.nodes.mass, 3), free, iterations), 0.0))
+
+    def stiffness_max(self, iterations: int = 60) -> float:
+        """Largest eigenvalue (N/m) of the engine's stiffness K at rest on every component
+        (``‖K‖₂``: the largest change of the force vector's norm per unit change of the positions'),
+        by power iteration as :meth:`omega_max`."""
+        n = 3 * len(self.nodes.X)
+        return max(self._largest_eigenvalue(np.ones(n), np.ones(n, dtype=bool), iterations), 0.0)
+
+    def _largest_eigenvalue(self, minv: np.ndarray, free: np.ndarray, iterations: int) -> float:
+        """Largest eigenvalue of ``diag(minv) K`` on the components ``free`` by power iteration."""
         X = self.nodes.X
         f0 = self.internal_forces(X).ravel()
         rng = np.random.default_rng(0)
@@ -208,7 +229,7 @@ class EngineBody:
             w = minv * Kv * free
             lam = float(np.dot(v, Kv) / np.dot(v, v / minv)) if np.any(v) else 0.0
             v = w
-        return math.sqrt(max(lam, 0.0))
+        return lam
 
     # ------------------------------------------------------------------ readouts
     def node_system(self) -> System:

@@ -4,6 +4,14 @@
 rest state of the engine's damped run, in the same loop: :class:`UntilRest`), the refusals common
 to every engine, and the engine imported only when a run needs it (:meth:`EngineModel.make_body`).
 
+Versions: each engine folder declares ``REQUIRES`` (module, distribution, version range with an
+upper bound: the versions its law was read and measured at; pyproject's ``engines`` extra lists
+the same).  An engine that is missing or outside its range leaves its models unavailable
+(:func:`engine_models`, the registry's ``unavailable()``).  Within the range, the first run of a
+model at an engine version measures its law on one cell (:meth:`EngineModel.check_law`:
+uniaxial strain and simple shear against linear elasticity in (E, ν), cached per model and
+version in :func:`law_cache_file`); a deviation refuses the model with the reason.
+
 What the loop does for an engine and what it cannot: the ramp, the plates' targets after every
 step, the mass-proportional damping ``v/(1 + c h)`` after the engine's step (MuJoCo refuses joint
 damping on a flex; Newton's and the library's own damping are not mass-proportional), the
@@ -16,12 +24,22 @@ state after each step (no engine here has a kinematic plate that follows the sce
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
 import importlib.util
+import json
 import math
-import warnings
+import os
+import re
+import tempfile
+
+import numpy as np
 
 from ..solve.errors import StaticSolveError
 from .base import ModelBase, NoParameters
+
+INSTALL = "pip install 'hybmss[engines]'"
+"""The command that installs every engine with the versions the engine models were measured on."""
+
 
 def installed(*packages: str) -> bool:
     """Whether every one of ``packages`` is installed (found, not imported)."""
@@ -31,14 +49,65 @@ def installed(*packages: str) -> bool:
         return False
 
 
-def models_if_installed(module: str, packages: tuple[str, ...], make, missing: str) -> tuple:
-    """``make()`` (the models of an engine folder) when every one of ``packages`` is installed;
-    else ``()`` and one warning line ``missing`` (no source line under it): the models are left
-    out and nothing else changes."""
-    if installed(*packages):
-        return tuple(make())
-    warnings.warn_explicit(missing, RuntimeWarning, module, 0, module=module)
-    return ()
+def _release(version: str) -> tuple[int, ...]:
+    """The release numbers of a version string (``"1.19.0rc1"`` → ``(1, 19, 0)``)."""
+    out = []
+    for part in version.split("."):
+        digits = re.match(r"\d*", part).group()
+        if not digits:
+            break
+        out.append(int(digits))
+        if len(digits) < len(part):
+            break
+    return tuple(out)
+
+
+def in_range(version: str, spec: str) -> bool:
+    """Whether ``version`` satisfies ``spec``, clauses ``>=A`` and ``<B`` joined by commas (the
+    forms the engines' requirements use), compared on release numbers (padded with zeros)."""
+    v = _release(version)
+    for clause in filter(None, (c.strip() for c in spec.split(","))):
+        op, bound = (clause[:2], clause[2:]) if clause.startswith(">=") else (clause[:1], clause[1:])
+        b = _release(bound)
+        n = max(len(v), len(b))
+        a, b = v + (0,) * (n - len(v)), b + (0,) * (n - len(b))
+        if (op == ">=" and a < b) or (op == "<" and a >= b) or op not in (">=", "<"):
+            return False
+    return True
+
+
+def missing_engine(requires: tuple[tuple[str, str, str], ...]) -> str | None:
+    """Why an engine's models cannot run, or None: a package of ``requires`` ((module,
+    distribution, version range), e.g. ``("warp", "warp-lang", ">=1.19,<1.20")``) that is not
+    installed, or installed at a version outside the range the models' laws were read and
+    measured at; the reason ends with the install command."""
+    for module, dist, spec in requires:
+        pin = f"'{dist}{spec}'"
+        if not installed(module):
+            return f"the {dist} package is not installed; {INSTALL} (or pip install {pin})"
+        try:
+            version = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            return f"the {dist} package has no version metadata (expected {spec}); {INSTALL} (or pip install {pin})"
+        if not in_range(version, spec):
+            return (f"{dist} {version} is installed, the models' laws were read and measured at {dist}{spec}; "
+                    f"{INSTALL} (or pip install {pin})")
+    return None
+
+
+def engine_models(requires: tuple[tuple[str, str, str], ...], models: tuple) -> tuple[tuple, dict[str, str]]:
+    """``(MODELS, UNAVAILABLE)`` of an engine folder: its ``models`` when :func:`missing_engine`
+    finds nothing, else none and each model's name with the reason (the registry lists them as
+    unavailable and refuses them with it).  Nothing is imported."""
+    reason = missing_engine(requires)
+    if reason is None:
+        return tuple(models), {}
+    return (), {m.name: reason for m in models}
+
+
+def requirement_lines(requires: tuple[tuple[str, str, str], ...]) -> tuple[str, ...]:
+    """The pip requirements (``dist`` + range) of ``requires``: the ``engines`` extra's lines."""
+    return tuple(dist + spec for _, dist, spec in requires)
 
 
 class SceneNotRepresentable(ValueError, StaticSolveError):
@@ -51,6 +120,56 @@ class SceneNotRepresentable(ValueError, StaticSolveError):
 
     def __init__(self, message: str):
         StaticSolveError.__init__(self, message)
+
+
+class EngineUnavailable(SceneNotRepresentable):
+    """An engine model whose law check failed at the installed engine version (exit 2; a study's
+    row ``unavailable``)."""
+
+    row_status = "unavailable"
+
+
+LAW_STRAIN = 1e-3
+"""Strain of the law check (:meth:`EngineModel.law_errors`)."""
+LAW_RTOL = 1e-2
+"""Largest relative deviation of the law check's stresses from linear elasticity in (E, ν): above
+the finite-strain terms at :data:`LAW_STRAIN` (SVK: 1.5e-3), far below a wrong Lamé mapping (25 %)."""
+
+
+def law_cache_file() -> str:
+    """The cache of the law checks: ``$HYBMSS_ENGINE_CACHE``, else
+    ``$XDG_CACHE_HOME/hybmss/engine-laws.json``, else ``~/.cache/hybmss/engine-laws.json``."""
+    path = os.environ.get("HYBMSS_ENGINE_CACHE")
+    if path:
+        return path
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "hybmss", "engine-laws.json")
+
+
+def _read_cache(path: str) -> dict:
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+        return data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def _write_cache(path: str, data: dict) -> None:
+    """Atomically (concurrent workers); a cache that cannot be written is skipped."""
+    try:
+        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path) or ".", suffix=".tmp")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(data, fh, indent=1, sort_keys=True)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+
+
+def engine_version(requires: tuple[tuple[str, str, str], ...]) -> str:
+    """The installed versions of ``requires`` (``"newton 1.8.0, warp-lang 1.19.0"``)."""
+    return ", ".join(f"{dist} {importlib.metadata.version(dist)}" for _, dist, _ in requires)
 
 
 SETTLE = 20.0
@@ -73,6 +192,11 @@ class EngineModel(ModelBase):
     even for a float64 engine (one whose rest state leaves a residual floor under the law its forces
     are read with: XPBD's O((h ω)²) bias)."""
 
+    requires: tuple[tuple[str, str, str], ...] = ()
+    """The engine's packages and version ranges (the folder's ``REQUIRES``)."""
+    law_checked: bool = True
+    """Whether :meth:`check_law` measures the engine's law (False: forces not read from the engine)."""
+
     Parameters = NoParameters
     conservative = False  # its static answer is the rest state of the engine's damped run
     solvers = ("static", "explicit")
@@ -86,8 +210,51 @@ class EngineModel(ModelBase):
     def check_scene(self, scene) -> None:
         """Raise :class:`SceneNotRepresentable` naming what of ``scene`` the engine cannot represent."""
 
+    def law_errors(self) -> dict[str, float]:
+        """The law check: the engine's own forces on one unit cell (E = 1e4 Pa, ν = 0.3, the bottom
+        held) under a homogeneous uniaxial strain ε = :data:`LAW_STRAIN` (nominal stress −Σ f_z over
+        the top nodes, expected (λ + 2μ) ε) and a simple shear γ = ε (−Σ f_x, expected μ γ):
+        the relative deviation of each from linear elasticity in (E, ν)."""
+        from .. import Body, Material, Model, Plate, Region, Scene
+        from ..system import build
+
+        sc = Scene(body=Body.box(1, 1, 1, le=1.0), material=Material(E=1e4, nu=0.3, rho=1000.0),
+                   model=Model(self.name), plates=(Plate("bottom", Region("z-")),))
+        body = self.make_body(build(sc), 1e-3, 1.0)
+        X, mat, eps = body.nodes.X, sc.material, LAW_STRAIN
+        top = np.isclose(X[:, 2], 1.0)
+        x = X.copy()
+        x[:, 2] *= 1.0 + eps
+        stretch = -body.internal_forces(x)[top, 2].sum() / ((mat.lam + 2.0 * mat.G) * eps)
+        x = X.copy()
+        x[:, 0] += eps * X[:, 2]
+        shear = -body.internal_forces(x)[top, 0].sum() / (mat.G * eps)
+        return {"uniaxial": abs(float(stretch) - 1.0), "shear": abs(float(shear) - 1.0)}
+
+    def check_law(self) -> None:
+        """:class:`EngineUnavailable` if :meth:`law_errors` at the installed engine version exceeds
+        :data:`LAW_RTOL`; measured once per model and version, cached in :func:`law_cache_file`."""
+        if not self.law_checked or not self.requires:
+            return
+        version = engine_version(self.requires)
+        key = f"{self.name} | {version}"
+        path = law_cache_file()
+        cache = _read_cache(path)
+        errors = cache.get(key)
+        if not isinstance(errors, dict):
+            errors = self.law_errors()
+            _write_cache(path, {**_read_cache(path), key: errors})
+        bad = {k: v for k, v in errors.items() if not v <= LAW_RTOL}
+        if bad:
+            raise EngineUnavailable(
+                f"model {self.name} is unavailable: its law check at {version} found "
+                + ", ".join(f"the {k} stress {100 * v:.3g} % off" for k, v in bad.items())
+                + f" linear elasticity in (E, nu) at strain {LAW_STRAIN:g} (allowed {100 * LAW_RTOL:g} %; cached "
+                f"in {path}): the engine's law changed; {INSTALL}")
+
     def _check(self, scene, threads: int = 1, precision: str | None = None) -> None:
         self.check_scene(scene)
+        self.check_law()
         if scene.loads:
             raise SceneNotRepresentable(f"loads: {self.name} cannot represent surface tractions ({self.engine} has "
                                         "no surface load on its body); use plates or gravity")

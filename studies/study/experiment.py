@@ -238,8 +238,9 @@ def _check_models(path, doc: dict) -> None:
         name = e["name"]
         if name not in models.names():
             close = difflib.get_close_matches(str(name), list(models.names()), n=1)
+            why = models.unavailable().get(name)
             _fail(path, f"{key}.name", name, f"a registered model: {', '.join(models.names())}"
-                  + (f" (did you mean {close[0]}?)" if close else ""))
+                  + (f" ({name} is unavailable: {why})" if why else f" (did you mean {close[0]}?)" if close else ""))
         if "defaults_only" in e:
             _fail(path, f"{key}.defaults_only", e["defaults_only"], "only with role (a named model runs "
                   "its defaults or the given params)")

@@ -253,8 +253,9 @@ def _read_model(t: Table) -> ModelRun:
     try:
         spec = registry.get(name)
     except ValueError:
+        why = registry.unavailable().get(name)
         raise t.error("name", name, f"a registered model: {', '.join(registry.names())}"
-                      f"{close(name, registry.names())}") from None
+                      + (f" ({name} is unavailable: {why})" if why else close(name, registry.names()))) from None
     params = t.raw("params", {})
     if not isinstance(params, dict):
         raise t.error("params", params, f"a table of model {name}'s parameters")

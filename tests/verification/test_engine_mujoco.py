@@ -156,8 +156,9 @@ def test_law_of_the_element(name, law):
 
 
 def test_missing_engine_leaves_its_models_out():
-    """Without the mujoco package the registry lists no mujoco-* model, says so in one warning
-    line, and a command naming one is refused (exit 2), never a traceback."""
+    """Without the mujoco package the registry lists no such model among its names but as unavailable with the
+    install command, writes nothing to stderr, and a command naming one is refused (exit 2) with the
+    install command, never a traceback."""
     import subprocess
     import sys
 
@@ -171,8 +172,11 @@ def test_missing_engine_leaves_its_models_out():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "mujoco" not in p.stdout and "xpbd-nh" in p.stdout
-    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "mujoco" in lines[0], p.stderr
+    assert p.stderr.strip() == "", p.stderr
+    code = block + "import hybmss.models as m; print(m.unavailable()['mujoco-tet'])"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "mujoco" in p.stdout and "pip install 'hybmss[engines]'" in p.stdout, p.stdout + p.stderr
     code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'mujoco-tet']))"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "hybmss[engines]" in p.stderr, p.stderr

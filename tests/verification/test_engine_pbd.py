@@ -126,8 +126,9 @@ def test_refuses_what_it_cannot_represent():
 
 
 def test_missing_engine_leaves_its_models_out():
-    """Without pypbd the registry lists no pbd-* model, says so in one warning line, and a command
-    naming one is refused (exit 2), never a traceback."""
+    """Without pypbd the registry lists no such model among its names but as unavailable with the
+    install command, writes nothing to stderr, and a command naming one is refused (exit 2) with the
+    install command, never a traceback."""
     import subprocess
     import sys
 
@@ -142,11 +143,14 @@ def test_missing_engine_leaves_its_models_out():
     assert p.returncode == 0, p.stderr
     names = p.stdout.strip().split(",")
     assert not any(n.startswith("pbd-") for n in names) and "mujoco-tet" in names
-    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "pypbd" in lines[0], p.stderr
+    assert p.stderr.strip() == "", p.stderr
+    code = block + "import hybmss.models as m; print(m.unavailable()['pbd-xpbd-fem'])"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "pypbd" in p.stdout and "pip install 'hybmss[engines]'" in p.stdout, p.stdout + p.stderr
     code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'pbd-xpbd-fem']))"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "hybmss[engines]" in p.stderr, p.stderr
 
 
 def test_explicit_run_reaches_rest():

@@ -35,7 +35,7 @@ than one thread, float32.
 from __future__ import annotations
 
 
-from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
+from .._engine_model import EngineModel, SceneNotRepresentable, engine_models
 from ..base import Style
 
 KINDS = ("tet", "trilinear", "quadratic")
@@ -53,9 +53,15 @@ def _engine():
     return engine
 
 
+REQUIRES = (("mujoco", "mujoco", ">=4.0,<4.1"),)
+"""The engine and the versions its laws were read and measured at (module docstring): MuJoCo
+changes its flex elements between minor versions (``flex_stiffness``, the interpolated kinds)."""
+
+
 class MujocoModel(EngineModel):
     """A MuJoCo flex of one element kind (module docstring)."""
 
+    requires = REQUIRES
     kind: str = "tet"
     engine = "MuJoCo"
     precisions = ("f64",)
@@ -98,6 +104,4 @@ class MujocoQuadratic(MujocoModel):
     order = 42
 
 
-MODELS = models_if_installed(__name__, ('mujoco',), lambda: (MujocoTet(), MujocoTrilinear(), MujocoQuadratic()),
-                             "the mujoco package is not installed: the mujoco-* models are left out "
-                             "(pip install 'mujoco>=4.0')")
+MODELS, UNAVAILABLE = engine_models(REQUIRES, (MujocoTet(), MujocoTrilinear(), MujocoQuadratic()))

@@ -43,10 +43,22 @@ flex elasticity, nothing recomputed); the reaction of a plate ``−Σ (f + m g)`
 prescribed components (as every explicit model); the displacement field the flex vertices'
 positions (``flexvert_xpos``: the lattice particles, interpolated for the grid kinds); the volume
 that of the deformed tetrahedra of the flex.
+
+Instability
+-----------
+``mj_step`` checks the state (``mj_checkPos``, ``mj_checkVel``, ``mj_checkAcc``): a NaN, an
+infinity or a value above ``mjMAXVAL`` in ``qpos``, ``qvel`` or ``qacc`` counts a warning in
+``data.warning`` (``mjWARN_BADQPOS``, ``mjWARN_BADQVEL``, ``mjWARN_BADQACC``, the dof in
+``lastinfo``) and resets the state to the model's reference, the run going on from rest.  The
+body reads these counters after every step and turns the first into a
+:class:`hybmss.explicit.DivergenceError` (its cause and a remedy); MuJoCo's own text of every
+warning goes to ``info['engine_warnings']`` (a handler installed while MuJoCo compiles and steps),
+never to the process's stderr nor to a ``MUJOCO_LOG.TXT`` in the working directory.
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
@@ -54,7 +66,7 @@ import numpy as np
 import mujoco
 
 from ...system import System
-from .._engine_body import EngineBody, Nodes
+from .._engine_body import EngineBody, Nodes, positive
 
 ENGINE = "mujoco"
 VERSION = mujoco.__version__
@@ -65,6 +77,25 @@ SPLIT = ((0, 2, 1, 6), (0, 1, 4, 6), (1, 2, 3, 6), (1, 3, 7, 6), (1, 5, 4, 6), (
 
 ORDER = {"tet": 1, "trilinear": 1, "quadratic": 2}
 """Node grid step per cell edge of each element kind (1: lattice nodes, 2: half-step grid)."""
+
+UNSTABLE = {int(mujoco.mjtWarning.mjWARN_BADQACC): ("mjWARN_BADQACC", "acceleration"),
+            int(mujoco.mjtWarning.mjWARN_BADQVEL): ("mjWARN_BADQVEL", "velocity"),
+            int(mujoco.mjtWarning.mjWARN_BADQPOS): ("mjWARN_BADQPOS", "position")}
+"""The warnings of ``mj_step``'s state checks after which MuJoCo resets the state: index in
+``data.warning`` → (name, the quantity found NaN, infinite or huge)."""
+
+
+@contextlib.contextmanager
+def warnings_into(sink: list):
+    """MuJoCo's warning text into ``sink`` (``mju_user_warning``) for the block, the previous
+    handler back after it: without a handler MuJoCo prints to stderr and appends to
+    ``MUJOCO_LOG.TXT`` in the working directory."""
+    old = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: sink.append(str(msg).strip()))
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(old)
 
 
 def cell_tets(cells: np.ndarray) -> np.ndarray:
@@ -115,15 +146,11 @@ class MujocoBody(EngineBody):
             raise ValueError(f"element kind must be one of {', '.join(ORDER)}; got {kind!r}")
         self.kind = kind
         self.setup(system, 2 if kind == "quadratic" else 1, dt, ramp_time, damping, density, gravity)
-        self.tets = cell_tets(system.lattice.cells)
+        self.tets = positive(system.X, cell_tets(system.lattice.cells))
         t0 = time.perf_counter()
         xml = mjcf(system, kind, self.nodes, self.dt, self.gravity)
-        old = mujoco.get_mju_user_warning()
-        mujoco.set_mju_user_warning(lambda msg: self.warnings.append(str(msg).strip()))
-        try:
+        with warnings_into(self.warnings):
             self.model = mujoco.MjModel.from_xml_string(xml)
-        finally:
-            mujoco.set_mju_user_warning(old)
         self.data = mujoco.MjData(self.model)
         self.probe = mujoco.MjData(self.model)
         self.compile_time_s = time.perf_counter() - t0
@@ -156,17 +183,42 @@ class MujocoBody(EngineBody):
         m, d = self.model, self.data
         damp = 1.0 / (1.0 + self.damping * self.dt)
         spent = 0.0
-        for k in range(step0, step0 + n):
-            t0 = time.perf_counter()
-            mujoco.mj_step(m, d)
-            spent += time.perf_counter() - t0
-            if damp != 1.0:  # v <- v/(1 + c h), and the position step with it
-                v1 = d.qvel * damp
-                d.qpos[:] -= self.dt * (d.qvel - v1)
-                d.qvel[:] = v1
-            self._set_plates(k + 1)
+        checks = [d.warning[i] for i in UNSTABLE]
+        with warnings_into(self.warnings):
+            for k in range(step0, step0 + n):
+                t0 = time.perf_counter()
+                mujoco.mj_step(m, d)
+                spent += time.perf_counter() - t0
+                if any(w.number for w in checks):
+                    self.step_time_s += spent
+                    raise self.reset_error(k + 1)
+                if damp != 1.0:  # v <- v/(1 + c h), and the position step with it
+                    v1 = d.qvel * damp
+                    d.qpos[:] -= self.dt * (d.qvel - v1)
+                    d.qvel[:] = v1
+                self._set_plates(k + 1)
         self.step_time_s += spent
         self.step = step0 + n
+
+    def reset_error(self, step: int):
+        """The :class:`hybmss.explicit.DivergenceError` of a state MuJoCo found unstable (and
+        reset) at ``step``: which check, which node, the likely cause and a remedy."""
+        from ...explicit import DivergenceError
+
+        i = next(i for i in UNSTABLE if self.data.warning[i].number)
+        name, what = UNSTABLE[i]
+        node = int(self.data.warning[i].lastinfo) // 3
+        lat = self.system.lattice
+        grid = tuple(int(g) for g in lat.grid[node]) if self.kind != "quadratic" else None
+        dt_c = self.dt_crit()
+        cause = (f"the step {self.dt:.4g} s exceeds the stability limit 2/omega_max = {dt_c:.4g} s of MuJoCo's "
+                 f"own forces; use a step below it" if self.dt > dt_c else
+                 "the deformation ran away below the stability limit (inverted elements, a plate ramp too fast); "
+                 "use a longer ramp or a smaller load")
+        msg = (f"{ENGINE} found a NaN, infinite or huge {what} at node {node} at step {step} "
+               f"(t = {step * self.dt:.6g} s, {name}) and reset its state to rest: the run is unstable; {cause}")
+        return DivergenceError(msg, step=step, particle=node, grid=grid, displacement=float("nan"), dt=self.dt,
+                               dt_crit=dt_c)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Node positions and velocities (N, 3)."""

@@ -17,8 +17,9 @@ the stable Neo-Hookean of Smith et al. 2018, energy ``μ/2 (I_C − 3) − μ/2 
 parameters": given the material's (λ₀, μ₀) as they are, a body would be 25 % soft in shear.  The
 model therefore takes ``k_mu = 4 μ₀/3``, ``k_lambda = λ₀ + 5 μ₀/6``
 (:func:`hybmss.models.newton.engine.lame`), and ``hybmss moduli --strain 3e-3`` checks it (E, ν, G
-to 3e-4 at ν ∈ {0, 0.25, 0.45}; at the default strain 1e-4 the float32 state leaves E_eff 1.3 %
-high at ν = 0.45).  ν must leave ``k_lambda > 0``: ν > −5/14.
+to 3e-4 at ν ∈ {0, 0.25, 0.45}).  At the default strain 1e-4 the float32 state does not resolve
+the moduli (E_eff 1.3 % high at ν = 0.45, within its equilibrium error of 2.5 %): the command
+refuses a strain below the smallest it resolves to 1e-3, ~2.5e-3 (:func:`hybmss.moduli.float32_errors`).  ν must leave ``k_lambda > 0``: ν > −5/14.
 
 Refused before any work: surface loads, ν ≤ −5/14, two threads, ``precision`` other than f32
 (Warp's particle state is float32).
@@ -60,7 +61,7 @@ forces (:func:`hybmss.models.newton.engine.xpbd_constraint_forces`) on one cell,
 from __future__ import annotations
 
 
-from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
+from .._engine_model import EngineModel, SceneNotRepresentable, engine_models
 from ..base import Style
 
 STATIC_REST_RTOL = 1e-3
@@ -76,9 +77,15 @@ def _engine():
     return engine
 
 
+REQUIRES = (("newton", "newton", ">=1.8,<1.9"), ("warp", "warp-lang", ">=1.19,<2"))
+"""The engine and the versions its laws were read and measured at: the engine imports Newton's
+private kernels (``newton._src.solvers``), which may change in any minor version."""
+
+
 class NewtonModel(EngineModel):
     """Newton's tetrahedra with one of its solvers (module docstring)."""
 
+    requires = REQUIRES
     solver: str = "semi"
     engine = "Newton"
     precisions = ("f32",)
@@ -133,6 +140,4 @@ class NewtonSemi(NewtonModel):
     order = 45
 
 
-MODELS = models_if_installed(__name__, ('newton', 'warp'), lambda: (NewtonSemi(), NewtonVBD(), NewtonXPBD()),
-                             "the newton package (or warp-lang) is not installed: the newton-* models are left out "
-                             "(pip install 'newton>=1.8')")
+MODELS, UNAVAILABLE = engine_models(REQUIRES, (NewtonSemi(), NewtonVBD(), NewtonXPBD()))

@@ -2,7 +2,11 @@
 ``pbd-xpbd-fem`` (its XPBD FEM tetrahedron constraint, ``solidSimulationMethod`` 3).
 
 The engine runs its own code from its own package (``pypbd`` ≥ 2.2, imported only when the model
-runs: :mod:`hybmss.models.pbd.engine`, which also says how a scene becomes a PBD model).  The
+runs: :mod:`hybmss.models.pbd.engine`, which also says how a scene becomes a PBD model): its step
+moves the nodes.  Its forces are not the engine's: the bindings expose no force nor constraint
+multiplier, so the forces the harness reads (plate reactions, the rest test's residual, the
+stiffness of the static step) are its re-implementation of the library's formulas
+(:func:`hybmss.models.pbd.engine.svk_forces`, checked against one projection of the engine).  The
 wheel declares ``pygame`` and ``pyopengl`` (its demos' GUI) as requirements; the bindings import
 neither and run headless.
 
@@ -35,7 +39,7 @@ Refused before any work: surface loads, ν outside [0, 0.49], two threads, float
 from __future__ import annotations
 
 
-from .._engine_model import EngineModel, SceneNotRepresentable, models_if_installed
+from .._engine_model import EngineModel, SceneNotRepresentable, engine_models
 from ..base import Style
 
 NU_MAX = 0.49
@@ -56,9 +60,16 @@ def _engine():
     return engine
 
 
+REQUIRES = (("pypbd", "pypbd", ">=2.2,<2.3"),)
+"""The library and the versions its constraint's law (and :func:`hybmss.models.pbd.engine.svk_forces`,
+its formulas re-implemented) were read and measured at."""
+
+
 class PbdModel(EngineModel):
     """The library's tetrahedra with one of its solid methods (module docstring)."""
 
+    requires = REQUIRES
+    law_checked = False  # its forces are the harness's svk_forces: a law check would measure the harness
     method: str = "xpbd-fem"
     engine = "PositionBasedDynamics"
     precisions = ("f64",)
@@ -77,13 +88,13 @@ class PbdModel(EngineModel):
 
 
 class PbdXpbdFem(PbdModel):
+    """The library's XPBD FEM step; its forces are the harness's re-implementation (``svk_forces``)."""
+
     name = "pbd-xpbd-fem"
     method = "xpbd-fem"
-    label = "PositionBasedDynamics (pypbd) XPBD FEM tetrahedra, St Venant-Kirchhoff"
+    label = "PositionBasedDynamics (pypbd) XPBD FEM tetrahedra, St Venant-Kirchhoff (forces re-implemented)"
     style = Style("#e377c2", "P", "-.")
     order = 46
 
 
-MODELS = models_if_installed(__name__, ('pypbd',), lambda: (PbdXpbdFem(),),
-                             "the pypbd package is not installed: the pbd-* models are left out "
-                             "(pip install 'pypbd>=2.2')")
+MODELS, UNAVAILABLE = engine_models(REQUIRES, (PbdXpbdFem(),))

@@ -44,6 +44,7 @@ against one projection of the engine (tests/verification/test_engine_pbd.py).
 
 from __future__ import annotations
 
+import importlib.metadata
 import time
 
 import numpy as np
@@ -55,7 +56,7 @@ from ...system import System
 from .._engine_body import EngineBody, tet_volumes
 
 ENGINE = "pypbd"
-VERSION = "pypbd 2.2.2"
+VERSION = f"pypbd {importlib.metadata.version('pypbd')}"
 G_PBD = np.array([0.0, -9.81, 0.0])
 """The library's gravity (``Simulation::m_gravitation``), not settable through the bindings."""
 XPBD_FEM = 3
