@@ -5,7 +5,7 @@ arithmetic of a step: the plates' ramp and their reactions, damping's parameter,
 and rest checks, the history, the timing and the :class:`~hybmss.result.Result`.  A model
 supplies the arithmetic through ``model.stepper(system, dt, *, ramp_time, kernel, precision,
 threads)`` (:class:`hybmss.models.base.ModelBase`; the default is the harness's spring and volume
-lattice, :class:`hybmss.explicit.LatticeStepper`).  It returns an object with
+lattice, :class:`hybmss.models.hybmss.stepper.LatticeStepper`).  It returns an object with
 
 - ``load(x, v)``: set the state from positions and (half-step) velocities (n, 3), float64; the
   plates' prescribed components already hold their values at the start of the run;
