@@ -55,28 +55,11 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from typing import Protocol
 
 import numpy as np
 
 CHUNK_SECONDS = 0.1
 """Work per kernel call of a long run (s): the longest a signal waits for the loop to see it."""
-
-
-class Stepper(Protocol):
-    """The protocol of the module docstring (for type checkers and readers)."""
-
-    info: dict
-
-    def load(self, x: np.ndarray, v: np.ndarray) -> None: ...
-
-    def advance(self, step0: int, n: int, check_every: int, limit2: float) -> tuple[int, int]: ...
-
-    def state(self) -> tuple[np.ndarray, np.ndarray]: ...
-
-    def internal_forces(self, x: np.ndarray) -> np.ndarray: ...
-
-    def energy(self, x: np.ndarray, v: np.ndarray) -> dict: ...
 
 
 class Chunks:
