@@ -34,7 +34,7 @@ t sets the plates of its own nodes after its step and meets the others at one sp
 threads that did not all run at once) opens a Numba parallel region per step.
 
 A force term the stencil does not generate (not a spring, the volume term, gravity or a dead load)
-may contribute its own **stage** (:class:`hybmss.explicit.StencilStage`): a Numba function
+may contribute its own **stage** (:class:`hybmss.models.hybmss.stepper.StencilStage`): a Numba function
 ``stage(W, xb, feb, L, N, F0, args)`` that writes the term's forces at the positions of region
 base ``xb`` plus the dead loads ``F0`` (3, N) into the external-force rows at ``feb``, before
 every step; ``args`` is a tuple of its own arrays and constants.  The generated ``run`` imports

@@ -145,12 +145,6 @@ class Lattice:
         a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
         return np.einsum("mi,mi->m", a, np.cross(b, c))
 
-    def face_particles(self, face: str) -> np.ndarray:
-        """Indices of particles on a face of the bounding box (``'z+'`` etc.)."""
-        ax = "xyz".index(face[0])
-        target = self.body.shape[ax] if face[1] == "+" else 0
-        return np.flatnonzero(self.grid[:, ax] == target)
-
 
 def box_dissection(grid: np.ndarray, lo, hi, step: int = 1, leaf: int = 16) -> np.ndarray:
     """Nested-dissection order of nodes at integer ``grid`` coordinates (n, 3) in the box of cells

@@ -31,7 +31,8 @@ import time
 
 import numpy as np
 
-from .explicit import BLOWUP_FACTOR, LatticeStepper, dt_crit, initial_state, particles
+from .explicit import BLOWUP_FACTOR, dt_crit, initial_state, particles
+from .models.hybmss.stepper import LatticeStepper
 from .scene import Model, Scene
 from .system import build
 from .trajectory import Trajectory

@@ -5,7 +5,7 @@ arithmetic of a step: the plates' ramp and their reactions, damping's parameter,
 and rest checks, the history, the timing and the :class:`~hybmss.result.Result`.  A model
 supplies the arithmetic through ``model.stepper(system, dt, *, ramp_time, kernel, precision,
 threads)`` (:class:`hybmss.models.base.ModelBase`; the default is the harness's spring and volume
-lattice, :class:`hybmss.explicit.LatticeStepper`).  It returns an object with
+lattice, :class:`hybmss.models.hybmss.stepper.LatticeStepper`).  It returns an object with
 
 - ``load(x, v)``: set the state from positions and (half-step) velocities (n, 3), float64; the
   plates' prescribed components already hold their values at the start of the run;
@@ -55,28 +55,11 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from typing import Protocol
 
 import numpy as np
 
 CHUNK_SECONDS = 0.1
 """Work per kernel call of a long run (s): the longest a signal waits for the loop to see it."""
-
-
-class Stepper(Protocol):
-    """The protocol of the module docstring (for type checkers and readers)."""
-
-    info: dict
-
-    def load(self, x: np.ndarray, v: np.ndarray) -> None: ...
-
-    def advance(self, step0: int, n: int, check_every: int, limit2: float) -> tuple[int, int]: ...
-
-    def state(self) -> tuple[np.ndarray, np.ndarray]: ...
-
-    def internal_forces(self, x: np.ndarray) -> np.ndarray: ...
-
-    def energy(self, x: np.ndarray, v: np.ndarray) -> dict: ...
 
 
 class Chunks:

@@ -133,7 +133,7 @@ SOLVER_SOURCES = {
     # the MSS depends on all of hybmss; the FEM on its package and hybmss's scene, lattice
     # (particle positions, averaged-edge volumes) and result types
     "mss": ("hybmss/**/*.py",),
-    "fem": ("fem_reference/**/*.py", "hybmss/scene.py", "hybmss/lattice.py", "hybmss/result.py"),
+    "fem": ("fem_reference/**/*.py", "hybmss/scene/*.py", "hybmss/lattice.py", "hybmss/result.py"),
 }
 
 

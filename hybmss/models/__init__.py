@@ -30,8 +30,8 @@ import pkgutil
 from .base import KERNELS, NO_SPRINGS, SOLVER_KINDS, ModelBase, NoParameters, Style, check
 
 __all__ = ["ENTRY_POINT_GROUP", "KERNELS", "NO_SPRINGS", "SOLVER_KINDS", "ModelBase", "NoParameters", "REGISTRY",
-           "Registry", "Style", "all_models", "check", "default_name", "get", "names", "parameter_fields", "register",
-           "unavailable", "unregister"]
+           "Registry", "Style", "LATTICE", "all_models", "check", "default_name", "get", "lattice_stepper", "names",
+           "parameter_fields", "register", "unavailable", "unregister"]
 
 ENTRY_POINT_GROUP = "hybmss.models"
 
@@ -145,6 +145,18 @@ def default_name() -> str:
     """The model a scene or command takes when none is named: the first of :func:`names` (the
     lowest declared ``order``)."""
     return names()[0]
+
+
+LATTICE = "hybmss"
+"""The model whose stepper (:class:`hybmss.models.hybmss.stepper.LatticeStepper`) steps the spring
+and volume lattice of every model that has no stepper of its own (``stepper`` returns None: the
+lattice's variants, [B09]'s cells, a plug-in's springs)."""
+
+
+def lattice_stepper(system, dt: float, **kw):
+    """The stepper of the spring and volume lattice for ``system`` and ``dt`` (the :data:`LATTICE`
+    model's; ``kw``: ``ramp_time``, ``kernel``, ``precision``, ``threads``)."""
+    return get(LATTICE).stepper(system, dt, **kw)
 
 
 def parameter_fields() -> dict[str, dataclasses.Field]:

@@ -45,7 +45,7 @@ Methods (``p`` is the model's ``Parameters`` instance, ``material`` a
 - ``stepper(system, dt, *, ramp_time, kernel, precision, threads)``: the object that advances
   its explicit dynamics (the protocol of :mod:`hybmss.stepper`: ``load``, ``advance``, ``state``,
   ``internal_forces``, ``energy``, ``info``).  None (the default) runs the harness's spring and
-  volume lattice (:class:`hybmss.explicit.LatticeStepper`); a model with its own dynamics (its own
+  volume lattice (:class:`hybmss.models.hybmss.stepper.LatticeStepper`); a model with its own dynamics (its own
   elements, a position-based integrator, an external engine) returns its own, and the one loop
   :func:`hybmss.explicit.simulate_explicit` runs it with the plates' ramp, damping, divergence
   and rest checks, history, timing and the :class:`hybmss.result.Result` of every model.  A
@@ -183,7 +183,7 @@ class ModelBase:
     def stepper(self, system, dt: float, *, ramp_time: float, kernel: str = "numba", precision: str = "f64",
                 threads: int = 1):
         """The explicit stepper of ``system``, or None (the default) for the harness's spring and
-        volume lattice (:class:`hybmss.explicit.LatticeStepper`)."""
+        volume lattice (:class:`hybmss.models.hybmss.stepper.LatticeStepper`)."""
         return None
 
     # ------------------------------------------------------------------ naming

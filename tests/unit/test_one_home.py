@@ -42,9 +42,9 @@ def _hits(pattern: str, root: Path = ROOT) -> list[str]:
 
 
 @pytest.mark.parametrize("what, pattern, home", [
-    ("the mixed-element threshold", r"(>=|<)\s*0\.45\b|=\s*0\.45\s*$", ["hybmss/scene.py"]),
+    ("the mixed-element threshold", r"(>=|<)\s*0\.45\b|=\s*0\.45\s*$", ["hybmss/scene/material.py"]),
     ("the open Poisson-ratio range", r"-1(\.0)?\s*<[^<]*nu[^<]*<\s*0\.5\b|\(-1(\.0)?, 0\.5\)|Range\(-1(\.0)?,\s*0\.5\b",
-     ["hybmss/scene.py"]),
+     ["hybmss/scene/material.py"]),
     ("the error budgets", r"^\s*BUDGETS\s*=", ["studies/pareto.py"]),
     ("the strict-JSON walker", r"^def strict\(", ["studies/store.py"]),
     ("the claims' criteria", r"^(E_MODULI_TOL|E_FEM_PP|INCOMPRESSIBLE_E_PCT|PAPER_PP|REL_PCT|MIDDLE_LAYER_TOL)\s*=",

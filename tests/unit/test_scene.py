@@ -182,3 +182,14 @@ def test_each_piece_must_be_held():
     scene = Scene(body, Material(1e4, 0.3), plates=(Plate("wall", "x-"),))
     assert free_rigid_modes(scene) == [(2, ["translation along x", "translation along y", "translation along z",
                                             "rotation about x", "rotation about y", "rotation about z"])]
+
+
+@pytest.mark.parametrize("nu", [-0.9, -0.3, 0.0, 0.25, 0.45, 0.499])
+def test_moduli_agree_with_the_isotropic_identities(nu):
+    """G, λ and K of a material satisfy the identities of isotropic elasticity that do not pass
+    through their formulas: K = λ + 2G/3, E = 9KG/(3K + G), ν = (3K − 2G)/(2(3K + G))."""
+    m = Material(2.0e5, nu)
+    G, lam, K = m.G, m.lam, m.K
+    assert K == pytest.approx(lam + 2.0 * G / 3.0, rel=1e-12)
+    assert 9.0 * K * G / (3.0 * K + G) == pytest.approx(m.E, rel=1e-12)
+    assert (3.0 * K - 2.0 * G) / (2.0 * (3.0 * K + G)) == pytest.approx(nu, rel=1e-9, abs=1e-12)

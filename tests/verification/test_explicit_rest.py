@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hybmss import Body, Material, Model, Motion, Plate, Region, Scene
-from hybmss.explicit import dt_crit, simulate_explicit
+from hybmss.explicit import dt_crit, rest_report, simulate_explicit
+from hybmss.forces import internal_forces
 from hybmss.solve import solve_static
 from hybmss.system import build
 
@@ -55,6 +56,25 @@ def test_damped_run_comes_to_rest_at_the_static_equilibrium():
     F, Fs = r.reactions["top"].force[2], s.reactions["top"].force[2]
     assert F == pytest.approx(Fs, rel=3 * rest["rtol"])
     assert np.abs(r.u - s.u).max() <= 3e-3 * np.abs(s.u).max()
+
+
+def test_rest_asks_a_kinetic_energy_below_rtol_squared_of_the_energy_scale():
+    """A vibration of relative amplitude a about the equilibrium has a kinetic energy of order
+    a² times the energy scale, so rest asks for ``ke ≤ rtol² · max(|elastic energy|, force scale ·
+    le)``.  At the static equilibrium (Newton: an independent method), with its reaction and
+    elastic energy giving the scale, a kinetic energy of (2 rtol)² times it is not rest, one of
+    (rtol/2)² is."""
+    scene = _scene()
+    s = solve_static(scene)
+    system = build(scene)
+    x = s.X + s.u
+    f_int = internal_forces(system, x)
+    e_scale = max(sum(s.energy.values()), abs(s.reactions["top"].force[2]) * scene.body.le)
+    rtol = 1e-3
+    for a, at_rest in ((0.5 * rtol, True), (2.0 * rtol, False)):
+        rest = rest_report(system, f_int, {**s.energy, "kinetic": a * a * e_scale}, 1.0, rtol, x)
+        assert rest["at_rest"] is at_rest, rest
+        assert rest["relative_kinetic_energy"] == pytest.approx(a * a, rel=1e-6)
 
 
 def test_damping_must_be_non_negative():

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hybmss.experiments import SceneSpec
-from hybmss.explicit import _divergence, dt_crit, plate_wrench_scale, simulate_explicit, stencil
+from hybmss.explicit import divergence_error, dt_crit, plate_wrench_scale, simulate_explicit, stencil
 from hybmss.system import build
 
 PROTOCOL = dict(dt=1e-3, steps=10_000, ramp_time=1.0)
@@ -116,7 +116,7 @@ def test_divergence_message_names_the_step_only_when_it_is_near_the_limit():
     far[5] += 1e3  # ran away
 
     def cause(x, dt):
-        msg = str(_divergence(system, x, 5, 100, dt, 50.0, dc, 10))
+        msg = str(divergence_error(system, x, 5, 100, dt, 50.0, dc, 10))
         return msg.split("Likely cause: ", 1)[1]
 
     assert cause(x, 1.2 * dc).startswith(f"time step dt={1.2 * dc:g} s exceeds")

@@ -147,10 +147,10 @@ class Corrections:
         return -correction_jacobian(x, self)
 
     def stencil_stage(self, system):
-        """Its stage in the generated stencil kernel (:class:`hybmss.explicit.StencilStage`):
+        """Its stage in the generated stencil kernel (:class:`hybmss.models.hybmss.stepper.StencilStage`):
         :func:`hybmss.models.baudet2009._kernels.stencil_stage` on the grid layout of
         :class:`GridCorrections`, float64 only."""
-        from ...explicit import StencilStage
+        from ..hybmss.stepper import StencilStage
 
         return StencilStage(f"{_kernels_module()}:stencil_stage", GridCorrections.from_system(system).stage_args,
                             ("f64",))

@@ -52,14 +52,15 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ...explicit import (DENSE_EIG_MAX, lambda_max, lanczos_start, numpy_advance, plate_arrays,
-                         scaled_free_stiffness, simulate_explicit as _simulate_explicit)
+from ...explicit import (DENSE_EIG_MAX, lambda_max, lanczos_start, plate_arrays, scaled_free_stiffness,
+                         simulate_explicit as _simulate_explicit)
 from ...lattice import CORNERS
 from ...result import Result
 from ...scene import Material
 from ...stepper import ParticleStepper
 from ...system import System
 from ..base import ModelBase, Style
+from ..hybmss.stepper import numpy_advance
 from . import _kernels as _kernels_corot
 
 XI = np.ascontiguousarray(2.0 * CORNERS - 1.0)
@@ -280,7 +281,7 @@ def dt_crit(system: System, term: CorotHex8) -> float:
 
 def numpy_step(system: System, term: CorotHex8, x, v, dt, damp, x_old, x_new):
     """One semi-implicit Euler step of the readable twin on (n, 3) arrays, in place (as
-    :func:`hybmss.explicit.numpy_step`)."""
+    :func:`hybmss.models.hybmss.stepper.numpy_step`)."""
     acc = term.forces(x) / system.mass[:, None]
     if system.gravity is not None:
         acc = acc + system.gravity[None, :]

@@ -78,8 +78,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...explicit import (BLOWUP_FACTOR, RAMP_LAW, REST_RTOL, _divergence, find_bad, initial_state, plate_arrays,
-                         plate_reactions, ramp, rest_report, simulate_explicit as _simulate_explicit)
+from ...explicit import (BLOWUP_FACTOR, RAMP_LAW, REST_RTOL, divergence_error, find_bad, initial_state,
+                         plate_arrays, plate_reactions, ramp, rest_report, simulate_explicit as _simulate_explicit)
 from ...lattice import CORNERS
 from ...result import Result
 from ...scene import Material
@@ -537,7 +537,7 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
                 x_check = x.copy()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if bad >= 0:
-        raise _divergence(system, x, bad, done, H, limit, None, check)
+        raise divergence_error(system, x, bad, done, H, limit, None, check)
     v = (x - x_prev) / H
     info = {"kernel": kernel, "threads": 1, "precision": "f64", "cpu_time_s": cpu, "h": h, "H": H,
             "over_relaxation": over, "beta": beta, "steps": done, "iterations": iterations, "coupled": bool(coupled),

@@ -1,12 +1,17 @@
 """``hybmss``: the hybrid mass-spring model of [G20] — edge, face-diagonal and inner-diagonal
-springs calibrated for G, plus a per-cell volume energy of stiffness κ for ν (SPEC §2–3)."""
+springs calibrated for G, plus a per-cell volume energy of stiffness κ for ν (SPEC §2–3).
+
+The folder holds the model (this module, the registry's ``MODEL``) and the stepper of its spring
+and volume lattice (:mod:`hybmss.models.hybmss.stepper`: the generated stencil kernel and its
+NumPy twin), which the variants (``hybmss-fd``, ``hybmss-cf``, [B09]'s cells, plug-ins) share."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..calibrate import G_e_form, hybrid_springs, kappa_e_form, kappa_from
-from .base import ModelBase, Style, check
+from ...calibrate import G_e_form, hybrid_springs, kappa_e_form, kappa_from
+from ..base import ModelBase, Style, check
+from .stepper import LatticeStepper
 
 VOLUME_ENERGIES = ("quadratic", "squared")
 """Volume-energy forms: ``quadratic`` is κ/2 Vc ((V'−Vc)/Vc)² ([G20] eq. 5.8);
@@ -51,6 +56,12 @@ class HybMSS(ModelBase):
 
     def volume_energy(self, p) -> str:
         return p.volume_energy
+
+    def stepper(self, system, dt: float, *, ramp_time: float, kernel: str = "numba", precision: str = "f64",
+                threads: int = 1):
+        """The lattice's stepper (:class:`.stepper.LatticeStepper`); the explicit loop also runs it for
+        every model that has no stepper of its own."""
+        return LatticeStepper(system, dt, ramp_time=ramp_time, kernel=kernel, precision=precision, threads=threads)
 
     def variant(self, p) -> str:
         return f"{self.name} (E-form)" if p.e_form else self.name
