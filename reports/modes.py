@@ -61,9 +61,8 @@ def body_table(t: pd.DataFrame, body: str) -> Table:
                       "that kind. Lowest MAC: over all k pairs (near-equal higher FEM modes mix, so it can be low "
                       "where the three named modes are well paired). Green within 2 %, amber within 10 %. FEM: Hex2 "
                       "with consistent mass on the same cells, mixed u–p for ν ≥ 0.45; model: its tangent at rest "
-                      "with its lumped masses.", cols, cls)
-    tab.csv = f"tables/modes_{body}.csv"
-    return tab
+                      f"with its lumped masses. CSV: tables/modes_{body}.csv.", cols, cls)
+    return tab  # printed (a table with a CSV link is the HTML page's only)
 
 
 def figure(tables: dict, path: Path) -> Figure | None:
