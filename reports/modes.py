@@ -58,7 +58,7 @@ def body_table(t: pd.DataFrame, body: str) -> Table:
                       "Error 100 (f_model / f_FEM − 1) % of the lowest FEM mode of each kind (layers translating "
                       "sideways: bending, or the cube's shear; turning: torsion; moving along z: axial), the model's "
                       "mode paired by MAC among its lowest 2k; empty where none of the FEM's k lowest modes is of "
-                      "that kind. Lowest MAC: over all k pairs (near-equal higher FEM modes mix, so it can be low "
+                      "that kind or where the model has no counterpart of it (its best pair's MAC below 0.5). Lowest MAC: over all k pairs (near-equal higher FEM modes mix, so it can be low "
                       "where the three named modes are well paired). Green within 2 %, amber within 10 %. FEM: Hex2 "
                       "with consistent mass on the same cells, mixed u–p for ν ≥ 0.45; model: its tangent at rest "
                       f"with its lumped masses. CSV: tables/modes_{body}.csv.", cols, cls)
@@ -98,7 +98,8 @@ def figure(tables: dict, path: Path) -> Figure | None:
         _save(plt, fig, path)
     return Figure("modes_error", "Frequency error against ν", path,
                   "Error of each model's first bending, torsion and axial frequency against the FEM's on the same "
-                  "cells, per ν (axis log(½ − ν)); a missing point: no FEM mode of that kind among the k lowest.")
+                  "cells, per ν (axis log(½ − ν)); a missing point: no FEM mode of that kind among the k lowest, or no counterpart of it among the model's "
+                  "lowest 2k (MAC below 0.5).")
 
 
 def _worst(t: pd.DataFrame, m: str) -> tuple[float | None, float | None, str | None]:

@@ -13,7 +13,7 @@ SHOWN = ("model", "cell_size_m", "nu", "mode", "kind", "f_ref_hz", "f_model_hz",
          "model_time_s", "fem_time_s", "fem_element", "status", "message")
 HEADERS = {"cell_size_m": "cell size (m)", "nu": "ν", "f_ref_hz": "FEM f (Hz)", "f_model_hz": "model f (Hz)",
            "error_pct": "error (%)", "mac": "MAC", "model_time_s": "model eigen-solve (s)",
-           "fem_time_s": "FEM eigen-solve (s)", "fem_element": "FEM", "message": "why no answer"}
+           "fem_time_s": "FEM eigen-solve (s)", "fem_element": "FEM", "message": "why no error"}
 
 
 def _cell(v) -> str:

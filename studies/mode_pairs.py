@@ -4,7 +4,8 @@ FEM mode and the wall time of the model's eigen-solve (cost beside error).
 The eigenproblems are :func:`hybmss.modes.lattice_modes` (``K φ = ω² M φ``: the model's tangent at
 rest, its lumped masses) and :func:`fem_reference.modal.modes` (the same body and supports); each
 FEM mode is paired with one of the model's lowest 2k modes by MAC (:func:`hybmss.modes.match`), and
-its error is ``100 (f_model / f_ref − 1)`` %.
+its error is ``100 (f_model / f_ref − 1)`` % (none when the pair's MAC is below :data:`MAC_MIN`: the
+model has no counterpart among those modes).
 
 **Kind of a mode** (:func:`mode_kinds`), from its shape ``u`` at the lattice particles, cut into
 the layers of equal z (the axis of the [G20] beam and of the cube's plates).  In each layer the
@@ -28,6 +29,9 @@ import numpy as np
 KINDS = ("bending", "torsion", "axial")
 KIND_SHARE = 0.5
 """Share of ``Σ |u|²`` a kind must hold to name a mode."""
+MAC_MIN = 0.5
+"""A FEM mode whose paired model mode has a lower MAC has no counterpart among the model's lowest
+2k: its row keeps the pair's frequency and MAC but no error (``status`` ``unpaired``)."""
 NO_TANGENT = "no modal answer: the model has no tangent stiffness (its static answer is its own solver's)"
 
 
@@ -90,18 +94,24 @@ def model_rows(scene, fem: dict) -> list[dict]:
     m = match(fem["freq"], fem["shapes"], lm.freq, lm.shapes)
     rows = []
     for j, c in enumerate(m["matched"]):
-        err = m["error"][j]
+        mac = m["matched_mac"][j]
+        paired = c is not None and mac >= MAC_MIN
+        err = m["error"][j] if paired else None
+        why = "" if paired else (f"no mode among the model's lowest {len(lm.freq)} resembles it (MAC "
+                                 f"{0.0 if mac is None else mac:.2g} < {MAC_MIN:g})")
         rows.append({"mode": j + 1, "kind": fem["kinds"][j], "f_ref_hz": float(fem["freq"][j]),
                      "f_model_hz": None if c is None else float(lm.freq[c]),
                      "model_mode": None if c is None else c + 1,
-                     "error_pct": None if err is None else 100.0 * err, "mac": m["matched_mac"][j],
-                     "model_time_s": wall, "fem_time_s": fem["time_s"], "status": "ok", "message": ""})
+                     "error_pct": None if err is None else 100.0 * err, "mac": mac,
+                     "model_time_s": wall, "fem_time_s": fem["time_s"], "status": "ok" if paired else "unpaired",
+                     "message": why})
     return rows
 
 
 def first_of_kinds(rows: list[dict]) -> dict:
-    """``<kind>_error_pct`` of the first mode of each kind, ``min_mac`` over the rows, from rows of
-    one model (:func:`model_rows`); None where a kind is not among them."""
+    """``<kind>_error_pct`` of the first mode of each kind, ``min_mac`` over the rows, from the mode
+    rows of one model (:func:`model_rows`); None where a kind is not among them or its first mode
+    has no counterpart (MAC below :data:`MAC_MIN`)."""
     out = {}
     for kind in KINDS:
         hit = next((r for r in rows if r.get("kind") == kind), None)
