@@ -58,7 +58,8 @@ def body_table(t: pd.DataFrame, body: str) -> Table:
                       "Error 100 (f_model / f_FEM − 1) % of the lowest FEM mode of each kind (layers translating "
                       "sideways: bending, or the cube's shear; turning: torsion; moving along z: axial), the model's "
                       "mode paired by MAC among its lowest 2k; empty where none of the FEM's k lowest modes is of "
-                      "that kind or where the model has no counterpart of it (its best pair's MAC below 0.5). Lowest MAC: over all k pairs (near-equal higher FEM modes mix, so it can be low "
+                      "that kind or where the model has no counterpart of it (its best pair's MAC below 0.5). "
+                      "Lowest MAC: over all k pairs (near-equal higher FEM modes mix, so it can be low "
                       "where the three named modes are well paired). Green within 2 %, amber within 10 %. FEM: Hex2 "
                       "with consistent mass on the same cells, mixed u–p for ν ≥ 0.45; model: its tangent at rest "
                       f"with its lumped masses. CSV: tables/modes_{body}.csv.", cols, cls)
@@ -98,7 +99,8 @@ def figure(tables: dict, path: Path) -> Figure | None:
         _save(plt, fig, path)
     return Figure("modes_error", "Frequency error against ν", path,
                   "Error of each model's first bending, torsion and axial frequency against the FEM's on the same "
-                  "cells, per ν (axis log(½ − ν)); a missing point: no FEM mode of that kind among the k lowest, or no counterpart of it among the model's "
+                  "cells, per ν (axis log(½ − ν)); a missing point: no FEM mode of that kind among the k lowest, "
+                  "or no counterpart of it among the model's "
                   "lowest 2k (MAC below 0.5).")
 
 
@@ -153,9 +155,9 @@ def section(results, fig_dir: Path) -> tuple[str, str, list] | None:
             items.append(("table", body_table(tables[body], body)))
     pairs = results.table("modes_pairs")
     if pairs is not None:
-        tab = frame_table(pairs, "table_modes_pairs", "Every mode pair", "Each FEM mode, its kind and the model's "
-                          "mode paired with it by MAC: frequencies (Hz), error (%), MAC, wall time of each eigen-solve.",
-                          screen_only=True)
+        tab = frame_table(pairs, "table_modes_pairs", "Every mode pair",
+                          "Each FEM mode, its kind and the model's mode paired with it by MAC: frequencies (Hz), "
+                          "error (%), MAC, wall time of each eigen-solve.", screen_only=True)
         tab.csv = "tables/modes_pairs.csv"
         items.append(("table", tab))
     intro = ("Small vibrations about the rest state, K φ = ω² M φ: each model's tangent at rest with its lumped "

@@ -45,7 +45,9 @@ def column(tmp_path_factory, cli_in_process):
     proc = cli_in_process("study", write(column_study(), tmp / "column.toml"), "--out", out, "--jobs", "1",
                           "--no-progress", "--no-report")
     assert proc.returncode == 0, proc.stderr
-    return pd.read_csv(out / "tables" / "column_modes_hang.csv")
+    table = pd.read_csv(out / "tables" / "column_modes_hang.csv")
+    table.attrs["out"] = out
+    return table
 
 
 def test_column_modes_are_the_chain_and_the_bar(column):
@@ -82,3 +84,12 @@ def test_modes_not_allowed_is_refused_naming_the_key(tmp_path, cli_in_process, v
     assert len(lines) == 1 and "metrics.modes" in lines[0] and "is not allowed" in lines[0], lines
     assert allowed in lines[0], lines[0]
     assert not out.exists()
+
+
+def test_the_study_report_shows_the_stored_table(column):
+    from reports.study_modes import modes_html
+
+    page = modes_html(column.attrs["out"], "column", "hang")
+    assert page.count("<tr>") == 1 + len(column) and "no modal answer" in page
+    assert f"{column['f_model_hz'].iloc[0]:.4g}" in page
+    assert modes_html(column.attrs["out"], "column", "other") is None
