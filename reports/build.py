@@ -25,6 +25,7 @@ from . import figures as figmod
 from . import palette
 from . import render as rendermod
 from . import engines as enginemod
+from . import modes as modesmod
 from . import findings, layout, summary, tables, vtu
 from .data import Results
 
@@ -47,7 +48,8 @@ HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability"
                 "study_limit_stretch", "study_b09"}
 OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
-                "differences", "eform_check", "moduli", "headline", "claims", *OPTIONAL_TABLES, *enginemod.TABLES}
+                "differences", "eform_check", "moduli", "headline", "claims", *OPTIONAL_TABLES, *enginemod.TABLES,
+                *modesmod.TABLES}
 
 
 @dataclass
@@ -377,6 +379,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             s.items.append(("table", t))
     if s.items:
         sections.append(s)
+
+    mod = modesmod.section(results, fig_dir)  # natural frequencies (reports/modes.py)
+    if mod is not None:
+        sections.append(Section("modes", mod[0], mod[1], [(k, _fig(i) if k == "figure" else i) for k, i in mod[2]]))
 
     eng = enginemod.section(results)  # the engines' findings (reports/engines.py)
     if eng is not None:

@@ -96,6 +96,7 @@ EXTRA_STUDIES: dict[str, str] = {
     "performance": "studies.performance:run",  # [G20] Figs 11-12: explicit kernel time per step
     "pareto": "studies.pareto:run",  # speed against error vs a converged FEM reference; error budgets
     "stability": "studies.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input
+    "modes": "studies.modes_study:run",  # natural frequencies of the cube and beam against the FEM's
 }
 """Studies with their own driver, run after the task lists above: name -> "module:function",
 where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool, runner)``

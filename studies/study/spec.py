@@ -29,6 +29,7 @@ from .body import BodySource, Voxels, cell_sizes, folder_of, read_source
 from .errors import StudyError
 from .outcome import read_expected
 from .keys import Table, close
+from .modes import check_modes, read_modes
 from .regions import SupportSpec, TractionSpec, held_modes, read_support, read_traction
 
 TOP_KEYS = ("study", "body", "material", "load_case", "model", "reference", "metrics")
@@ -77,6 +78,7 @@ class Metrics:
     volume_change: bool = True
     displacement: bool = True
     points: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    modes: int = 0  # natural frequencies: the lowest k modes (studies.study.modes); 0: none
 
 
 @dataclass(frozen=True)
@@ -169,6 +171,7 @@ def _user_study(top: Table, body: Table, quick: bool) -> Study:
                   load_cases=cases, models=runs, reference=reference, metrics=metrics, voxels=voxels)
     _check_resolutions(study, top)
     _check_points(study, top)
+    check_modes(study, top.file)
     return study
 
 
@@ -320,8 +323,9 @@ def _read_metrics(t: Table | None, cases: tuple[LoadCase, ...]) -> Metrics:
     points = ()
     if p is not None:
         points = tuple((k, tuple(p.numbers(k, 3))) for k in list(p.data))
+    modes = read_modes(t)
     t.done()
-    return Metrics(tuple(forces), volume, displacement, points)
+    return Metrics(tuple(forces), volume, displacement, points, modes)
 
 
 def _unique(t: Table, key: str, names: list[str], what: str = "name") -> None:
