@@ -323,3 +323,10 @@ def test_out_is_a_file(tmp_path, cli_in_process):
     proc = cli_in_process("study", path, "--out", tmp_path / "out" / "deeper")
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert "out" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_the_study_file_is_empty(tmp_path, cli_in_process):
+    (tmp_path / "s.toml").write_text("")
+    proc = cli_in_process("study", tmp_path / "s.toml", "--out", tmp_path / "out")
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and ": body = '(missing)'" in lines[0], proc.stderr

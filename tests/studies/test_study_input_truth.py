@@ -318,3 +318,16 @@ def test_misspelt_keys_get_did_you_mean(tmp_path, cli_in_process, where, typo, h
 def test_misspelt_names_get_did_you_mean(tmp_path, cli_in_process, edit, key, hint):
     line = _refused(cli_in_process, tmp_path, changed(small_study(), edit), key)
     assert f"did you mean {hint}" in line, line
+
+
+def test_a_hostile_and_unicode_title_in_the_written_report(tmp_path, cli_in_process):
+    """The whole study with its report: the title is text in the page (no script element, the
+    non-ASCII characters as written), one model run and its reference, exit 0."""
+    doc = small_study()
+    doc["study"]["title"] = "</style><script>alert(1)</script> Étude 肝臓"
+    path = write(doc, tmp_path / "study.toml")
+    proc = cli_in_process("study", path, "--out", tmp_path / "out", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    page = (tmp_path / "out" / "report" / "small.html").read_text(encoding="utf-8")
+    assert "<script>" not in page and page.count("</style>") == 1
+    assert "&lt;/style&gt;&lt;script&gt;alert(1)&lt;/script&gt; Étude 肝臓" in page
