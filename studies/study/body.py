@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from hybmss.scene import Body, pieces
 
-from .checks import check_extent, check_volume, check_winding, mask_measures, surface_measures
+from .checks import check_digits, check_extent, check_volume, check_winding, mask_measures, surface_measures
 from .keys import Table, close
 
 SOURCES = ("box", "mesh", "pyvista", "mask", "experiment")
@@ -255,6 +255,8 @@ def body_checks(t: Table, src: BodySource, sizes, voxels) -> None:
     volume (a surface's enclosed volume, a mask's voxels)."""
     from hybmss.voxelize import clean_surface
 
+    for vox in voxels:
+        check_digits(t, "origin" if t.has("origin") else src.kind, vox)
     if src.kind == "box":
         return
     if src.kind == "mask":

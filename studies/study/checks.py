@@ -32,6 +32,9 @@ E_RANGE = (1e-3, 1e13)
 (E = 1e300 overflows a plate force to -inf)."""
 RHO_MAX = 1e5
 """The largest density a study accepts, kg/m³ (osmium, the densest element: 22,590)."""
+POSITION_CELLS = 1e9
+"""How many cell sizes from 0 a body's coordinates may reach (float64 keeps 16 digits: 7 left of a
+cell's edge)."""
 WINDING_WORK = 5e6
 """Point-triangle pairs the winding-number check of a surface evaluates (about a second)."""
 WINDING_POINTS = 20_000
@@ -176,6 +179,17 @@ def check_winding(t, key: str, vertices: np.ndarray, triangles: np.ndarray, le: 
         raise t.error(key, t.data[key], f"a closed surface that does not cross itself (its winding number "
                       f"ranges from {int(w.min())} to {int(w.max())} over its grid's cell centres: "
                       f"{int(w[np.argmin(np.abs(where - centres).sum(axis=1))])} at {np.round(where, 6).tolist()})")
+
+
+def check_digits(t, key: str, vox) -> None:
+    """Refuse a body whose coordinates are more than :data:`POSITION_CELLS` cell sizes from 0:
+    float64 positions there keep fewer than 7 digits of a cell's edge (the lattice's springs and
+    the FEM's Jacobians are differences of such positions)."""
+    far = float(np.max(np.abs(np.asarray(vox.body.bounds, dtype=float))))
+    if far > POSITION_CELLS * vox.le:
+        raise t.error(key, t.data[key], f"a body within {POSITION_CELLS:g} cell sizes of the origin (its "
+                      f"coordinates reach {far:.3g} m at cell size {vox.le:g} m: positions would lose a cell's "
+                      "digits)")
 
 
 def check_extent(t, sizes, image_shape, spacing) -> None:

@@ -336,6 +336,10 @@ def _read_metrics(t: Table | None, cases: tuple[LoadCase, ...]) -> Metrics:
     points = ()
     if p is not None:
         points = tuple((k, tuple(p.numbers(k, 3))) for k in list(p.data))
+        for k, _ in points:
+            if not PRINTABLE.fullmatch(k):
+                raise p.error(k, list(p.data[k]), "a point named in printable ASCII characters (it names a table "
+                              "column)")
     t.done()
     return Metrics(tuple(forces), volume, displacement, points)
 

@@ -195,6 +195,9 @@ CASES = [
     ("F-mesh-empty-file", both(at("body.box", delete=True), at("body.mesh", "empty.stl")), "body.mesh"),
     ("F-mesh-self-crossing", both(at("body.box", delete=True), at("body.mesh", "crossing.stl")), "body.mesh"),
     ("F-label-region-on-box", at(f"{SUP}.1.region", {"label": 1}), "load_case[0].support[1].region.label"),
+    ("F-origin-far", at("body.origin", [1e300, 0.0, 0.0]), "body.origin"),
+    ("F-surface-coordinates-far", both(at("body", {"mesh": "far.vtp", "cell_sizes": [0.01]}), NO_METRICS),
+     "body.mesh"),
     # ------------------------------------------------ G. sizes past the machine
     ("G-sphere-at-2-cm", both(at("body", {"pyvista": "sphere", "cell_sizes": [0.02]}),
                               at(SUP, [{"name": "bottom", "region": "z-"}]), NO_METRICS), "body.cell_sizes"),
@@ -215,6 +218,7 @@ CASES = [
      "model[1].label"),
     ("H-support-name-emoji", both(at(f"{SUP}.1.name", "top ⬆"), NO_METRICS), "load_case[0].support[1].name"),
     ("H-support-names-equal", at(f"{SUP}.1.name", "bottom"), "load_case[0].support[1].name"),
+    ("H-point-name-unicode", at("metrics.points", {"tête": [0.01, 0.01, 0.04]}), "metrics.points.tête"),
     ("H-study-name-unicode", at("study.name", "étude"), "study.name"),
     ("H-study-name-path", at("study.name", "../../etc"), "study.name"),
     ("H-case-name-space", at("load_case.0.name", "press down"), "load_case[0].name"),
@@ -270,6 +274,9 @@ def _files(folder):
     a = pv.Box(bounds=(0, 0.02, 0, 0.02, 0, 0.03)).triangulate()
     b = pv.Box(bounds=(0, 0.02, 0, 0.02, 0.02, 0.05)).triangulate()
     a.append_polydata(b).save(folder / "crossing.stl")
+    far = pv.Box(bounds=(0, 0.02, 0, 0.02, 0, 0.04)).triangulate()
+    far.points = far.points.astype(float) + [1e8, 0.0, 0.0]  # float64 (an STL holds float32)
+    far.save(folder / "far.vtp")
 
 
 def test_the_probe_has_a_hundred_cases():
