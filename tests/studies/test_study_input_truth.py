@@ -331,3 +331,30 @@ def test_a_hostile_and_unicode_title_in_the_written_report(tmp_path, cli_in_proc
     page = (tmp_path / "out" / "report" / "small.html").read_text(encoding="utf-8")
     assert "<script>" not in page and page.count("</style>") == 1
     assert "&lt;/style&gt;&lt;script&gt;alert(1)&lt;/script&gt; Étude 肝臓" in page
+
+
+def test_a_body_of_two_pieces_runs_against_its_fem(tmp_path, cli_in_process):
+    """Two separate 2 x 2 x 4 cm blocks of one mask, each held by the floor and the lid (a body of
+    pieces is supported, not refused): the study runs (exit 0, no failed run), and the model's
+    field and lid force meet the study's 5 % budget against the FEM of both pieces."""
+    import json
+
+    import pandas as pd
+
+    two = np.zeros((5, 2, 4), dtype=np.int8)
+    two[:2], two[3:] = 1, 2
+    np.save(tmp_path / "two.npy", two)
+    doc = small_study()
+    doc["body"] = {"mask": "two.npy", "spacing": [0.01] * 3, "cell_sizes": [0.01]}
+    doc["load_case"][0]["support"] = [
+        {"name": "floor", "region": "z-"},
+        {"name": "top", "region": "z+", "motion": "translate", "displacement": [0.0, 0.0, -0.0001]}]
+    doc["metrics"] = {"plate_force": ["top"]}
+    path = write(doc, tmp_path / "study.toml")
+    proc = cli_in_process("study", path, "--out", tmp_path / "out", "--no-progress", "--no-report", "--json")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["summary"]["failed"] == 0 and out["runs"] == 2
+    errors = pd.read_csv(tmp_path / "out" / "tables" / "small_errors_press.csv")
+    assert len(errors) == 1 and errors["u_rel_l2"].iloc[0] < 0.05
+    assert errors["force_top_rel"].iloc[0] < 0.05
