@@ -358,3 +358,20 @@ def test_a_body_of_two_pieces_runs_against_its_fem(tmp_path, cli_in_process):
     errors = pd.read_csv(tmp_path / "out" / "tables" / "small_errors_press.csv")
     assert len(errors) == 1 and errors["u_rel_l2"].iloc[0] < 0.05
     assert errors["force_top_rel"].iloc[0] < 0.05
+
+
+def test_out_of_memory_in_a_study_names_the_study_files_keys(tmp_path, cli_in_process, monkeypatch):
+    """A MemoryError during a study (here raised by its runs) is exit 3 with one line whose remedy
+    exists for a study file (no --refine: the cell sizes or reference.refine), nothing stored."""
+    from studies.study import Study
+
+    def no_memory(self, out, **kw):
+        raise MemoryError
+
+    monkeypatch.setattr(Study, "run", no_memory)
+    path = write(small_study(), tmp_path / "study.toml")
+    proc = cli_in_process("study", path, "--out", tmp_path / "out", "--no-progress")
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 3 and len(lines) == 1, proc.stderr
+    assert "body.cell_sizes" in lines[0] and "--refine" not in lines[0], lines[0]
+    assert not (tmp_path / "out" / "runs").exists() or not any((tmp_path / "out" / "runs").iterdir())
