@@ -164,11 +164,7 @@ def pyvista_example(name: str) -> str:
 def read_source(t: Table) -> tuple[BodySource | None, str]:
     """The body's source from table ``body`` (None for an ``experiment`` body) and its kind."""
     given = [k for k in SOURCES if t.has(k)]
-    if not given:
-        for k in t.data:
-            hint = close(k, SOURCES)
-            if k not in BODY_KEYS and hint:
-                raise t.error(k, t.data[k], f"not a key of [body]; a body source is one of {', '.join(SOURCES)}{hint}")
+    source_typo(t)
     if len(given) != 1:
         raise t.error("box" if not given else given[1], t.data.get(given[1]) if len(given) > 1 else "(missing)",
                       f"exactly one body source: {', '.join(SOURCES)}")
@@ -198,6 +194,17 @@ def read_source(t: Table) -> tuple[BodySource | None, str]:
         path = pyvista_example(name)
     _check_closed(t, kind, path)
     return BodySource(kind, path=path, scale=scale, origin=_tuple(origin)), kind
+
+
+def source_typo(t: Table) -> None:
+    """Refuse an unknown key of [body] close to a source (``bxo``) when no source is given, or
+    close to ``experiment`` (an experiment body has a ``mesh`` list too), naming it, before the
+    rest of the body is read as another kind's."""
+    sourced = any(t.has(k) for k in SOURCES)
+    for k in t.data:
+        hint = close(k, SOURCES)
+        if k not in SOURCES and k not in BODY_KEYS and hint and (not sourced or close(k, ["experiment"])):
+            raise t.error(k, t.data[k], f"not a key of [body]; a body source is one of {', '.join(SOURCES)}{hint}")
 
 
 def _tuple(v):

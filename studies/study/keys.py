@@ -150,10 +150,11 @@ def _range(lo, hi, lo_open, hi_open) -> str:
     return " and ".join(s for s in (lo_s, hi_s) if s)
 
 
-def close(word: str, choices) -> str:
-    """" (did you mean a, b?)" naming the choices close to ``word`` (difflib, case aside), or ""."""
+def close(word: str, choices, n: int = 3) -> str:
+    """" (did you mean a, b?)" naming up to ``n`` choices close to ``word`` (difflib, case aside),
+    or ""."""
     by_lower = {}
     for c in sorted(map(str, choices)):
         by_lower.setdefault(c.lower(), c)
-    found = difflib.get_close_matches(str(word).lower(), list(by_lower), n=3)
+    found = difflib.get_close_matches(str(word).lower(), list(by_lower), n=n)
     return f" (did you mean {', '.join(by_lower[f] for f in found)}?)" if found else ""

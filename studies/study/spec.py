@@ -26,7 +26,7 @@ from hybmss.lattice import Lattice
 from hybmss.scene import Load, Material, NU_OPEN_RANGE, Scene, plates_cross
 
 from . import checks
-from .body import BodySource, Voxels, body_checks, cell_sizes, folder_of, read_source
+from .body import BodySource, Voxels, body_checks, cell_sizes, folder_of, read_source, source_typo
 from .errors import StudyError
 from .keys import Table, close
 from .regions import SupportSpec, TractionSpec, held_modes, read_support, read_traction
@@ -123,6 +123,7 @@ class Study:
             raise StudyError("FILE", str(path), f"a TOML file ({' '.join(str(exc).split())})") from None
         top = Table(doc, "", file, folder_of(path))
         body = top.sub("body", required=True)
+        source_typo(body)
         if body.has("experiment"):
             return _experiment_study(top, doc, quick)
         return _user_study(top, body, quick)

@@ -228,6 +228,7 @@ CASES = [
     ("I-body", at("body.cellsizes", [0.01]), "body.cellsizes"),
     ("I-body-source", both(at("body.box", delete=True), at("body.bxo", [0.02, 0.02, 0.04])), "body.bxo"),
     ("I-material", at("material.Nu", 0.3), "material.Nu"),
+    ("I-body-experiment", at("body", {"experimnt": "compression", "mesh": [[2, 2, 2]]}), "body.experimnt"),
     ("I-load-case", at("load_case.0.gravitiy", [0.0, 0.0, -9.81]), "load_case[0].gravitiy"),
     ("I-support", at(f"{SUP}.1.motoin", "clamped"), "load_case[0].support[1].motoin"),
     ("I-region", at(f"{SUP}.1.region", {"fase": "z+"}), "load_case[0].support[1].region.fase"),

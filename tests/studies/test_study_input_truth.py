@@ -375,3 +375,16 @@ def test_out_of_memory_in_a_study_names_the_study_files_keys(tmp_path, cli_in_pr
     assert proc.returncode == 3 and len(lines) == 1, proc.stderr
     assert "body.cell_sizes" in lines[0] and "--refine" not in lines[0], lines[0]
     assert not (tmp_path / "out" / "runs").exists() or not any((tmp_path / "out" / "runs").iterdir())
+
+
+@pytest.mark.parametrize("edit,key,hint", [
+    (lambda d: d["material"].update(Nu=d["material"].pop("nu")), "material.Nu", "nu"),
+    (lambda d: d["body"].update(experimnt=d["body"].pop("experiment")), "body.experimnt", "experiment"),
+    (lambda d: d["load"].update(deformaton=d["load"].pop("deformation")), "load.deformaton", "deformation")])
+def test_misspelt_keys_of_an_experiment_study(tmp_path, cli_in_process, edit, key, hint):
+    import tomllib
+    from pathlib import Path
+
+    doc = tomllib.loads((Path(__file__).parents[2] / "studies/data/studies/compression.toml").read_text())
+    line = _refused(cli_in_process, tmp_path, changed(doc, edit), key)
+    assert f"did you mean {hint}?" in line, line
