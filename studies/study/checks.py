@@ -295,5 +295,5 @@ def check_models(study, top) -> None:
                     key, value = f"load_case[{c}].traction", [list(t.traction) for t in case.tractions]
                 elif "rho" in why:
                     key, value = "material.rho", mat.rho
-                raise StudyError(key, value, f"a value model[{i}] ({run.label}, {run.kind} solver) runs: {why}",
+                raise StudyError(key, value, f"what model[{i}] ({run.label}, {run.kind} solver) can run: {why}",
                                  top.file)
