@@ -215,9 +215,10 @@ def check_supports_agree(top, where: str, vox, X: np.ndarray, plates) -> None:
             if gap > tol:
                 pa, pb = plates[a][0], plates[b][0]
                 raise StudyError(f"{where}.support[{b}].region", _region(pb.region), f"a region whose nodes no "
-                                 f"other support moves otherwise: {shared} of the nodes of {pb.name!r} ({pb.motion.kind}) "
-                                 f"are also held by support[{a}] {pa.name!r} ({pa.motion.kind}), whose motion "
-                                 f"differs by up to {gap:.3g} m (at cell size {vox.le:g} m)", top.file)
+                                 f"other support moves otherwise: {shared} of the nodes of {pb.name!r} "
+                                 f"({pb.motion.kind}) are also held by support[{a}] {pa.name!r} "
+                                 f"({pa.motion.kind}), whose motion differs by up to {gap:.3g} m (at cell size "
+                                 f"{vox.le:g} m)", top.file)
     given = np.zeros((len(X), 3), dtype=bool)
     for plate, sel in plates:
         given[sel] |= plate.motion.constrained
