@@ -452,6 +452,16 @@ def libraries_logged(records: list):
         root.removeHandler(handler)
 
 
+OUT_OF_MEMORY = {None: "a coarser mesh or a smaller --refine",
+                 "study": "larger cell sizes (body.cell_sizes) or a smaller reference.refine in the study file"}
+"""The remedy for a command that ran out of memory (``study`` has no ``--mesh`` nor ``--refine``)."""
+
+
+def _command(argv) -> str | None:
+    """The subcommand named in ``argv`` (its first word that is not an option)."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
 def _flag_in(argv, name: str) -> bool:
     head = argv[:argv.index("--")] if "--" in argv else argv
     return name in head
@@ -494,7 +504,7 @@ def main(argv=None) -> int:
     except MemoryError:
         if debug:
             traceback.print_exc()
-        return fail(3, "failed", "out of memory; use a coarser mesh or a smaller --refine")
+        return fail(3, "failed", f"out of memory; use {OUT_OF_MEMORY.get(_command(argv), OUT_OF_MEMORY[None])}")
     except Exception as exc:  # noqa: BLE001 - every failure is one line; --debug shows the traceback
         if debug:
             traceback.print_exc()

@@ -8,16 +8,22 @@ cell of its grid (0 outside), from which mask-label regions are drawn.  A mesh i
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from hybmss.scene import Body, pieces
 
-from .keys import Table
+from .checks import check_digits, check_extent, check_volume, check_winding, mask_measures, surface_measures
+from .keys import Table, close
 
 SOURCES = ("box", "mesh", "pyvista", "mask", "experiment")
+BODY_KEYS = ("origin", "scale", "spacing", "labels", "cell_sizes", "quick")
+"""The keys of [body] other than its source."""
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".vtk", ".vtp")
 MASK_SUFFIXES = (".npy", ".vti")
 PYVISTA_SURFACES = ("nut", "ant", "airplane", "sphere")
@@ -105,8 +111,23 @@ def read_surface(path: str, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]
 
     from hybmss.voxelize import surface_triangles
 
-    points, triangles = surface_triangles(pv.read(path))
+    with quiet_vtk():
+        points, triangles = surface_triangles(pv.read(path))
     return np.asarray(points, dtype=float) * scale, np.asarray(triangles, dtype=np.int64)
+
+
+@contextlib.contextmanager
+def quiet_vtk():
+    """VTK's reports on a file it cannot read (logged and warned by pyvista, many lines) kept off
+    stderr: the reader's failure is the study file's refused key, one line."""
+    previous = logging.root.manager.disable
+    logging.disable(logging.CRITICAL)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logging.disable(previous)
 
 
 def is_closed(path: str) -> bool:
@@ -122,7 +143,8 @@ def read_image(path: str, spacing=None) -> tuple[np.ndarray, np.ndarray, np.ndar
         return image, np.asarray(spacing, dtype=float), np.zeros(3)
     import pyvista as pv
 
-    grid = pv.read(path)
+    with quiet_vtk():
+        grid = pv.read(path)
     name = grid.array_names[0]
     values = np.asarray(grid[name])
     dims = np.asarray(grid.dimensions)
@@ -142,6 +164,7 @@ def pyvista_example(name: str) -> str:
 def read_source(t: Table) -> tuple[BodySource | None, str]:
     """The body's source from table ``body`` (None for an ``experiment`` body) and its kind."""
     given = [k for k in SOURCES if t.has(k)]
+    source_typo(t)
     if len(given) != 1:
         raise t.error("box" if not given else given[1], t.data.get(given[1]) if len(given) > 1 else "(missing)",
                       f"exactly one body source: {', '.join(SOURCES)}")
@@ -173,6 +196,17 @@ def read_source(t: Table) -> tuple[BodySource | None, str]:
     return BodySource(kind, path=path, scale=scale, origin=_tuple(origin)), kind
 
 
+def source_typo(t: Table) -> None:
+    """Refuse an unknown key of [body] close to a source (``bxo``) when no source is given, or
+    close to ``experiment`` (an experiment body has a ``mesh`` list too), naming it, before the
+    rest of the body is read as another kind's."""
+    sourced = any(t.has(k) for k in SOURCES)
+    for k in t.data:
+        hint = close(k, SOURCES)
+        if k not in SOURCES and k not in BODY_KEYS and hint and (not sourced or close(k, ["experiment"])):
+            raise t.error(k, t.data[k], f"not a key of [body]; a body source is one of {', '.join(SOURCES)}{hint}")
+
+
 def _tuple(v):
     return None if v is None else tuple(v)
 
@@ -196,6 +230,9 @@ def _check_image(t: Table, src: BodySource) -> None:
     if src.labels and not np.isin(src.labels, image).all():
         missing = sorted(set(src.labels) - set(np.unique(image).tolist()))
         raise t.error("labels", list(src.labels), f"labels present in the image (missing {missing})")
+    if image.size == 0 or not np.any(image):
+        raise t.error("mask", t.data["mask"], f"an image with voxels in the body (shape {list(image.shape)}, "
+                      "none non-zero)")
 
 
 def cell_sizes(t: Table, src: BodySource) -> list[float]:
@@ -203,6 +240,9 @@ def cell_sizes(t: Table, src: BodySource) -> list[float]:
     sizes = t.numbers("cell_sizes", required=True, lo=0.0, lo_open=True)
     if sorted(sizes, reverse=True) != sizes or len(set(sizes)) != len(sizes):
         raise t.error("cell_sizes", sizes, "distinct cell sizes, coarse to fine (decreasing)")
+    if src is not None and src.kind == "mask":
+        image, spacing, _ = read_image(src.path, src.spacing)
+        check_extent(t, sizes, image.shape, spacing)
     if src is not None and src.kind == "box":
         for le in sizes:
             n = np.asarray(src.size) / le
@@ -214,3 +254,26 @@ def cell_sizes(t: Table, src: BodySource) -> list[float]:
 
 def folder_of(path) -> Path:
     return Path(path).resolve().parent
+
+
+def body_checks(t: Table, src: BodySource, sizes, voxels) -> None:
+    """The voxel body is the body the file gave (:mod:`studies.study.checks`): a surface that does
+    not cross itself, and at every cell size a voxel volume within the shell around the source's
+    volume (a surface's enclosed volume, a mask's voxels)."""
+    from hybmss.voxelize import clean_surface
+
+    for vox in voxels:
+        check_digits(t, "origin" if t.has("origin") else src.kind, vox)
+    if src.kind == "box":
+        return
+    if src.kind == "mask":
+        image, spacing, _ = read_image(src.path, src.spacing)
+        keep = np.isin(image, src.labels) if src.labels else image != 0
+        volume, area = mask_measures(keep, spacing)
+        h = float(np.max(spacing))
+    else:
+        vertices, triangles = clean_surface(*read_surface(src.path, src.scale))
+        check_winding(t, src.kind, vertices, triangles, min(sizes))
+        (volume, area), h = surface_measures(vertices, triangles), 0.0
+    for vox in voxels:
+        check_volume(t, sizes, vox, volume, area, h)

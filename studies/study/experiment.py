@@ -33,7 +33,6 @@ the :func:`quick_case` only, and not at all when its part says ``quick=False``.
 
 from __future__ import annotations
 
-import difflib
 import itertools
 import json
 import math
@@ -46,6 +45,7 @@ from .. import roles
 from ..runner import SolverSpec, Task
 
 from .errors import StudyError
+from .keys import close
 
 BODY_KEYS = ("experiment", "mesh", "quick")
 QUICK_KEYS = ("mesh",)
@@ -81,9 +81,7 @@ def _fail(path, key, value, allowed):
 def _unknown(path, where: str, table: dict, allowed) -> None:
     for k, v in table.items():
         if k not in allowed:
-            close = difflib.get_close_matches(str(k), list(allowed), n=1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            _fail(path, f"{where}.{k}" if where else k, v, f"a key among {', '.join(allowed)}{hint}")
+            _fail(path, f"{where}.{k}" if where else k, v, f"a key among {', '.join(allowed)}{close(k, allowed, 1)}")
 
 
 def _table(path, doc: dict, key: str, required: bool = True) -> dict:
@@ -182,9 +180,7 @@ def _check_load(path, doc: dict, experiment: str) -> None:
     allowed = _load_keys(experiment)
     for k, v in load.items():
         if k not in allowed:
-            close = difflib.get_close_matches(str(k), list(allowed), n=1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            _fail(path, f"load.{k}", v, f"{experiment} takes {', '.join(allowed)}{hint}")
+            _fail(path, f"load.{k}", v, f"{experiment} takes {', '.join(allowed)}{close(k, allowed, 1)}")
         f = _SCENE_FIELDS[k]
         rng = f.metadata["ranges"]
         rng = rng.get(experiment) if isinstance(rng, dict) else rng
@@ -237,10 +233,9 @@ def _check_models(path, doc: dict) -> None:
             continue
         name = e["name"]
         if name not in models.names():
-            close = difflib.get_close_matches(str(name), list(models.names()), n=1)
             why = models.unavailable().get(name)
             _fail(path, f"{key}.name", name, f"a registered model: {', '.join(models.names())}"
-                  + (f" ({name} is unavailable: {why})" if why else f" (did you mean {close[0]}?)" if close else ""))
+                  + (f" ({name} is unavailable: {why})" if why else close(name, models.names(), 1)))
         if "defaults_only" in e:
             _fail(path, f"{key}.defaults_only", e["defaults_only"], "only with role (a named model runs "
                   "its defaults or the given params)")

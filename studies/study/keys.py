@@ -11,7 +11,14 @@ from .errors import StudyError
 
 
 def is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    """A finite number that a float holds (TOML integers are unbounded: 1e400 written as digits
+    is not one)."""
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 class Table:
@@ -38,6 +45,10 @@ class Table:
         self._read.add(name)
         if name not in self.data:
             if required:
+                typo = [k for k in self.data if k not in self._read and close(k, [name])]
+                if typo:  # a misspelt key, not a missing one
+                    raise self.error(typo[0], self.data[typo[0]], f"not a key of [{self.path or 'the file'}]"
+                                     f"{close(typo[0], [name])}")
                 raise self.error(name, "(missing)", "a value is required")
             return default
         return self.data[name]
@@ -66,7 +77,7 @@ class Table:
         return int(value) if integer else float(value)
 
     def numbers(self, name: str, n: int | None = None, default=None, required: bool = False, lo=None,
-                lo_open=False, allow_scalar=False) -> list[float] | None:
+                lo_open=False, allow_scalar=False, hi=None) -> list[float] | None:
         """A list of ``n`` numbers (any length >= 1 if ``n`` is None); a single number when
         ``allow_scalar`` (returned as a list of one)."""
         value = self.raw(name, default, required)
@@ -74,12 +85,14 @@ class Table:
             return None
         if allow_scalar and is_number(value):
             value = [value]
-        what = f"a list of {n} numbers" if n else "a number or a non-empty list of numbers"
+        what = f"a list of {n} finite numbers" if n else "a finite number or a non-empty list of them"
+        if lo is not None or hi is not None:
+            what += " " + _range(lo, hi, lo_open, False)
         if not isinstance(value, list) or (n and len(value) != n) or not value \
                 or not all(is_number(v) for v in value):
             raise self.error(name, self.data.get(name), what)
         for v in value:
-            check_number(v, lo, None, lo_open, False, False, lambda w: self.error(name, self.data[name], w))
+            check_number(v, lo, hi, lo_open, False, False, lambda w: self.error(name, self.data[name], what))
         return [float(v) for v in value]
 
     def text(self, name: str, default=None, choices=None, required: bool = False) -> str | None:
@@ -121,10 +134,8 @@ class Table:
 
 def check_number(value, lo, hi, lo_open, hi_open, integer, error) -> None:
     """Raise ``error(what)`` unless ``value`` is a finite number in the range."""
-    lo_s = "" if lo is None else (f"> {lo:g}" if lo_open else f">= {lo:g}")
-    hi_s = "" if hi is None else (f"< {hi:g}" if hi_open else f"<= {hi:g}")
-    what = ("an integer" if integer else "a number") + (" " if lo_s or hi_s else "") + \
-        " and ".join(s for s in (lo_s, hi_s) if s)
+    what = ("an integer" if integer else "a finite number") + (" " if lo is not None or hi is not None else "") + \
+        _range(lo, hi, lo_open, hi_open)
     if not is_number(value) or (integer and float(value) != int(value)):
         raise error(what)
     if lo is not None and (value < lo or (lo_open and value == lo)):
@@ -133,6 +144,17 @@ def check_number(value, lo, hi, lo_open, hi_open, integer, error) -> None:
         raise error(what)
 
 
-def close(word: str, choices) -> str:
-    found = difflib.get_close_matches(str(word), sorted(map(str, choices)), n=3)
-    return f" (did you mean {', '.join(found)}?)" if found else ""
+def _range(lo, hi, lo_open, hi_open) -> str:
+    lo_s = "" if lo is None else (f"> {lo:g}" if lo_open else f">= {lo:g}")
+    hi_s = "" if hi is None else (f"< {hi:g}" if hi_open else f"<= {hi:g}")
+    return " and ".join(s for s in (lo_s, hi_s) if s)
+
+
+def close(word: str, choices, n: int = 3) -> str:
+    """" (did you mean a, b?)" naming up to ``n`` choices close to ``word`` (difflib, case aside),
+    or ""."""
+    by_lower = {}
+    for c in sorted(map(str, choices)):
+        by_lower.setdefault(c.lower(), c)
+    found = difflib.get_close_matches(str(word).lower(), list(by_lower), n=n)
+    return f" (did you mean {', '.join(by_lower[f] for f in found)}?)" if found else ""

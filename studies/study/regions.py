@@ -5,13 +5,14 @@ data and turned into :class:`hybmss.scene.Plate` and :class:`hybmss.scene.Load` 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from hybmss.scene import Load, Motion, Plate, Region
 
-from .keys import Table, is_number
+from .keys import Table, close, is_number
 
 FACES = tuple(a + s for a in "xyz" for s in "-+")
 MOTIONS = ("clamped", "slide", "translate", "rotate")
@@ -44,7 +45,7 @@ def read_region(t: Table, name: str, has_labels: bool) -> RegionSpec:
     if isinstance(value, str):
         if value not in FACES:
             raise t.error(name, value, f"a bounding-box face ({', '.join(FACES)}) or a table with face, box, "
-                          "label or patch")
+                          f"label or patch{close(value, FACES)}")
         return RegionSpec(face=value)
     r = t.sub(name)
     face = r.text("face", choices=FACES)
@@ -103,8 +104,8 @@ class TractionSpec:
 
 def read_support(t: Table, has_labels: bool) -> SupportSpec:
     name = t.text("name", required=True)
-    if not name.strip():
-        raise t.error("name", name, "a non-empty name")
+    if not re.fullmatch(r"[ -~]*[!-~][ -~]*", name):
+        raise t.error("name", name, "a name of printable ASCII characters (it names table columns)")
     region = read_region(t, "region", has_labels)
     kind = t.text("motion", "clamped", choices=MOTIONS)
     displacement = t.numbers("displacement", 3, default=[0.0, 0.0, 0.0])

@@ -25,7 +25,8 @@ from hybmss import models as registry
 from hybmss.lattice import Lattice
 from hybmss.scene import Load, Material, NU_OPEN_RANGE, Scene, plates_cross
 
-from .body import BodySource, Voxels, cell_sizes, folder_of, read_source
+from . import checks
+from .body import BodySource, Voxels, body_checks, cell_sizes, folder_of, read_source, source_typo
 from .errors import StudyError
 from .outcome import read_expected
 from .keys import Table, close
@@ -35,6 +36,11 @@ from .regions import SupportSpec, TractionSpec, held_modes, read_support, read_t
 TOP_KEYS = ("study", "body", "material", "load_case", "model", "reference", "metrics")
 EXPERIMENT_KEYS = ("study", "body", "material", "load", "model", "reference")
 NAME = re.compile(r"[a-z0-9_-]+")
+PRINTABLE = re.compile(r"[ -~]*[!-~][ -~]*")
+"""Printable ASCII with at least one visible character: a model's label, a support's name."""
+FILE_SAFE = re.compile(r"[^A-Za-z0-9_.+-]+")
+"""The characters a model's label loses in its VTU file's name (each run of others becomes ``_``):
+two labels that become the same name are refused."""
 ELEMENTS = ("auto", "hex1", "hex2", "mixed")
 LAWS = ("linear", "neo-hookean", "svk")
 SOLVER_KINDS = ("static", "explicit", "implicit")
@@ -112,10 +118,16 @@ class Study:
             doc = tomllib.loads(path.read_text())
         except FileNotFoundError:
             raise StudyError("FILE", str(path), "an existing study file (.toml)") from None
+        except IsADirectoryError:
+            raise StudyError("FILE", str(path), "a study file (.toml), not a folder") from None
+        except OSError as exc:
+            raise StudyError("FILE", str(path), f"a readable study file ({exc.strerror or type(exc).__name__})") \
+                from None
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise StudyError("FILE", str(path), f"a TOML file ({' '.join(str(exc).split())})") from None
         top = Table(doc, "", file, folder_of(path))
         body = top.sub("body", required=True)
+        source_typo(body)
         if body.has("experiment"):
             return _experiment_study(top, doc, quick)
         return _user_study(top, body, quick)
@@ -163,15 +175,20 @@ def _user_study(top: Table, body: Table, quick: bool) -> Study:
     _unique(top, "load_case", [c.name for c in cases])
     runs = tuple(_read_model(t) for t in top.items("model", required=True))
     _unique(top, "model", [m.label for m in runs], "label")
+    _unique(top, "model", [FILE_SAFE.sub("_", m.label) for m in runs], "label",
+            " once its characters outside A-Z a-z 0-9 _ . + - are _ (it names the VTU files)")
     reference = _read_reference(top.sub("reference"))
     metrics = _read_metrics(top.sub("metrics"), cases)
     top.done()
+    checks.check_size(body, source, voxel_sizes, runs, reference, materials)
     voxels = _voxelize(body, source, voxel_sizes)
     study = Study(**head, quick=quick, source=source, cell_sizes=tuple(voxel_sizes), materials=materials,
                   load_cases=cases, models=runs, reference=reference, metrics=metrics, voxels=voxels)
     _check_resolutions(study, top)
     _check_points(study, top)
     check_modes(study, top.file)
+    checks.check_models(study, top)
+    checks.check_time(study, top)
     return study
 
 
@@ -216,7 +233,8 @@ def _read_body(t: Table, quick: bool) -> tuple[BodySource, list[float]]:
     if q is not None:
         for k in q.data:
             if k not in ("cell_sizes",):
-                raise q.error(k, q.data[k], "only cell_sizes may change under --quick")
+                raise q.error(k, q.data[k], f"only cell_sizes may change under --quick{close(k, ('cell_sizes',))}")
+        q.numbers("cell_sizes", required=True, lo=0.0, lo_open=True)  # checked with or without --quick
         if quick:
             t.data = {**t.data, **q.data}
     source, _ = read_source(t)
@@ -226,12 +244,12 @@ def _read_body(t: Table, quick: bool) -> tuple[BodySource, list[float]]:
 
 
 def _read_materials(t: Table) -> tuple[Material, ...]:
-    E = t.numbers("E", required=True, lo=0.0, lo_open=True, allow_scalar=True)
+    E = t.numbers("E", required=True, lo=checks.E_RANGE[0], hi=checks.E_RANGE[1], allow_scalar=True)
     nu = t.numbers("nu", required=True, allow_scalar=True)
     lo, hi = NU_OPEN_RANGE
     if any(not lo < v < hi for v in nu):
         raise t.error("nu", t.data["nu"], f"a number in ({lo:g}, {hi:g}) or a list of them")
-    rho = t.numbers("rho", default=[1000.0], lo=0.0, allow_scalar=True)
+    rho = t.numbers("rho", default=[1000.0], lo=0.0, hi=checks.RHO_MAX, allow_scalar=True)
     t.done()
     return tuple(Material(*m) for m in itertools.product(E, nu, rho))
 
@@ -265,8 +283,11 @@ def _read_model(t: Table) -> ModelRun:
     try:
         values = spec.parameters(**params)
     except (TypeError, ValueError) as exc:
-        raise t.error("params", params, f"model {name}'s parameters ({' '.join(str(exc).split())})") from None
+        hint = "".join(close(k, spec.parameter_names()) for k in params if k not in spec.parameter_names())
+        raise t.error("params", params, f"model {name}'s parameters ({' '.join(str(exc).split())}){hint}") from None
     label = t.text("label", default=spec.variant(values))
+    if not PRINTABLE.fullmatch(label):
+        raise t.error("label", label, "printable ASCII characters (a label names files, table columns and legends)")
     solver = _read_solver(t, spec)
     expect = read_expected(t)
     t.done()
@@ -323,16 +344,20 @@ def _read_metrics(t: Table | None, cases: tuple[LoadCase, ...]) -> Metrics:
     points = ()
     if p is not None:
         points = tuple((k, tuple(p.numbers(k, 3))) for k in list(p.data))
+        for k, _ in points:
+            if not PRINTABLE.fullmatch(k):
+                raise p.error(k, list(p.data[k]), "a point named in printable ASCII characters (it names a table "
+                              "column)")
     modes = read_modes(t)
     t.done()
     return Metrics(tuple(forces), volume, displacement, points, modes)
 
 
-def _unique(t: Table, key: str, names: list[str], what: str = "name") -> None:
+def _unique(t: Table, key: str, names: list[str], what: str = "name", how: str = "") -> None:
     seen = set()
     for i, n in enumerate(names):
         if n in seen:
-            raise StudyError(f"{t.key(key)}[{i}].{what}", n, f"a {what} unique among the {key} tables", t.file)
+            raise StudyError(f"{t.key(key)}[{i}].{what}", n, f"a {what} unique among the {key} tables{how}", t.file)
         seen.add(n)
 
 
@@ -345,6 +370,7 @@ def _voxelize(t: Table, source: BodySource, sizes: list[float]) -> tuple[Voxels,
         except ValueError as exc:
             raise t.error("cell_sizes", sizes, f"cell sizes that leave cells in the body ({le:g}: "
                           f"{' '.join(str(exc).split())})") from None
+    body_checks(t, source, sizes, out)
     return tuple(out)
 
 
@@ -371,6 +397,7 @@ def _check_resolutions(study: Study, top: Table) -> None:
                     raise StudyError(f"{where}.traction[{j}].region", _region_text(tr.region),
                                      f"a region that holds surface faces of the body (none at cell size "
                                      f"{vox.le:g} m)", top.file)
+            checks.check_supports_agree(top, where, vox, X, plates)
             _check_held(top, where, vox, X, node_piece, n_pieces, plates)
             _check_crossing(top, where, vox, case, plates)
 
