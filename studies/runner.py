@@ -251,6 +251,11 @@ def no_result_because(row: dict | None) -> str:
     return f"{status}: {msg}" if msg else status
 
 
+OUT_OF_MEMORY = "out-of-memory"
+"""Status of a run that ran out of this machine's memory: counted as a failure, never stored (a
+stored row is the code's answer to its scene; memory is the machine's, and the next run retries)."""
+
+
 def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
     the process that runs the sweep stores them)."""
@@ -283,6 +288,10 @@ def _compute(task: Task, row: dict) -> tuple[dict, dict | None]:
         if res.cell_volumes is not None:
             arrays["cell_volumes"] = res.cell_volumes
         row["info"] = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
+    except MemoryError:  # the machine's limit, not the scene's answer: reported, never stored
+        row.update(status=OUT_OF_MEMORY, message="MemoryError: this machine's memory ran out during the run; "
+                   "it is not stored, so a rerun computes it again (with fewer --jobs, or a coarser mesh)")
+        arrays = None
     except Exception as exc:  # noqa: BLE001 - every failure becomes a stored, reported row
         row.update(failure_row(exc))
         row["traceback"] = traceback.format_exc(limit=4)
@@ -325,19 +334,20 @@ class Summary:
     failed: int = 0
     expected: int = 0
     orphans: int = 0
+    failed_stored: int = 0
     damaged: list[str] = field(default_factory=list)
     expected_by: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: "Summary") -> None:
-        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "orphans"):
+        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "orphans", "failed_stored"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
         self.damaged += other.damaged
         for k, n in other.expected_by.items():
             self.expected_by[k] = self.expected_by.get(k, 0) + n
 
-    def count(self, task, row: dict | None, expected) -> None:
+    def count(self, task, row: dict | None, expected, computed: bool = True) -> None:
         """Count one run asked for by its stored ``row``: a result, an expected non-answer
-        (``expected(task, row)``) or a failure."""
+        (``expected(task, row)``) or a failure (``computed``: by this sweep, else found stored)."""
         if no_result_because(row) == "":
             return
         if expected(task, row):
@@ -347,6 +357,7 @@ class Summary:
             self.expected_by[where] = self.expected_by.get(where, 0) + 1
         else:
             self.failed += 1
+            self.failed_stored += not computed
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -355,6 +366,9 @@ class Summary:
         out = (f"{self.runs} runs: {self.computed} computed, {self.stored} already stored"
                f"{f', {self.by_other} computed by another process' if self.by_other else ''}, "
                f"{self.failed} failed")
+        if self.failed_stored:
+            out += (f" ({self.failed_stored} of them stored by an earlier run and not computed again: a stored "
+                    "failure is this code's answer to its scene; a changed scene or code computes it anew)")
         if self.expected:
             parts = "; ".join(f"{k}: {n}" for k, n in sorted(self.expected_by.items()))
             out += f", {self.expected} without result as expected ({parts})"
@@ -468,10 +482,11 @@ class Runner:
             self.__enter__()
         ex = None
         claims: dict = {}
+        unstored: dict = {}
         try:
             if todo:
                 ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo))
-                self._sweep(ex, todo, store, s, bar, claims)
+                self._sweep(ex, todo, store, s, bar, claims, unstored)
         except KeyboardInterrupt:
             main = threading.current_thread() is threading.main_thread()
             previous = signal.signal(signal.SIGINT, exit_now) if main else None
@@ -507,13 +522,15 @@ class Runner:
         if own:
             self.close()
         bar.close()
-        rows = {k: store.row(k) for k in unique}
+        rows = {k: unstored[k] if k in unstored else store.row(k) for k in unique}
+        computed = {k for k, _ in todo}
         for k in new:
-            s.count(unique[k], rows[k], expected)
+            s.count(unique[k], rows[k], expected, computed=k in computed)
         self.summary.add(s)
         return [rows[k] for k in keys]
 
-    def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict) -> None:
+    def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict,
+               unstored: dict) -> None:
         pending = deque(todo)
         by_key = dict(todo)
         waiting: list[tuple[str, Task]] = []
@@ -552,7 +569,10 @@ class Runner:
                             f"a worker computed run {k} with hybmss code version "
                             f"{row.get('env_code_version')}, this process has {own_version}: install "
                             "the same hybmss on every worker (README)")
-                stored = store.save(k, row, arrays)
+                if row.get("status") == OUT_OF_MEMORY:
+                    stored = unstored[k] = row
+                else:
+                    stored = store.save(k, row, arrays)
                 claims.pop(k).release()
                 s.computed += 1
                 bar.set_postfix_str(str(stored.get("label", ""))[:40], refresh=False)

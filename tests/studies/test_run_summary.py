@@ -77,3 +77,51 @@ def test_a_non_finite_result_is_a_failure_and_warnings_stay_in_the_row(tmp_path)
 
 def test_an_interrupt_says_interrupted_once():
     assert not str(Interrupted(Summary(computed=3))).startswith("interrupted")
+
+
+@dataclasses.dataclass(frozen=True)
+class OutOfMemory(StudyScene):
+    """A study scene whose solve runs out of memory while ``flag`` (a file) exists."""
+
+    flag: str = ""
+
+    def solve(self, solver):
+        from pathlib import Path
+
+        if Path(self.flag).exists():
+            raise MemoryError
+        return super().solve(solver)
+
+
+def test_a_memory_error_is_never_stored_and_a_rerun_computes_it(tmp_path):
+    study = Study.from_toml(write(small_study(), tmp_path / "s.toml"))
+    task = study.tasks()[0]
+    flag = tmp_path / "no-memory"
+    flag.touch()
+    scene = OutOfMemory(**{f.name: getattr(task.scene, f.name) for f in dataclasses.fields(StudyScene)},
+                        flag=str(flag))
+    tasks = [Task(scene, task.solver, task.study)]
+    store = Store(tmp_path / "out")
+    first = Runner(jobs=1, progress=False)
+    rows = run_tasks(tasks, store, runner=first)
+    assert rows[0]["status"] == "out-of-memory" and "rerun computes it again" in rows[0]["message"]
+    assert not store.has(tasks[0].key())  # the machine's limit is not the scene's answer
+    assert (first.summary.computed, first.summary.failed, first.summary.failed_stored) == (1, 1, 0)
+    flag.unlink()  # memory enough now: the rerun computes it, not a stored failure
+    again = Runner(jobs=1, progress=False)
+    rows = run_tasks(tasks, store, runner=again)
+    assert rows[0]["status"] == "ok" and store.has(tasks[0].key())
+    assert (again.summary.computed, again.summary.stored, again.summary.failed) == (1, 0, 0)
+
+
+def test_a_rerun_says_why_a_stored_failure_is_not_computed_again(tmp_path):
+    study = Study.from_toml(write(changed(small_study(), _cut), tmp_path / "s.toml"))
+    tasks = [t for t in study.tasks() if t.scene.load_case == "heavy" and t.solver.kind == "static"][:1]
+    assert tasks
+    first = Runner(jobs=1, progress=False)
+    run_tasks(tasks, Store(tmp_path / "out"), runner=first)
+    assert first.summary.failed == 1 and "not computed again" not in first.summary.line()
+    again = Runner(jobs=1, progress=False)
+    run_tasks(tasks, Store(tmp_path / "out"), runner=again)
+    assert again.summary.failed == again.summary.failed_stored == 1
+    assert "1 of them stored by an earlier run and not computed again" in again.summary.line()
