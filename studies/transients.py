@@ -63,8 +63,9 @@ def _record_every(dt: float, substeps: int, period: float) -> int:
     return max(1, int(period / dt / SAMPLES_PER_PERIOD))
 
 
-def model_row(scene: Scene, model: str, ref: Trajectory, point, periods: int) -> dict:
-    """The metrics of ``model``'s released transient against ``ref`` (:func:`studies.dynamics.metrics`),
+def model_row(scene: Scene, model, ref: Trajectory, point, periods: int) -> dict:
+    """The metrics of ``model``'s (a name, run with its engine's released parameters, or a
+    :class:`hybmss.scene.Model`) released transient against ``ref`` (:func:`studies.dynamics.metrics`),
     with its step, substeps per frame and integrator; a model that cannot run has the reason."""
     row = {"model": model if isinstance(model, str) else model.variant, "dt": None, "substeps": None}
     T = trajectory_oscillation(ref).period
