@@ -126,10 +126,10 @@ def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity, integrator
     f = lambda v: repr(float(v))
     bodies = []
     held = nodes.fixed.reshape(-1, 3) if integrator != "Euler" else np.zeros((len(nodes.X), 3), dtype=bool)
-    arm = f(PLATE_ARMATURE * float(np.max(nodes.mass)))
+    armature = f' armature="{f(PLATE_ARMATURE * float(np.max(nodes.mass)))}"'
     for a, (x, m) in enumerate(zip(nodes.X, nodes.mass)):
         I = f(m * le * le * 1e-2)
-        joints = "".join(f'<joint type="slide" axis="{ax}"{f" armature={chr(34)}{arm}{chr(34)}" if h else ""}/>'
+        joints = "".join(f'<joint type="slide" axis="{ax}"{armature if h else ""}/>'
                          for ax, h in zip(("1 0 0", "0 1 0", "0 0 1"), held[a]))
         bodies.append(f'<body name="n{a}" pos="{f(x[0])} {f(x[1])} {f(x[2])}"><inertial pos="0 0 0" mass="{f(m)}" '
                       f'diaginertia="{I} {I} {I}"/>{joints}</body>')
