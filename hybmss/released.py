@@ -20,7 +20,8 @@ of the stepping alone; a fast run is stepped again from the release in one call,
 :func:`user_step` is the step a user would pick: a fraction :data:`USER_CFL` of the model's
 stability limit for the harness's models; a real-time frame :data:`FRAME` = 1/60 s cut into the
 fewest equal substeps within that fraction of the limit for an engine (stable at any step: the
-frame cut into :data:`UNLIMITED_SUBSTEPS`).
+frame cut into :data:`UNLIMITED_SUBSTEPS`: XPBD, MuJoCo's ``discrete``).  A model named without
+parameters runs with those its engine's user picks for dynamics (:func:`released_model`).
 """
 
 from __future__ import annotations
@@ -47,6 +48,16 @@ UNLIMITED_SUBSTEPS = 10
 RETIME_BELOW_S = 10.0
 """A run whose recorded stepping took less than this is run again from the release in one call,
 unrecorded, for its wall time (the recording's many short calls would dominate a fast model's)."""
+
+
+def released_model(model) -> Model:
+    """The model of a released transient: a :class:`hybmss.scene.Model` as given, a name with the
+    parameters its engine's user picks for dynamics (the model's ``released_parameters``: MuJoCo's
+    ``discrete`` integrator), else its defaults."""
+    if isinstance(model, Model):
+        return model
+    spec = Model(str(model)).spec
+    return Model(str(model), **dict(getattr(spec, "released_parameters", {})))
 
 
 def with_model(scene: Scene, model) -> Scene:
@@ -79,6 +90,7 @@ def user_step(scene: Scene, engine: bool | None = None) -> tuple[float, int]:
         st = _stepper(system, 1e-6, None, None) if engine else None
         own = getattr(st, "dt_crit", None)
         limit = own() if own is not None else dt_crit(system)
+        limit = None if math.isinf(limit) else limit  # an integrator stable at any step
     if not engine:
         if limit is None:
             return FRAME / UNLIMITED_SUBSTEPS, 1
@@ -110,7 +122,7 @@ def released_transient(scene: Scene, model, dt: float, t_end: float, point, *, r
         raise ValueError(f"dt must be > 0 s, got {dt}")
     if not (t_end >= dt and math.isfinite(t_end)):
         raise ValueError(f"t_end must be >= dt = {dt:g} s, got {t_end}")
-    loaded = with_model(scene, model)
+    loaded = with_model(scene, released_model(model))
     if not loaded.has_gravity and not loaded.loads and start is None:
         raise ValueError("the scene has no load (gravity or surface load) to release")
     system = build(released_scene(loaded, damping))

@@ -19,7 +19,7 @@ import math
 import os
 
 from fem_reference.transient import ReleasedFem, newmark_period_ratio, newmark_step_for
-from hybmss.released import released_transient, user_step, with_model
+from hybmss.released import released_model, released_transient, user_step, with_model
 from hybmss.scene import Scene
 from hybmss.solve import StaticSolveError
 from hybmss.trajectory import Trajectory
@@ -63,12 +63,14 @@ def _record_every(dt: float, substeps: int, period: float) -> int:
     return max(1, int(period / dt / SAMPLES_PER_PERIOD))
 
 
-def model_row(scene: Scene, model: str, ref: Trajectory, point, periods: int) -> dict:
-    """The metrics of ``model``'s released transient against ``ref`` (:func:`studies.dynamics.metrics`),
+def model_row(scene: Scene, model, ref: Trajectory, point, periods: int) -> dict:
+    """The metrics of ``model``'s (a name, run with its engine's released parameters, or a
+    :class:`hybmss.scene.Model`) released transient against ``ref`` (:func:`studies.dynamics.metrics`),
     with its step, substeps per frame and integrator; a model that cannot run has the reason."""
-    row = {"model": model, "dt": None, "substeps": None}
+    row = {"model": model if isinstance(model, str) else model.variant, "dt": None, "substeps": None}
     T = trajectory_oscillation(ref).period
     try:
+        model = released_model(model)
         dt, sub = user_step(with_model(scene, model))
         row.update(dt=dt, substeps=sub)
         tr = released_transient(scene, model, dt, ref.t_end, point, record_every=_record_every(dt, sub, T))

@@ -26,6 +26,24 @@ its documentation shipped in the wheel (``mujoco/doc/XMLreference.rst``, ``flex/
   strain the linear Hex8 / Hex27 element in E, ν.
 - ν: the documented range is [0, ½); a negative ν is refused (``ValueError`` naming ``nu``).
 
+Integrator (the parameter ``integrator``; ``doc/computation/index.rst``, "Integrators", and
+``doc/modeling.rst``, "Deformables", in the wheel), for a linear mode ``ẍ = −ω² x`` of step ``h``:
+
+- ``Euler`` (the default, the static rest runs): semi-implicit Euler, ``v' = v + h M⁻¹ f(q)``,
+  ``q' = q + h v'`` (no joint damping, so no implicit factor): the flex's elastic forces explicit,
+  stable for ``ω h < 2``, period ``T = 2π h / (2 arcsin(ω h / 2))``, no numerical damping;
+- ``RK4``: the classical fourth-order Runge–Kutta on ``(q, v)``; stable for ``ω h ≤ 2√2``, its
+  amplification ``R(z) = 1 + z + z²/2 + z³/6 + z⁴/24`` at ``z = ±iωh`` (period and decay of
+  ``arg R``, ``|R|``: damping ``(ωh)⁶/144`` per step to leading order);
+- ``discrete``: ``(M + h D + h² K) a = f(q) − h K v``, ``v' = v + h a``, ``q' = q + h v'`` with ``K``
+  the flex elasticity's stiffness (implicit in position, one Newton step): for a linear mode
+  exactly backward Euler, amplification ``g = 1/(1 + iωh)``, unconditionally stable, period
+  ``2π h / atan(ωh)``, decay ``|g| = (1 + ω²h²)^(−1/2)`` per step;
+- ``implicit``, ``implicitfast``: implicit in velocity only (``M + h D``, no ``K``); MuJoCo 4.0
+  refuses flex elasticity under them at its first step ("flex elasticity is no longer integrated
+  implicitly under integrator='implicit' and 'implicitfast': set integrator='discrete'"), so they
+  are refused here before any work (``ValueError`` naming ``integrator``).
+
 What the models refuse (before any work): surface loads (``Scene.loads``: MuJoCo has no surface
 traction on a flex; the harness would have to make nodal forces of them itself), a negative ν,
 a body that is not a box for the interpolated kinds (their grid spans the bounding box), more
@@ -34,6 +52,7 @@ than one thread, float32.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 
 from .._engine_model import EngineModel, SceneNotRepresentable, engine_models
 from ..base import Style
@@ -46,6 +65,30 @@ well below the 1e-3 of the same-mesh checks."""
 CFL = 0.9
 """Step of the static run as a fraction of the stability limit ``2/ω_max``."""
 
+
+
+INTEGRATORS = ("Euler", "RK4", "discrete")
+"""MuJoCo's integrators that step flex elasticity (module docstring)."""
+REFUSED_INTEGRATORS = ("implicit", "implicitfast")
+RELEASED_INTEGRATOR = "discrete"
+"""The integrator a user picks for a flex body's dynamics: the one MuJoCo's documentation
+recommends for flex elasticity ("Deformables": the only one implicit in its stiffness)."""
+
+
+@dataclass(frozen=True)
+class MujocoParameters:
+    """- ``integrator``: MuJoCo's ``<option integrator>`` (module docstring), one of
+      :data:`INTEGRATORS`; ``Euler`` by default."""
+
+    integrator: str = field(default="Euler", metadata={"help": "MuJoCo's integrator", "choices": INTEGRATORS})
+
+    def __post_init__(self):
+        if self.integrator in REFUSED_INTEGRATORS:
+            raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)} for a MuJoCo flex, got "
+                             f"{self.integrator!r}: MuJoCo 4.0 does not integrate flex elasticity under implicit "
+                             "or implicitfast (its error: set integrator='discrete', or 'Euler' with a small step)")
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
 
 
 def _engine():
@@ -62,6 +105,9 @@ class MujocoModel(EngineModel):
     """A MuJoCo flex of one element kind (module docstring)."""
 
     requires = REQUIRES
+    Parameters = MujocoParameters
+    released_parameters = {"integrator": RELEASED_INTEGRATOR}
+    """The parameters of its released transients (:func:`hybmss.released.released_model`)."""
     kind: str = "tet"
     engine = "MuJoCo"
     precisions = ("f64",)
@@ -69,7 +115,17 @@ class MujocoModel(EngineModel):
     cfl = CFL
 
     def make_body(self, system, dt: float, ramp_time: float, **kw):
-        return _engine().MujocoBody(system, self.kind, dt, ramp_time, **kw)
+        integrator = getattr(system.scene.model.params, "integrator", "Euler")
+        return _engine().MujocoBody(system, self.kind, dt, ramp_time, integrator=integrator, **kw)
+
+    def variant(self, p) -> str:
+        return self.name if p.integrator == "Euler" else f"{self.name} ({p.integrator})"
+
+    def tag(self, p) -> str:
+        return self.name if p.integrator == "Euler" else f"{self.name}-{p.integrator}"
+
+    def styles(self) -> dict:
+        return {self.variant(MujocoParameters(i)): self.style for i in INTEGRATORS}
 
     def check_scene(self, scene) -> None:
         if scene.material.nu < 0:

@@ -30,6 +30,13 @@ Scene translation (the same for the three element kinds)
   scheme with its plates.  A node is on a plate when ``Plate.region`` selects its reference
   position (mid-side nodes of the quadratic cells included); a rotation about the plate's centroid
   turns about the centroid of its lattice particles.
+- **Integrator.**  MuJoCo's ``<option integrator>`` (:mod:`hybmss.models.mujoco`: ``Euler``,
+  ``RK4``, ``discrete``).  With ``RK4`` (intermediate stages) and ``discrete`` (an implicit solve
+  coupling every node through ``K``) a plate node would move within the step as a free node of
+  mass ``m`` before being reset; its joints carry an armature :data:`PLATE_ARMATURE` × the
+  largest node mass instead, so that within the step it moves ``m_free/armature`` ≤ 1e-9 times what
+  a free node would (held, to that fraction).  ``Euler`` has none: its free nodes' update depends
+  only on the step's start (diagonal mass matrix), the MJCF is the one of the static runs.
 - **Damping and gravity.**  MuJoCo refuses joint damping on flex bodies (its elastic damping is
   Rayleigh's, proportional to the stiffness), so the scene's mass-proportional damping c is applied
   to MuJoCo's step as the harness's explicit scheme applies it: after ``mj_step`` (``v' = v + h a``,
@@ -59,6 +66,7 @@ never to the process's stderr nor to a ``MUJOCO_LOG.TXT`` in the working directo
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 
 import numpy as np
@@ -77,6 +85,13 @@ SPLIT = ((0, 2, 1, 6), (0, 1, 4, 6), (1, 2, 3, 6), (1, 3, 7, 6), (1, 5, 4, 6), (
 
 ORDER = {"tet": 1, "trilinear": 1, "quadratic": 2}
 """Node grid step per cell edge of each element kind (1: lattice nodes, 2: half-step grid)."""
+
+PLATE_ARMATURE = 1e9
+"""Armature of a plate node's joints, in units of the largest node mass, under ``RK4`` and
+``discrete`` (module docstring)."""
+STABILITY = {"Euler": 2.0, "RK4": 2.0 * 2.0 ** 0.5, "discrete": float("inf")}
+"""The integrators' stability limits on ``ω h`` for a linear mode (the symplectic Euler's 2,
+RK4's 2√2 on the imaginary axis, backward Euler's none)."""
 
 UNSTABLE = {int(mujoco.mjtWarning.mjWARN_BADQACC): ("mjWARN_BADQACC", "acceleration"),
             int(mujoco.mjtWarning.mjWARN_BADQVEL): ("mjWARN_BADQVEL", "velocity"),
@@ -103,16 +118,19 @@ def cell_tets(cells: np.ndarray) -> np.ndarray:
     return np.asarray(cells, dtype=np.int64)[:, np.array(SPLIT)].reshape(-1, 4)
 
 
-def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity) -> str:
+def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity, integrator: str = "Euler") -> str:
     """The MJCF of the scene (module docstring)."""
     mat = system.scene.material
     lat = system.lattice
     le = float(system.scene.body.le)
     f = lambda v: repr(float(v))
     bodies = []
+    held = nodes.fixed.reshape(-1, 3) if integrator != "Euler" else np.zeros((len(nodes.X), 3), dtype=bool)
+    armature = f' armature="{f(PLATE_ARMATURE * float(np.max(nodes.mass)))}"'
     for a, (x, m) in enumerate(zip(nodes.X, nodes.mass)):
         I = f(m * le * le * 1e-2)
-        joints = "".join(f'<joint type="slide" axis="{ax}"/>' for ax in ("1 0 0", "0 1 0", "0 0 1"))
+        joints = "".join(f'<joint type="slide" axis="{ax}"{armature if h else ""}/>'
+                         for ax, h in zip(("1 0 0", "0 1 0", "0 0 1"), held[a]))
         bodies.append(f'<body name="n{a}" pos="{f(x[0])} {f(x[1])} {f(x[2])}"><inertial pos="0 0 0" mass="{f(m)}" '
                       f'diaginertia="{I} {I} {I}"/>{joints}</body>')
     tets = cell_tets(lat.cells)
@@ -127,7 +145,7 @@ def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity) -> str:
         flex = (f'<flex name="body" {common} dof="{kind}" cellcount="{n[0]} {n[1]} {n[2]}" '
                 f'body="{" ".join(["world"] * lat.n_particles)}" vertex="{vert}" '
                 f'node="{" ".join(f"n{a}" for a in range(len(nodes.X)))}">')
-    return (f'<mujoco model="hybmss"><option timestep="{f(dt)}" gravity="{g}" integrator="Euler">'
+    return (f'<mujoco model="hybmss"><option timestep="{f(dt)}" gravity="{g}" integrator="{integrator}">'
             f'<flag contact="disable"/></option><worldbody>{"".join(bodies)}</worldbody>'
             f'<deformable>{flex}<elasticity young="{f(mat.E)}" poisson="{f(mat.nu)}"/>'
             f'<contact contype="0" conaffinity="0" selfcollide="none"/></flex></deformable></mujoco>')
@@ -141,14 +159,16 @@ class MujocoBody(EngineBody):
     rest state does not depend on a uniform density); ``gravity`` (3,) or None."""
 
     def __init__(self, system: System, kind: str, dt: float, ramp_time: float, *, damping: float | None = None,
-                 density: float | None = None, gravity="scene"):
+                 density: float | None = None, gravity="scene", integrator: str = "Euler"):
         if kind not in ORDER:
             raise ValueError(f"element kind must be one of {', '.join(ORDER)}; got {kind!r}")
-        self.kind = kind
+        if integrator not in STABILITY:
+            raise ValueError(f"integrator must be one of {', '.join(STABILITY)}; got {integrator!r}")
+        self.kind, self.integrator = kind, integrator
         self.setup(system, 2 if kind == "quadratic" else 1, dt, ramp_time, damping, density, gravity)
         self.tets = positive(system.X, cell_tets(system.lattice.cells))
         t0 = time.perf_counter()
-        xml = mjcf(system, kind, self.nodes, self.dt, self.gravity)
+        xml = mjcf(system, kind, self.nodes, self.dt, self.gravity, integrator)
         with warnings_into(self.warnings):
             self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
@@ -160,8 +180,17 @@ class MujocoBody(EngineBody):
 
     def describe(self) -> dict:
         return {"engine": ENGINE, "engine_version": VERSION, "element": self.kind, "device": "cpu", "threads": 1,
-                "integrator": "Euler", "precision": "f64",
+                "integrator": self.integrator, "precision": "f64",
                 "tet_split": "MuJoCo's grid split: 6 tetrahedra around the diagonal (0,1,1)-(1,0,0) of each cell"}
+
+    def dt_crit(self) -> float:
+        """The integrator's stability limit ``STABILITY[integrator] / ω_max`` on the engine's own
+        forces (:data:`STABILITY`; ``inf`` for ``discrete``)."""
+        s = STABILITY[self.integrator]
+        if math.isinf(s):
+            return math.inf
+        w = self.omega_max()
+        return s / w if w > 0 else math.inf
 
     def _set_plates(self, step: int) -> None:
         u, v = self.plate_targets(step)
