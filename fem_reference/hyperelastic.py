@@ -308,8 +308,8 @@ class Hyperelasticity(Discretization):
                 if self.mixed:
                     du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
                                           self.nullspace, 1.0 / mu + 1.0 / material.lam,
-                                          method=method, rtol=eta, stats=stats, cache=lu_cache,
-                                          order=self.order, separator=self.separator, schur_rtol=eta_p)
+                                          method=method, stats=stats, cache=lu_cache, order=self.order,
+                                          separator=self.separator, schur_rtol=eta_p)
                 else:
                     du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
                                    stats=stats, cache=amg_cache, order=self.order,

@@ -453,12 +453,6 @@ def solve_saddle(
     that solver, ``cache["cholmod"]`` the analysis of ``A``), its CG to ``schur_rtol`` (Newton's
     forcing term, :mod:`fem_reference.hyperelastic`); when ``A`` is not positive definite or the CG
     stalls, SuperLU factorizes the whole saddle point.
-
-    The iterative solve (MINRES, ``method='amg'`` or a system above :data:`DIRECT_MAX_NNZ_SADDLE`)
-    stops at ``rtol`` (Newton passes its forcing term) and keeps the AMG hierarchy of ``A`` in
-    ``cache`` (``"amg_M"``) for the next system of the same size (the next Newton iteration), as
-    :func:`solve_spd` does: rebuilt when MINRES needs more than twice the iterations per decade it
-    needed when it was built, or fails with it.
     """
     n, m = A.shape[0], B.shape[0]
     free = np.ones(n, dtype=bool)
@@ -490,8 +484,7 @@ def solve_saddle(
         if cache is not None:
             cache["lu"] = lu  # the caller may reuse the factorization (chord steps)
     else:
-        reuse = cache is not None and cache.get("amg_n") == Aff.shape[0] and "amg_M" in cache
-        Ma = cache["amg_M"] if reuse else _amg(Aff.tocsr(), np.ascontiguousarray(nullspace[free]))
+        Ma = _amg(Aff.tocsr(), np.ascontiguousarray(nullspace[free]))
         # Lumped pressure mass for the Schur block.
         Mp = np.asarray(abs(C).sum(axis=1)).ravel()
         Mp = np.where(Mp > 0, Mp, 1.0)
@@ -509,21 +502,9 @@ def solve_saddle(
         # the blocks are scaled as differently as here (forces vs volumes): tighten it.
         x, info = spla.minres(S, rhs, M=P, rtol=rtol * 1e-3, maxiter=10000,
                               callback=lambda xk: count.__setitem__(0, count[0] + 1))
-        if info != 0 and reuse:  # a stale preconditioner: rebuild and retry once
-            for key in ("amg_n", "amg_M", "amg_rate0"):
-                cache.pop(key, None)
-            return solve_saddle(A, B, C, f, g, D, uD, nullspace, schur_scale, method, rtol, stats, cache,
-                                order, separator, schur_rtol)
         if info != 0:
             raise RuntimeError(f"block-preconditioned MINRES did not converge ({count[0]} iterations)")
         its = count[0]
-        if cache is not None:  # keep the AMG of A while MINRES needs at most twice its first rate
-            rate = max(its, 1) / max(1.0, -np.log10(rtol * 1e-3))  # iterations per decade
-            if not reuse:
-                cache.update(amg_n=Aff.shape[0], amg_M=Ma, amg_rate0=rate)
-            elif rate > 2 * cache["amg_rate0"]:
-                for key in ("amg_n", "amg_M", "amg_rate0"):
-                    cache.pop(key, None)
     if stats is not None:
         stats.add(kind if kind == "direct" else "amg-minres", its)
     u[free] = x[: int(free.sum())]
