@@ -31,6 +31,7 @@ from hybmss.scene import nearly_incompressible
 
 from .scenes import BEAM_LENGTH, SceneSpec
 from .executors import EXECUTORS, SweepError, WorkerDied, local_executor
+from .rest_bound import skip_reason
 from .outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
 from .store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
@@ -92,9 +93,14 @@ class SolverSpec:
 
 @dataclass(frozen=True)
 class Task:
+    """A scene with its solver, for a study.  ``answer_only``: the run is of use only if it reaches a
+    result (not its state or its time): the runner does not compute it when it cannot
+    (:func:`studies.rest_bound.skip_reason`) and stores it as a run not at rest, with the reason."""
+
     scene: SceneSpec
     solver: SolverSpec
     study: str = ""
+    answer_only: bool = False
 
     def key(self) -> str:
         fields = {"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
@@ -251,6 +257,25 @@ def no_result_because(row: dict | None) -> str:
     return f"{status}: {msg}" if msg else status
 
 
+def skipped_row(task: Task, key: str, reason: str) -> dict:
+    """The row of a run not computed because it cannot come to rest within its step budget
+    (:func:`studies.rest_bound.skip_reason`): status "not-converged" (a time-stepping run not at
+    rest: an expected non-answer), the reason, no result and no cost; its critical step where the
+    model has one (cheap, and no result of the run)."""
+    row = {**base_row(task, key), "status": "not-converged", "message": reason, "skipped": True,
+           "steps": 0, "elapsed_s": 0.0}
+    try:
+        from hybmss import models
+        from hybmss.explicit import dt_crit
+        from hybmss.system import build
+
+        if models.get(task.scene.model).explicit_limit:
+            row["dt_crit"] = float(dt_crit(build(task.scene.build())))
+    except Exception:  # noqa: BLE001 - the limit is an extra; the row stands without it
+        pass
+    return row
+
+
 def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
     the process that runs the sweep stores them)."""
@@ -324,12 +349,13 @@ class Summary:
     by_other: int = 0
     failed: int = 0
     expected: int = 0
+    skipped: int = 0
     orphans: int = 0
     damaged: list[str] = field(default_factory=list)
     expected_by: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: "Summary") -> None:
-        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "orphans"):
+        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "skipped", "orphans"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
         self.damaged += other.damaged
         for k, n in other.expected_by.items():
@@ -358,6 +384,8 @@ class Summary:
         if self.expected:
             parts = "; ".join(f"{k}: {n}" for k, n in sorted(self.expected_by.items()))
             out += f", {self.expected} without result as expected ({parts})"
+        if self.skipped:
+            out += f", {self.skipped} of them not run (their step budget is below the steps to rest)"
         if self.damaged:
             out += f", {len(self.damaged)} damaged (moved to damaged/ and computed again)"
         return out
@@ -449,14 +477,20 @@ class Runner:
         store.check_writable()
         keys = [t.key() for t in tasks]
         unique: dict[str, Task] = {}
+        state: set[str] = set()  # runs some task needs whether or not they answer: never skipped
         for t, k in zip(tasks, keys):  # two studies may share a run
             unique.setdefault(k, t)
+            if not t.answer_only:
+                state.add(k)
         new = set(unique) - self._seen
         s = Summary(runs=len(new), orphans=len(store.remove_orphans()))
         todo = []
         for k, t in unique.items():
             if store.has(k):
                 s.stored += k not in self._seen
+            elif k not in state and (why := skip_reason(t)):  # cannot answer: stored as not at rest, never computed
+                store.save(k, skipped_row(t, k, why))
+                s.skipped += 1
             else:
                 todo.append((k, t))
         self._seen.update(unique)
