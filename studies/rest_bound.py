@@ -89,3 +89,21 @@ def skip_reason(task) -> str:
         return ""
     return (f"not at rest after {s.steps} steps: not run, it needs at least {need} steps to come to rest "
             f"(the load ramp of {s.ramp_time:g} s at dt {s.dt:g} s) and its budget is {s.steps}")
+
+
+def skipped_row(task, base: dict, reason: str) -> dict:
+    """The row of a run not computed (``base``: the fields that describe it,
+    :func:`studies.runner.base_row`): status "not-converged" (a time-stepping run not at rest, an
+    expected non-answer), ``reason``, no result and no cost; the critical step where the model has
+    one (cheap, and no result of the run)."""
+    row = {**base, "status": "not-converged", "message": reason, "skipped": True, "steps": 0, "elapsed_s": 0.0}
+    try:
+        from hybmss import models
+        from hybmss.explicit import dt_crit
+        from hybmss.system import build
+
+        if models.get(task.scene.model).explicit_limit:
+            row["dt_crit"] = float(dt_crit(build(task.scene.build())))
+    except Exception:  # noqa: BLE001 - the limit is an extra; the row stands without it
+        pass
+    return row

@@ -31,7 +31,7 @@ from hybmss.scene import nearly_incompressible
 
 from .scenes import BEAM_LENGTH, SceneSpec
 from .executors import EXECUTORS, SweepError, WorkerDied, local_executor
-from .rest_bound import skip_reason
+from .rest_bound import skip_reason, skipped_row
 from .outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
 from .store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
@@ -257,25 +257,6 @@ def no_result_because(row: dict | None) -> str:
     return f"{status}: {msg}" if msg else status
 
 
-def skipped_row(task: Task, key: str, reason: str) -> dict:
-    """The row of a run not computed because it cannot come to rest within its step budget
-    (:func:`studies.rest_bound.skip_reason`): status "not-converged" (a time-stepping run not at
-    rest: an expected non-answer), the reason, no result and no cost; its critical step where the
-    model has one (cheap, and no result of the run)."""
-    row = {**base_row(task, key), "status": "not-converged", "message": reason, "skipped": True,
-           "steps": 0, "elapsed_s": 0.0}
-    try:
-        from hybmss import models
-        from hybmss.explicit import dt_crit
-        from hybmss.system import build
-
-        if models.get(task.scene.model).explicit_limit:
-            row["dt_crit"] = float(dt_crit(build(task.scene.build())))
-    except Exception:  # noqa: BLE001 - the limit is an extra; the row stands without it
-        pass
-    return row
-
-
 def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
     """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
     the process that runs the sweep stores them)."""
@@ -489,7 +470,7 @@ class Runner:
             if store.has(k):
                 s.stored += k not in self._seen
             elif k not in state and (why := skip_reason(t)):  # cannot answer: stored as not at rest, never computed
-                store.save(k, skipped_row(t, k, why))
+                store.save(k, skipped_row(t, base_row(t, k), why))
                 s.skipped += 1
             else:
                 todo.append((k, t))
