@@ -722,7 +722,8 @@ def budget_chart(results: Results, path: Path, kind: str = "static") -> Figure |
                   f"of the nodal displacement), at the cost {cost_text.get(kind, kind)}: the fastest method within the budget "
                   "(marker and colour of its model; the table names its solver and mesh) and its lead = cost of "
                   "the next fastest other method / its cost. Hollow marker, 'tie': the lead is smaller than "
-                  "1 + the larger timing spread (median over best of the repeats)."
+                  "1 + the larger timing spread (median over best of the repeats; only candidates whose lead is "
+                  "within the assumed timing noise are repeated, and a lead beyond it is no tie)."
                   + no_result_note(no_result_count(results.table("pareto"))))
 
 

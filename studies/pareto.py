@@ -58,14 +58,19 @@ tension are homogeneous (no lateral strain), every FEM is exact and the estimate
   point: values are sampled, never interpolated.  Alone it is blind to ν where the imposed motion
   dominates the field: it let hybmss-cf, whose ν is always ¼, win budgets at ν = 0.499.
 
-**Cost** (:mod:`studies.cost`).  Static, implicit and FEM runs: ``time_s``, the best of the run
-and :data:`REPEATS` − 1 repeats of it (each its own stored run), with its spread; the solver's
+**Cost** (:mod:`studies.cost`).  Every candidate is first timed by its own run, the one its
+errors come from; only where two candidates are within the timing noise of each other (a budget
+answer's winner and runner-up with ``lead < 1 +`` :data:`NOISE`, :func:`near_ties`) are they
+repeated (:func:`repeat_pairs`), and a lead beyond the noise is no tie.  An explicit candidate
+that cannot come to rest in its step budget is not run (:mod:`studies.rest_bound`: stored as not
+at rest, with the steps it needs).  Static, implicit and FEM runs: ``time_s``, the best of the run
+and, where repeated, :data:`REPEATS` − 1 repeats of it (each its own stored run), with its spread; the solver's
 ``wall_time_s`` (assembly included; FEM: meshing, assembly and solve), single-threaded, runs
 executed two at a time on a shared machine: read ratios, not absolute figures.  Explicit runs:
 the error is that of the publication's protocol run (at rest, the static equilibrium of the same
 energy); the cost is ``cost_explicit_s``, the wall time of one simulated second at the stable step
-``½ dt_crit`` (:data:`studies.cost.SAFETY`), from the best time per step of :data:`REPEATS`
-short runs of :data:`TIMING_STEPS` steps.  xpbd-nh has no explicit limit: its frame is the same
+``½ dt_crit`` (:data:`studies.cost.SAFETY`), from the time per step of the protocol run itself,
+or where repeated the best of :data:`REPEATS` short runs of :data:`TIMING_STEPS` steps.  xpbd-nh has no explicit limit: its frame is the same
 ½ dt_crit (its dt_crit: 2/ω_max of the same grid), split into the substeps its accuracy rule
 chooses (h ω_max ≤ 0.1: 10 substeps), each costing the best time per substep of its short runs
 (:func:`unlimited_frame`).
@@ -116,6 +121,12 @@ DEFAULT_LEVEL = "full"
 REPEATS = {"quick": 3, "medium": 3, "full": 3}
 """Timed runs of every candidate per level: the run itself and ``REPEATS − 1`` repeats
 (:attr:`SolverSpec.repeat`); the best is its time, the median's excess over it its spread."""
+NOISE = 2.5
+"""The timing noise assumed before any repeat: two candidates whose single timings differ by less
+than this factor (lead < 1 + NOISE) are repeated :data:`REPEATS` times to tell them apart; a lead
+beyond it is no tie (:func:`near_ties`).  2.5: the 90th percentile of the spreads of the quick
+study's 122 timed candidates when every one was repeated (median 0.15, 95th 4.4: the short runs
+of a loaded machine: one candidate in ten had a spread above it)."""
 TIMING_STEPS = {"quick": 50, "medium": 1000, "full": 1000}
 """Steps of the short explicit runs timed for the cost of a step (the step's cost does not depend
 on the state, so the protocol's 10,000 steps need not be repeated)."""
@@ -187,8 +198,24 @@ def _ref_element(spec: SceneSpec) -> str:
     return "hex2" if spec.experiment == "bending" else "auto"
 
 
-def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tuple[dict, Task]]:
-    """(meta, task) pairs of one configuration: reference, its coarse partner, candidates."""
+def repeat_pairs(meta: dict, task: Task, lv: str) -> list[tuple[dict, Task]]:
+    """The timing runs of a candidate (``meta``, ``task``) at level ``lv``: the repeats of its time
+    (:attr:`SolverSpec.repeat` 1 … :data:`REPEATS` − 1); of an explicit run, :data:`REPEATS` short
+    runs of :data:`TIMING_STEPS` steps timing its steps."""
+    solver = task.solver
+    if solver.kind == "explicit":
+        timing, ks = dataclasses.replace(solver, steps=TIMING_STEPS[lv]), range(REPEATS[lv])
+    else:
+        timing, ks = solver, range(1, REPEATS[lv])
+    return [({**meta, "role": "timing", "repeat": k}, Task(task.scene, dataclasses.replace(timing, repeat=k), "pareto"))
+            for k in ks]
+
+
+def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None, with_repeats: bool = False
+              ) -> list[tuple[dict, Task]]:
+    """(meta, task) pairs of one configuration: reference, its coarse partner, candidates (and,
+    ``with_repeats``, every candidate's timing runs: :func:`repeat_pairs`; :func:`run` adds them
+    only where two candidates are within noise of each other)."""
     kind = "beam" if spec.is_beam else "cube"
     _, mss_factors, fem_factors, ref_f = bases(quick, level)[kind]
     law = "linear" if quick else default_law(spec)
@@ -196,22 +223,14 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
     out = []
 
     lv = level_name(quick, level)
-    repeats = REPEATS[lv]
 
     def add(role, factor, s, solver, method):
         meta = {"config": cfg, "experiment": spec.experiment, "role": role, "factor": factor,
                 "method": method, "mesh": "x".join(map(str, s.mesh)), "base": spec, "repeat": 0}
-        out.append((meta, Task(s, solver, "pareto")))
-        if role == "candidate":
-            # the repeats of a candidate's time; of an explicit run, short runs timing its steps
-            if solver.kind == "explicit":
-                timing = dataclasses.replace(solver, steps=TIMING_STEPS[lv])
-                ks = range(repeats)
-            else:
-                timing, ks = solver, range(1, repeats)
-            for k in ks:
-                out.append(({**meta, "role": "timing", "repeat": k},
-                            Task(s, dataclasses.replace(timing, repeat=k), "pareto")))
+        # an explicit candidate is of use only at rest: not run when its budget cannot reach it
+        out.append((meta, Task(s, solver, "pareto", answer_only=role == "candidate" and solver.kind == "explicit")))
+        if role == "candidate" and with_repeats:
+            out.extend(repeat_pairs(meta, Task(s, solver, "pareto"), lv))
 
     ref_el = _ref_element(spec)
     add("reference", ref_f, _scaled(spec, ref_f), SolverSpec("fem", element=ref_el, law=law), "reference")
@@ -245,9 +264,10 @@ def tasks_for(spec: SceneSpec, quick: bool, level: str | None = None) -> list[tu
     return out
 
 
-def all_tasks(quick: bool = False, experiments=EXPERIMENTS, nus=None, level: str | None = None
-              ) -> list[tuple[dict, Task]]:
-    return [p for spec in configs(quick, experiments, nus, level) for p in tasks_for(spec, quick, level)]
+def all_tasks(quick: bool = False, experiments=EXPERIMENTS, nus=None, level: str | None = None,
+              with_repeats: bool = False) -> list[tuple[dict, Task]]:
+    return [p for spec in configs(quick, experiments, nus, level)
+            for p in tasks_for(spec, quick, level, with_repeats)]
 
 
 # ------------------------------------------------------------------------------ metrics
@@ -344,10 +364,17 @@ def timing_columns(solver: SolverSpec, row: dict, repeats: list[dict], frame=Non
         return out
     ts = _times([row])
     out["time_s"] = ts[0] if ts else np.nan
-    per = [1e6 * float(r["wall_time_s"]) / float(r.get("steps") or solver.steps)
-           / float((r.get("info") or {}).get("substeps") or 1) for r in repeats if _times([r])]
+    def per_step(r):
+        return (1e6 * float(r["wall_time_s"]) / float(r.get("steps") or solver.steps)
+                / float((r.get("info") or {}).get("substeps") or 1))
+
+    per = [per_step(r) for r in repeats if _times([r])]
+    if not per and ts:  # no timing runs: the time per step of the run itself (one timing, no spread)
+        per = [per_step(row)]
     dc = row.get("dt_crit", np.nan)
     dc = np.nan if dc is None else float(dc)
+    if models.get(row["model"]).explicit_limit and np.isfinite(dc):  # the lattice's, no result of the run
+        out.update(dt_crit=dc, dt_stable=cost.stable_dt(dc))
     if not per:
         return out
     t = cost.Timing.from_samples(per)
@@ -464,6 +491,8 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
                     continue
                 a = cost.budget_answer(sub, budgets, error=err, cost=col, spread=spreads[kind], method="method",
                                        keep=("mesh",), failure="failure" if "failure" in sub else None)
+                # a lead beyond the noise is no tie, measured spread or not (:func:`near_ties`)
+                a.loc[a["tie"].isna() & (a["lead"] >= 1.0 + NOISE), "tie"] = False
                 a.insert(0, "cost_kind", kind)
                 a.insert(0, "measure", m)
                 a.insert(0, "nu", g["nu"].iloc[0])
@@ -471,6 +500,17 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
                 a.insert(0, "experiment", g["experiment"].iloc[0])
                 out.append(a)
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
+
+
+def near_ties(budget: pd.DataFrame, noise: float = NOISE) -> set[tuple[str, str, str]]:
+    """(config, method, mesh) of every winner and runner-up of a budget answer whose lead is
+    within the timing noise, ``lead < 1 + noise``: the candidates whose time needs repeats to tell
+    them apart (their spreads then decide the tie, :func:`studies.cost.is_tie`)."""
+    if budget.empty:
+        return set()
+    near = budget[(budget["answer"] == "fastest") & (budget["runner_up"] != "") & (budget["lead"] < 1.0 + noise)]
+    return ({(r.config, r.method, r.mesh) for r in near.itertuples()}
+            | {(r.config, r.runner_up, r.runner_up_mesh) for r in near.itertuples()})
 
 
 def tasks(quick: bool = False) -> list[Task]:
@@ -486,7 +526,18 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     pairs = all_tasks(quick, experiments, nus, level)
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto",
                      runner=runner)
-    df, refs = pareto_frame(store, pairs, rows, quick)
+    lv, timed = level_name(quick, level), set()
+    while True:  # repeats only where two candidates are within noise (a new best may make a new pair)
+        df, refs = pareto_frame(store, pairs, rows, quick)
+        want = near_ties(budget_table(df)) - timed
+        if not want:
+            break
+        extra = [p for m, t in pairs if m["role"] == "candidate" and (m["config"], m["method"], m["mesh"]) in want
+                 for p in repeat_pairs(m, t, lv)]
+        timed |= want
+        rows += run_tasks([t for _, t in extra], store, jobs=jobs, progress=progress, desc="pareto repeats",
+                          runner=runner)
+        pairs += extra
     tables = {"pareto": df, "pareto_front": df[df["pareto"]].sort_values(["config", "time_s"]),
               "pareto_references": refs, "budget": budget_table(df)}
     for name, t in tables.items():

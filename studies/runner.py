@@ -31,6 +31,7 @@ from hybmss.scene import nearly_incompressible
 
 from .scenes import BEAM_LENGTH, SceneSpec
 from .executors import EXECUTORS, SweepError, WorkerDied, local_executor
+from .rest_bound import skip_reason, skipped_row
 from .outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
 from .store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
@@ -92,9 +93,14 @@ class SolverSpec:
 
 @dataclass(frozen=True)
 class Task:
+    """A scene with its solver, for a study.  ``answer_only``: the run is of use only if it reaches a
+    result (not its state or its time): the runner does not compute it when it cannot
+    (:func:`studies.rest_bound.skip_reason`) and stores it as a run not at rest, with the reason."""
+
     scene: SceneSpec
     solver: SolverSpec
     study: str = ""
+    answer_only: bool = False
 
     def key(self) -> str:
         fields = {"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
@@ -333,13 +339,15 @@ class Summary:
     by_other: int = 0
     failed: int = 0
     expected: int = 0
+    skipped: int = 0
     orphans: int = 0
     failed_stored: int = 0
     damaged: list[str] = field(default_factory=list)
     expected_by: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: "Summary") -> None:
-        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "orphans", "failed_stored"):
+        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "skipped", "orphans",
+                  "failed_stored"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
         self.damaged += other.damaged
         for k, n in other.expected_by.items():
@@ -372,6 +380,8 @@ class Summary:
         if self.expected:
             parts = "; ".join(f"{k}: {n}" for k, n in sorted(self.expected_by.items()))
             out += f", {self.expected} without result as expected ({parts})"
+        if self.skipped:
+            out += f", {self.skipped} of them not run (their step budget is below the steps to rest)"
         if self.damaged:
             out += f", {len(self.damaged)} damaged (moved to damaged/ and computed again)"
         return out
@@ -463,14 +473,20 @@ class Runner:
         store.check_writable()
         keys = [t.key() for t in tasks]
         unique: dict[str, Task] = {}
+        state: set[str] = set()  # runs some task needs whether or not they answer: never skipped
         for t, k in zip(tasks, keys):  # two studies may share a run
             unique.setdefault(k, t)
+            if not t.answer_only:
+                state.add(k)
         new = set(unique) - self._seen
         s = Summary(runs=len(new), orphans=len(store.remove_orphans()))
         todo = []
         for k, t in unique.items():
             if store.has(k):
                 s.stored += k not in self._seen
+            elif k not in state and (why := skip_reason(t)):  # cannot answer: stored as not at rest, never computed
+                store.save(k, skipped_row(t, base_row(t, k), why))
+                s.skipped += 1
             else:
                 todo.append((k, t))
         self._seen.update(unique)
