@@ -148,3 +148,13 @@ def test_sampling_reproduces_a_linear_field_exactly(formulation):
     assert np.abs(sol.sample(pts) - field(pts)).max() < 1e-14
     with pytest.raises(ValueError, match="1 of 2 points lie outside"):
         sol.sample(np.array([[0.0, 0.0, H / 2], [2 * R, 0.0, H / 2]]))
+
+
+def test_p1_locks_in_torsion_near_incompressibility_where_the_mixed_element_does_not(shaft):
+    mesh, sup = shaft
+    mesh = _project_on_cylinder(mesh.refined())
+    mat = Material(1000.0, 0.4999, 0.0)
+    T_exact = mat.G * np.pi * R**4 / 2 * THETA / H
+    err = {f: TetProblem(mesh, f).solve(mat, sup).reactions["top"].torque[2] / T_exact - 1 for f in ("p1", "mixed")}
+    # P1's constant-strain tets cannot shear without changing volume: several times too stiff
+    assert err["p1"] > 1.0 and abs(err["mixed"]) < 0.05, err
