@@ -12,6 +12,8 @@
   chosen by size and separator;
 - :mod:`~fem_reference.convergence`: refinement studies, observed order, Richardson error;
 - :mod:`~fem_reference.modal`: natural frequencies and mode shapes (consistent or lumped mass);
+- :mod:`~fem_reference.tet`: small-strain elasticity on tetrahedral bodies (P1, P2, P2–P1),
+  supports by node predicates, refinement with Richardson estimates, the field at any point;
 - :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``.
 
 The ``hybmss fem`` subcommand (:mod:`studies.cli`) runs it on one scene.
