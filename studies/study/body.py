@@ -9,6 +9,7 @@ cell of its grid (0 outside), from which mask-label regions are drawn.  A mesh i
 from __future__ import annotations
 
 import contextlib
+import math
 import logging
 import os
 import warnings
@@ -277,3 +278,16 @@ def body_checks(t: Table, src: BodySource, sizes, voxels) -> None:
         (volume, area), h = surface_measures(vertices, triangles), 0.0
     for vox in voxels:
         check_volume(t, sizes, vox, volume, area, h)
+
+
+def grid_shape(source, le: float) -> tuple[int, int, int]:
+    """The grid of cells of edge ``le`` that holds the body of ``source`` (before it is cropped)."""
+    if source.kind == "box":
+        return tuple(int(round(s / le)) for s in source.size)
+    if source.kind == "mask":
+        image, spacing, _ = read_image(source.path, source.spacing)
+        extent = np.asarray(image.shape) * spacing
+        return tuple(int(max(1, math.floor(e / le + 1e-9))) for e in extent)
+    vertices, _ = read_surface(source.path, source.scale)
+    extent = vertices.max(axis=0) - vertices.min(axis=0)
+    return tuple(int(max(1, math.ceil(e / le - 1e-9))) for e in extent)

@@ -44,21 +44,6 @@ more, the same ones at every run)."""
 
 
 # ---------------------------------------------------------------------------- memory and time
-def grid_shape(source, le: float) -> tuple[int, int, int]:
-    """The grid of cells of edge ``le`` that holds the body of ``source`` (before it is cropped)."""
-    from .body import read_image, read_surface
-
-    if source.kind == "box":
-        return tuple(int(round(s / le)) for s in source.size)
-    if source.kind == "mask":
-        image, spacing, _ = read_image(source.path, source.spacing)
-        extent = np.asarray(image.shape) * spacing
-        return tuple(int(max(1, math.floor(e / le + 1e-9))) for e in extent)
-    vertices, _ = read_surface(source.path, source.scale)
-    extent = vertices.max(axis=0) - vertices.min(axis=0)
-    return tuple(int(max(1, math.ceil(e / le - 1e-9))) for e in extent)
-
-
 def run_estimates(shape, models, reference, materials) -> list[tuple[str, sizing.Estimate, int]]:
     """Each run a configuration of ``shape`` asks for: (the key that sets its size, its estimate,
     how many times it is solved: an untimed run and the timed repeats are counted by the caller)."""
@@ -76,19 +61,20 @@ def run_estimates(shape, models, reference, materials) -> list[tuple[str, sizing
     return out
 
 
-def check_size(t, source, sizes, models, reference, materials) -> None:
+def check_size(t, grid_shape, sizes, models, reference, materials) -> None:
     """Refuse cell sizes whose grid's runs would not fit this machine's memory
-    (:func:`studies.sizing.fits`), before the body is voxelized; the message gives the memory
+    (:func:`studies.sizing.fits`), before the body is voxelized (``grid_shape(le)``: the body's grid
+    at cell size ``le``, :func:`studies.study.body.grid_shape`); the message gives the memory
     needed and the cell size from which the runs fit."""
     for le in sizes:
-        shape = grid_shape(source, le)
+        shape = grid_shape(le)
         worst = max((e for _, e, _ in run_estimates(shape, models, reference, materials)), key=lambda e: e.bytes)
         if sizing.fits(worst) and sizing.fits(sizing.mss(shape)):
             continue
         fit = le
         for _ in range(400):
             fit *= 1.25
-            est = run_estimates(grid_shape(source, fit), models, reference, materials)
+            est = run_estimates(grid_shape(fit), models, reference, materials)
             if all(sizing.fits(e) for _, e, _ in est):
                 break
         shown = "x".join(map(str, shape))

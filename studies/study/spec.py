@@ -11,6 +11,7 @@ shared keys are checked (:func:`_experiment_study`)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import re
 import subprocess
@@ -26,7 +27,7 @@ from hybmss.lattice import Lattice
 from hybmss.scene import Load, Material, NU_OPEN_RANGE, Scene, plates_cross
 
 from . import checks
-from .body import BodySource, Voxels, body_checks, cell_sizes, folder_of, read_source, source_typo
+from .body import BodySource, Voxels, body_checks, cell_sizes, folder_of, grid_shape, read_source, source_typo
 from .errors import StudyError
 from .outcome import read_expected
 from .keys import Table, close
@@ -180,7 +181,7 @@ def _user_study(top: Table, body: Table, quick: bool) -> Study:
     reference = _read_reference(top.sub("reference"))
     metrics = _read_metrics(top.sub("metrics"), cases)
     top.done()
-    checks.check_size(body, source, voxel_sizes, runs, reference, materials)
+    checks.check_size(body, functools.partial(grid_shape, source), voxel_sizes, runs, reference, materials)
     voxels = _voxelize(body, source, voxel_sizes)
     study = Study(**head, quick=quick, source=source, cell_sizes=tuple(voxel_sizes), materials=materials,
                   load_cases=cases, models=runs, reference=reference, metrics=metrics, voxels=voxels)
