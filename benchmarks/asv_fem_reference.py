@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from fem_reference.solve import solve as fem_solve
-from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
+from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, Body, Material, Motion, Plate, Region, Scene
 
 RADIUS, HEIGHT, CELL = 0.01, 0.04, 0.004
 
@@ -57,7 +57,7 @@ class FEMReference:
         fem_solve(self.scene, law="neo-hookean", refine=refine)
 
     def time_reference_minres(self, nu, refine):
-        if nu < 0.45 or refine > 1:
+        if nu < NEARLY_INCOMPRESSIBLE_NU or refine > 1:
             raise NotImplementedError("the MINRES path is timed on the mixed element at refine 1 only")
         fem_solve(self.scene, law="neo-hookean", refine=refine, method="amg")
 

@@ -25,7 +25,7 @@ import tempfile
 import time
 
 from fem_reference.tet import as_mesh, clamp, rotate, tet_convergence, translate
-from hybmss.scene import Material
+from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, Material
 from hybmss.tetbody import TetMeshError, mesh_surface
 
 R, H = 0.01, 0.04
@@ -57,7 +57,7 @@ def cylinder_reference(stl: str | None = None, h: float = 0.005, levels: int = 2
     rows = []
     for nu in nus:
         mat = Material(E, nu, 0.0)
-        form = "mixed" if nu >= 0.45 else "p2"
+        form = "mixed" if nu >= NEARLY_INCOMPRESSIBLE_NU else "p2"
         closed = {"squeeze": -E * math.pi * R**2 * strain, "twist": mat.G * math.pi * R**4 / 2 * theta / H}
         for name, (top, output) in loads.items():
             t0 = time.perf_counter()

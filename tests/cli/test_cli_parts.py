@@ -20,7 +20,7 @@ def parse(*argv):
 
 
 VALUES = {"mesh": ("3x4x5", (3, 4, 5)), "model": ("hybmss-cf", "hybmss-cf"), "volume_energy": ("squared", "squared"),
-          "e_form": (None, True), "sequential": (None, True)}
+          "e_form": (None, True), "sequential": (None, True), "integrator": ("RK4", "RK4")}
 MSS_ONLY = {"model"} | set(commands.model_parameters())
 
 
