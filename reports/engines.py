@@ -12,12 +12,12 @@ no engine table is stored.
 from __future__ import annotations
 
 import html
-import math
 
 import pandas as pd
 
 from studies import roles
 
+from .findings import number_or_none
 from .tables import Table, fmt, frame_table, grade
 
 TABLES = ("engines_closing", "engines_timing", "engines_cost")
@@ -35,12 +35,6 @@ def laws_table() -> Table:
                  ["model", "engine, element", "law and (E, ν) mapping", "cannot represent (refused, exit 2)"], rows)
 
 
-def _num(v):
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        return None
-    return None if math.isnan(v) else v
 
 
 def closing_table(t: pd.DataFrame) -> Table:
@@ -48,7 +42,7 @@ def closing_table(t: pd.DataFrame) -> Table:
         if c == "status":
             return "good" if r["status"] == "ok" else "fail"
         if c in ("force_rel_error", "volume_change_rel_error"):
-            return grade(_num(r[c]), (0.02, 0.10))
+            return grade(number_or_none(r[c]), (0.02, 0.10))
         return ""
 
     cols = {"experiment": "experiment", "mesh": "mesh", "nu": "ν", "model": "model", "status": "status",
@@ -98,9 +92,9 @@ def moduli_rows(moduli: pd.DataFrame | None) -> Table | None:
         if c == "status":
             return "good" if r["status"] == "ok" else "fail"
         if c == "nu_eff":
-            return grade(_num(r["nu_eff"]) - r["nu"] if _num(r["nu_eff"]) is not None else None, (1e-3, 2e-2))
+            return grade(number_or_none(r["nu_eff"]) - r["nu"] if number_or_none(r["nu_eff"]) is not None else None, (1e-3, 2e-2))
         if c in ("E_eff_over_E", "G_eff_over_G"):
-            return grade(_num(r[c]) - 1.0 if _num(r[c]) is not None else None, (1e-3, 2e-2))
+            return grade(number_or_none(r[c]) - 1.0 if number_or_none(r[c]) is not None else None, (1e-3, 2e-2))
         return ""
 
     return frame_table(t, "table_engine_moduli", "The engines' effective moduli against the requested E, ν, G",
@@ -141,7 +135,7 @@ def findings(closing: pd.DataFrame | None, timing: pd.DataFrame | None) -> str:
         if not top.empty:  # locking as ν → ½: the force error of each engine at the largest ν
             out.append(f"Compression at ν = {closing['nu'].max():g}: " + ", ".join(
                 f"{r['model']} " + (f"{100 * float(r['force_rel_error']):.3g} %" if r["status"] == "ok"
-                                    and _num(r["force_rel_error"]) is not None else str(r["status"]))
+                                    and number_or_none(r["force_rel_error"]) is not None else str(r["status"]))
                 for _, r in top.iterrows()) + " (force error against the FEM).")
         refused = closing[closing["status"] == "not-representable"]
         if not refused.empty:

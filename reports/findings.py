@@ -31,6 +31,12 @@ def _num(v) -> float:
         return math.nan
 
 
+def number_or_none(v) -> float | None:
+    """A stored cell as a number, ``None`` where it holds none (empty, text, NaN)."""
+    v = _num(v)
+    return None if math.isnan(v) else v
+
+
 # ------------------------------------------------------------------ speed against error
 MEASURE_NAMES = {"force": "plate force or torque (beam: tip deflection)", "volume": "volume change",
                  "field": "displacement field"}

@@ -13,13 +13,13 @@ The error of a mode is ``100 (f_model / f_ref − 1)`` %, ``f_ref`` the FEM's (H
 from __future__ import annotations
 
 import html
-import math
 from pathlib import Path
 
 import pandas as pd
 
 from . import palette
 from .figures import Figure, _nu_axis, _save
+from .findings import number_or_none
 from .tables import Table, frame_table, grade
 
 BODIES = ("cube", "beam")
@@ -32,12 +32,6 @@ WITHIN_PCT = 5.0
 """The finding names the models whose three first modes stay within this (%) at every ν."""
 
 
-def _num(v):
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        return None
-    return None if math.isnan(v) else v
 
 
 def body_table(t: pd.DataFrame, body: str) -> Table:
@@ -45,7 +39,7 @@ def body_table(t: pd.DataFrame, body: str) -> Table:
 
     def cls(r, c):
         if c.endswith("_error_pct"):
-            v = _num(r[c])
+            v = number_or_none(r[c])
             return grade(None if v is None else abs(v) / 100.0, tuple(g / 100.0 for g in GRADES))
         return ""
 
@@ -109,7 +103,7 @@ def _worst(t: pd.DataFrame, m: str) -> tuple[float | None, float | None, str | N
     best = (None, None, None)
     for _, r in t[t["model"] == m].iterrows():
         for kind in KINDS:
-            v = _num(r[f"{kind}_error_pct"])
+            v = number_or_none(r[f"{kind}_error_pct"])
             if v is not None and (best[0] is None or abs(v) > abs(best[0])):
                 best = (v, float(r["nu"]), kind)
     return best

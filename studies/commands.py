@@ -521,14 +521,20 @@ def check_solver(model_name: str, solver: str) -> None:
                          f"allowed: {', '.join(model.solvers)}")
 
 
+def stored_scene(args):
+    """The scene of ``--scene-json``, refused beside an experiment or scene options (the stored
+    scene defines them)."""
+    given = given_scene_options(args)
+    if args.scene or given:
+        extra = ", ".join([f"the experiment {args.scene}"] * bool(args.scene) + [flag(n) for n in given])
+        raise InputError(f"--scene-json is not allowed with {extra}: the stored scene defines them")
+    return load_scene(args.scene_json)
+
+
 def _compare_scene(args):
     """The scene of ``compare`` and its experiment spec (``None`` for ``--scene-json``), checked."""
     if args.scene_json:
-        given = given_scene_options(args)
-        if args.scene or given:
-            extra = ", ".join([f"the experiment {args.scene}"] * bool(args.scene) + [flag(n) for n in given])
-            raise InputError(f"--scene-json is not allowed with {extra}: the stored scene defines them")
-        scene = load_scene(args.scene_json)
+        scene = stored_scene(args)
         check_solver(scene.model.name, args.solver)
         why = unsupported(scene)  # the FEM reference is a static solve, whatever the MSS solver
         if why:

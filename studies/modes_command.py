@@ -18,8 +18,7 @@ from hybmss import models
 from hybmss.scene import plates_cross, unsupported
 
 from . import sizing
-from .commands import SOLVER_DEFAULTS, InputError, _settings, flag, guard, given_scene_options, load_scene, \
-    scene_spec, show
+from .commands import SOLVER_DEFAULTS, InputError, _settings, guard, scene_spec, show, stored_scene
 
 K_MAX = 100
 """Most modes one call computes."""
@@ -29,11 +28,7 @@ MASSES = ("consistent", "lumped")
 def _scene(args):
     """The scene of ``modes`` and its experiment spec (``None`` for ``--scene-json``), checked."""
     if args.scene_json:
-        given = given_scene_options(args)
-        if args.scene or given:
-            extra = ", ".join([f"the experiment {args.scene}"] * bool(args.scene) + [flag(n) for n in given])
-            raise InputError(f"--scene-json is not allowed with {extra}: the stored scene defines them")
-        scene = load_scene(args.scene_json)
+        scene = stored_scene(args)
         why = unsupported(scene) or plates_cross(scene)
         if why:
             raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}")
