@@ -154,3 +154,12 @@ def test_a_released_run_without_result_is_a_failure(tmp_path):
     assert released == ["hybmss-cf 0.01 m drop released: no first period"]
     assert got["expected_no_result"] == ["corot-hex8 0.01 m drop released: node 3 non-finite"]
     assert got["failed"] == 3 + 1 and got["results"] == 0
+
+
+def test_the_study_report_shows_the_stored_tables(swing):
+    from reports.study_modes import dynamics_html
+
+    page = dynamics_html(swing.attrs["out"], "swing", "drop")
+    assert page.count("<table>") == 2 and page.count("<tr>") == 2 * (1 + len(swing)) + 1  # 3 budgets: 1 + 3 rows
+    assert f"{swing['period_error_pct'].iloc[0]:.4g}" in page and "semi-implicit Euler" in page
+    assert dynamics_html(swing.attrs["out"], "swing", "other") is None
