@@ -149,7 +149,10 @@ def _case_rows(study, case, mat, le, fem_scene, runs) -> list[dict]:
             continue
         check = ref.info["dt_check"]
         n = _phase_periods(ref, case.release)
-        trial = model_row(scene, scene.model if run.params else run.name, ref, ref.point, n)
+        try:
+            trial = model_row(scene, scene.model if run.params else run.name, ref, ref.point, n)
+        except Exception as exc:  # noqa: BLE001 - a model's own failure is its row, counted as a failure
+            trial = {"status": "error", "reason": f"{type(exc).__name__}: {exc}".splitlines()[0]}
         rows.append({**head, **_row_of(trial), "point": " ".join(f"{c:.6g}" for c in ref.point),
                      "phase_periods": n, "fem_dt_s": check["dt"],
                      "fem_period_error_pct": 100.0 * check["period_error_estimate"],

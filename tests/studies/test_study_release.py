@@ -163,3 +163,25 @@ def test_the_study_report_shows_the_stored_tables(swing):
     assert page.count("<table>") == 2 and page.count("<tr>") == 2 * (1 + len(swing)) + 1  # 3 budgets: 1 + 3 rows
     assert f"{swing['period_error_pct'].iloc[0]:.4g}" in page and "semi-implicit Euler" in page
     assert dynamics_html(swing.attrs["out"], "swing", "other") is None
+
+
+def test_a_model_that_raises_has_a_row_with_its_reason(tmp_path, monkeypatch):
+    import studies.transients as transients
+    from studies.study import Study
+    from studies.study.release import dynamics_tables
+
+    real = transients.model_row
+
+    def model_row(scene, model, *args):
+        if scene.model.name == "corot-hex8":
+            raise ZeroDivisionError("the element's volume is zero")
+        return real(scene, model, *args)
+
+    monkeypatch.setattr(transients, "model_row", model_row)
+    doc = swing_study()
+    doc["load_case"][0]["periods"] = 1
+    table = dynamics_tables(Study.from_toml(write(doc, tmp_path / "swing.toml")))["dynamics_drop"]
+    bad = table[table["model"] == "corot-hex8"].iloc[0]
+    assert bad["status"] == "error" and bad["reason"] == "ZeroDivisionError: the element's volume is zero"
+    assert bad[["period_error_pct", "zeta", "l2_error", "wall_per_simulated_s"]].isna().all()
+    assert table[table["model"] == "hybmss-cf"]["status"].iloc[0] == "ok"
