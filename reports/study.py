@@ -22,7 +22,7 @@ import numpy as np
 
 from . import palette
 from .render import _view, hex_grid
-from .study_modes import modes_html
+from .study_modes import dynamics_html, modes_html
 
 TEMPLATES = Path(__file__).parent / "templates"
 VIEW_SIZE = (360, 300)
@@ -204,7 +204,8 @@ def _case_section(study, case, tables: dict, runs: list[dict], folder: Path) -> 
             "cost": _html_table(tables[f"cost_{case.name}"]), "budget": _html_table(tables[f"budget_{case.name}"]),
             "views": views, "best": None if picks is None else picks[0]["model"],
             "worst": None if picks is None else picks[1]["model"],
-            "modes": modes_html(folder.parent, study.name, case.name)}
+            "modes": modes_html(folder.parent, study.name, case.name),
+            "dynamics": dynamics_html(folder.parent, study.name, case.name)}
 
 
 def _fmt(v) -> str:

@@ -771,8 +771,10 @@ def study(args):
     tables = spec.tables(out) if spec.experiment is None else {}
     budget = [r for name, df in tables.items() if name.startswith("budget_")
               for r in df.astype(object).where(df.notna(), None).to_dict("records")]
+    dynamics = _dynamics_budget(done.get("tables", {}))
     obj = {"study": spec.name, "title": spec.title, "out": str(out), "quick": args.quick,
            "summary": runner.summary.as_dict(), **done, "report": report, "budget": budget,
+           "dynamics_budget": dynamics,
            "wall_time_s": time.perf_counter() - t0}
     if done.get("failed"):
         first = done["failures"][0]
@@ -780,12 +782,37 @@ def study(args):
                            f"(first: {first}); tables{' and report' if report else ''} written in {out}; remedy: "
                            "change the failing model's solver or load, or list the kind of no result the study "
                            "expects in that model's expect_no_result (docs/study-format.md)", obj)
-    return obj, _study_text(spec, out, runner.summary.line(), budget, report, done)
+    return obj, _study_text(spec, out, runner.summary.line(), budget + dynamics, report, done)
+
+
+def _dynamics_budget(paths: dict) -> list[dict]:
+    """The rows of the written ``dynamics_budget_<case>`` tables (released transients)."""
+    import pandas as pd
+
+    frames = [pd.read_csv(p) for name, p in paths.items() if name.startswith("dynamics_budget_")]
+    return [r for df in frames for r in df.astype(object).where(df.notna(), None).to_dict("records")]
+
+
+def _period_line(b: dict) -> str:
+    """One row of a released transient's budget table: the model that keeps its first period
+    within the budget at the least wall time per simulated second, or the closest one."""
+    head = f"  {b['load_case']} released: first period within {b['period_budget_pct']:g} %: "
+    if b["answer"] != "fastest":
+        if b["model"] is None:
+            return head + "no model measured a period"
+        return head + f"no model keeps it (closest: {b['model']}, {b['period_error_pct']:+.3g} %)"
+    head += (f"{b['model']} at {b['cell_size_m']:g} m, {b['wall_per_simulated_s']:.3g} s per simulated s "
+             f"(period {b['period_error_pct']:+.3g} %)")
+    if b["runner_up"] is not None:
+        head += f"; {b['lead']:.2f}x less than {b['runner_up']}"
+    return head
 
 
 def _budget_line(b: dict) -> str:
     """One row of a budget table on one line: the fastest model within a budget (or none), a model
     that meets no budget (its smallest error), a model without result (its reason)."""
+    if "period_budget_pct" in b:
+        return _period_line(b)
     if b["answer"] == "no result":
         return f"  {b['load_case']}: {b['method']} no result ({b.get('failure') or 'no run reached one'})"
     if b["answer"] != "fastest":

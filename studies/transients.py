@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 import os
 
+import numpy as np
+
 from fem_reference.transient import ReleasedFem, newmark_period_ratio, newmark_step_for
 from hybmss.released import released_model, released_transient, user_step, with_model
 from hybmss.scene import Scene
@@ -31,13 +33,23 @@ SAMPLES_PER_PERIOD = 200
 """Samples of a model's point per first period (its step permitting)."""
 
 
+def largest_static_point(fem: ReleasedFem) -> tuple[float, float, float]:
+    """The lattice particle of largest static displacement of ``fem`` (its position)."""
+    X = fem.ops.fmesh.lattice.X
+    u = fem.static.reshape(-1, 3)[fem.space.particle_dofs]
+    k = int(np.argmax(np.linalg.norm(u, axis=1)))
+    return tuple(float(c) for c in X[k])
+
+
 def fem_transient(scene: Scene, point, periods: float = 5.0, period_tol: float = 1e-3, element: str = "hex2",
-                  law: str = "linear", refine: int = 1) -> Trajectory:
-    """The FEM reference transient (module docstring); ``info['dt_check']`` holds the steps, the
-    two periods and the estimated period error."""
+                  law: str = "linear", refine: int = 1, t_end: float | None = None) -> Trajectory:
+    """The FEM reference transient (module docstring) over ``periods`` Rayleigh periods, or up to
+    ``t_end`` (s) when given; ``info['dt_check']`` holds the steps, the two periods and the
+    estimated period error."""
     fem = ReleasedFem(scene, element, law, refine)
     T_est = 2.0 * math.pi / fem.omega_rayleigh
-    t_end = float(periods) * T_est * 1.05  # the Rayleigh quotient bounds ω₁ from above
+    if t_end is None:
+        t_end = float(periods) * T_est * 1.05  # the Rayleigh quotient bounds ω₁ from above
     dt = newmark_step_for(fem.omega_rayleigh, 0.25 * period_tol)
     coarse = fem.run(dt, t_end, point)
     for halving in range(MAX_HALVINGS + 1):

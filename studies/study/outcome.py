@@ -7,7 +7,9 @@ that ended its step budget before rest (:func:`studies.runner.not_at_rest`), els
 ``not-representable``; ``missing`` when not stored).  A model's table may declare the kinds it
 expects (``expect_no_result = ["not-at-rest"]``): such a run is counted apart, as a finding of the
 study; any other run without result is a failure and ``hybmss study`` exits 3.  The counts here
-are the ones the command prints, returns in ``--json`` and the report shows."""
+are the ones the command prints, returns in ``--json`` and the report shows.  A released transient
+(``release = true``) is a run too: its row of the stored ``dynamics_<load case>`` table without
+result is a failure unless its kind is declared (:func:`studies.study.release.release_outcome`)."""
 
 from __future__ import annotations
 
@@ -78,7 +80,12 @@ def study_outcome(study, out) -> dict:
             continue
         line = f"{run_name(task)}: {why}"
         (declared if expected(task, row) else failures).append(line)
-    return {"runs": len(seen), "results": len(seen) - len(failures) - len(declared), "failed": len(failures),
+    from .release import release_outcome, released_runs  # the released transients' stored rows
+
+    more, more_declared = release_outcome(study, out)
+    failures, declared = failures + more, declared + more_declared
+    runs = len(seen) + released_runs(study, out)
+    return {"runs": runs, "results": runs - len(failures) - len(declared), "failed": len(failures),
             "failures": failures, "expected": len(declared), "expected_no_result": declared}
 
 

@@ -10,6 +10,7 @@ from ..runner import Runner, run_tasks
 from ..store import Store
 from .modes import modes_tables
 from .outcome import expectation, study_outcome
+from .release import dynamics_tables
 from .tables import study_tables
 
 
@@ -24,6 +25,7 @@ def run_study(study, out, jobs=None, runner: Runner | None = None, progress: boo
               expected=expectation(study))
     tables = study.tables(out) if study.experiment is None else {}
     tables.update(modes_tables(study))  # [metrics] modes: natural frequencies against the FEM's
+    tables.update(dynamics_tables(study))  # release = true: released transients against the FEM's
     paths = {name: str(store.write_table(f"{study.name}_{name}", df)) for name, df in tables.items()}
     return {**study_outcome(study, out), "tables": paths}
 

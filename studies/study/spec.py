@@ -32,6 +32,7 @@ from .errors import StudyError
 from .outcome import read_expected
 from .keys import Table, close
 from .modes import check_modes, read_modes
+from .release import Release, read_point, read_release
 from .regions import SupportSpec, TractionSpec, held_modes, read_support, read_traction
 
 TOP_KEYS = ("study", "body", "material", "load_case", "model", "reference", "metrics")
@@ -53,6 +54,7 @@ class LoadCase:
     gravity: tuple[float, float, float]
     supports: tuple[SupportSpec, ...]
     tractions: tuple[TractionSpec, ...]
+    release: Release | None = None  # a released transient after the static runs (studies.study.release)
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,7 @@ class Metrics:
     displacement: bool = True
     points: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     modes: int = 0  # natural frequencies: the lowest k modes (studies.study.modes); 0: none
+    point: str | None = None  # the point a released transient tracks (a name of points); None: largest sag
 
 
 @dataclass(frozen=True)
@@ -266,8 +269,9 @@ def _read_load_case(t: Table, has_labels: bool) -> LoadCase:
                       "to move as a rigid body)")
     _unique(t, "support", [s.name for s in supports])
     tractions = tuple(read_traction(s, has_labels) for s in t.items("traction"))
+    release = read_release(t, gravity, tractions)
     t.done()
-    return LoadCase(name, tuple(gravity), supports, tractions)
+    return LoadCase(name, tuple(gravity), supports, tractions, release)
 
 
 def _read_model(t: Table) -> ModelRun:
@@ -350,8 +354,9 @@ def _read_metrics(t: Table | None, cases: tuple[LoadCase, ...]) -> Metrics:
                 raise p.error(k, list(p.data[k]), "a point named in printable ASCII characters (it names a table "
                               "column)")
     modes = read_modes(t)
+    point = read_point(t, points, cases)
     t.done()
-    return Metrics(tuple(forces), volume, displacement, points, modes)
+    return Metrics(tuple(forces), volume, displacement, points, modes, point)
 
 
 def _unique(t: Table, key: str, names: list[str], what: str = "name", how: str = "") -> None:
