@@ -204,7 +204,8 @@ class MujocoBody(EngineBody):
         self.data.qpos[:] = (np.asarray(x, dtype=float) - self.nodes.X).ravel()
         self.data.qvel[:] = np.asarray(v, dtype=float).ravel()
         self.data.time = self.step * self.dt
-        mujoco.mj_forward(self.model, self.data)
+        with warnings_into(self.warnings):
+            mujoco.mj_forward(self.model, self.data)
 
     def _steps(self, step0: int, n: int) -> None:
         """``n`` steps from ``step0``: MuJoCo's ``mj_step``, the scene's damping, then the plates
@@ -259,7 +260,8 @@ class MujocoBody(EngineBody):
         p = self.probe
         p.qpos[:] = (np.asarray(x, dtype=float) - self.nodes.X).ravel()
         p.qvel[:] = 0.0
-        mujoco.mj_forward(self.model, p)
+        with warnings_into(self.warnings):
+            mujoco.mj_forward(self.model, p)
         return p.qfrc_spring.reshape(-1, 3).copy()
 
     def vertices(self, x: np.ndarray | None = None) -> np.ndarray:
