@@ -11,7 +11,9 @@ reference field.
   with the same displacement on the held nodes.  Its own error estimate: the reaction's
   Richardson estimate on the finest mesh, and the field's ``‖u_L − u_{L−1}‖/‖u_L‖`` at the scored
   nodes (the coarser level's change, an over-estimate of the finest level's error).  A row whose
-  error is not above both estimates is flagged (``ref>err``): the reference cannot resolve it.
+  error is not above both estimates is flagged (``ref>err``): the reference cannot resolve it; an
+  engine whose rest state's equilibrium error ``‖f_free‖/‖f_held‖`` exceeds an error it reports is
+  flagged ``equil>err``.
 - hybmss and corot-hex8 run on voxels of the same surface (:func:`hybmss.voxelize.voxelize`, cell
   edge ``le``), plates on the voxel body's bottom and top faces.  Their lattice nodes are scored
   where they lie in the faceted tetrahedral body (:func:`inside`) and the reference places them
@@ -192,6 +194,8 @@ def table(rows: list[dict]) -> str:
         flag = [] if r["converged"] else ["not at rest"]
         if not (r["field"] > r["ref_field"] and r["reaction"] > r["ref_reaction"]):
             flag.append("ref>err")
+        if r["equilibrium"] is not None and r["equilibrium"] > min(r["field"], r["reaction"]):
+            flag.append("equil>err")
         out.append(f"{r['nu']:<5} {r['load']:<8} {r['model']:<13} {r['mesh']:<13} {r['nodes']:>6} {r['outside']:>7} "
                    f"{_fmt(r['field'])} {_fmt(r['reaction'])} {_fmt(r['ref_field'])} {_fmt(r['ref_reaction'])} "
                    f"{_fmt(r['equilibrium'])} {r['wall_s']:>7.2f}  {', '.join(flag)}")
