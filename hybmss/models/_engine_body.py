@@ -90,6 +90,24 @@ def engine_nodes(system: System, order: int, density: float) -> Nodes:
         centers.append(tuple(system.X[ps.particles].mean(axis=0)) if rot else None)
     return Nodes(X, mass, fixed, tuple(plates), tuple(centers))
 
+def tet_nodes(body, holds, density: float) -> Nodes:
+    """The engine's nodes of a :class:`hybmss.tetbody.TetBody`: its nodes, the lumped masses
+    ``ρ V/4`` per tetrahedron vertex, each hold (:class:`hybmss.models._engine_tet.TetHold`)'s
+    nodes with their three components prescribed."""
+    X = np.asarray(body.X, dtype=float)
+    mass = np.zeros(len(X))
+    np.add.at(mass, body.tets.ravel(), np.repeat(density * np.abs(body.volumes) / 4.0, 4))
+    fixed = np.zeros((len(X), 3), dtype=bool)
+    plates, centers = [], []
+    for h in holds:
+        sel = np.flatnonzero(np.asarray(h.where(X), dtype=bool))
+        if len(sel) == 0:
+            raise ValueError(f"hold {h.name!r} selects no node of the body")
+        fixed[sel] = True
+        plates.append(PlateSet(h.name, sel, np.ones(3, dtype=bool)))
+        rot = h.motion.kind == "rotate" and h.motion.center is None
+        centers.append(tuple(X[sel].mean(axis=0)) if rot else None)
+    return Nodes(X, mass, fixed, tuple(plates), tuple(centers))
 
 
 class EngineBody:
@@ -124,8 +142,6 @@ class EngineBody:
         engine's own tetrahedra are the body's), the masses ``ρ V/4`` of each tetrahedron on its
         vertices, each :class:`hybmss.models._engine_tet.TetHold` prescribing every component of
         the nodes it selects; no gravity."""
-        from ._engine_tet import tet_nodes
-
         self.system, self.tetbody, self.material = None, body, material
         self.holds = tuple(holds)
         self.dt, self.ramp_time = float(dt), float(ramp_time)

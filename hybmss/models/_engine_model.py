@@ -221,7 +221,7 @@ class EngineModel(ModelBase):
         (:func:`hybmss.models._engine_tet.rest_on_tets`)."""
         from ._engine_tet import rest_on_tets
 
-        return rest_on_tets(self, body, material, holds, rtol=rtol)
+        return rest_on_tets(self, body, material, holds, settle=SETTLE, rtol=rtol)
 
     def law_errors(self) -> dict[str, float]:
         """The law check: the engine's own forces on one unit cell (E = 1e4 Pa, ν = 0.3, the bottom

@@ -17,7 +17,7 @@ tetrahedra (P1, the lumped masses),
 
 the small-strain limit every engine's law is mapped to.  A state is at rest when the free
 nodes' force ``‖f_free‖`` is within ``rtol`` of the held nodes' ``‖f_held‖`` (or within a float32
-engine's force resolution, then only :data:`hybmss.models._engine_model.SETTLE`/ω₁ after the
+engine's force resolution, or for an engine that ``settles``, only ``settle``/ω₁ after the
 ramp); the run stops at ``T + 60/ω₁`` otherwise and says so (``converged`` False).  A support's
 reaction is ``−Σ f`` of the engine's own forces on its nodes, its torque about their centroid
 (:func:`hybmss.result.reaction_from_nodal`, reference positions).
@@ -34,7 +34,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..result import Reaction, reaction_from_nodal
-from ..system import PlateSet
 from ._engine_body import Nodes
 
 
@@ -47,25 +46,6 @@ class TetHold:
     name: str
     where: Callable[[np.ndarray], np.ndarray]
     motion: object
-
-
-def tet_nodes(body, holds, density: float) -> Nodes:
-    """The engine's nodes of a :class:`hybmss.tetbody.TetBody`: its nodes, the lumped masses
-    ``ρ V/4`` per tetrahedron vertex, each hold's nodes with their three components prescribed."""
-    X = np.asarray(body.X, dtype=float)
-    mass = np.zeros(len(X))
-    np.add.at(mass, body.tets.ravel(), np.repeat(density * np.abs(body.volumes) / 4.0, 4))
-    fixed = np.zeros((len(X), 3), dtype=bool)
-    plates, centers = [], []
-    for h in holds:
-        sel = np.flatnonzero(np.asarray(h.where(X), dtype=bool))
-        if len(sel) == 0:
-            raise ValueError(f"hold {h.name!r} selects no node of the body")
-        fixed[sel] = True
-        plates.append(PlateSet(h.name, sel, np.ones(3, dtype=bool)))
-        rot = h.motion.kind == "rotate" and h.motion.center is None
-        centers.append(tuple(X[sel].mean(axis=0)) if rot else None)
-    return Nodes(X, mass, fixed, tuple(plates), tuple(centers))
 
 
 def p1_stiffness(X: np.ndarray, tets: np.ndarray, lam: float, mu: float) -> sp.csr_matrix:
@@ -116,11 +96,10 @@ class TetRest:
     info: dict
 
 
-def rest_on_tets(model, body, material, holds, *, rtol: float | None = None) -> TetRest:
+def rest_on_tets(model, body, material, holds, *, settle: float, rtol: float | None = None) -> TetRest:
     """The rest state of ``model``'s engine (an :class:`~hybmss.models._engine_model.EngineModel`
-    with :meth:`make_tet_body`) on the tetrahedra of ``body`` under ``holds`` (module docstring)."""
-    from ._engine_model import SETTLE
-
+    with :meth:`make_tet_body`) on the tetrahedra of ``body`` under ``holds`` (module docstring);
+    ``settle``: :data:`hybmss.models._engine_model.SETTLE`."""
     t_start = time.perf_counter()
     rtol = model.static_rest_rtol if rtol is None else float(rtol)
     probe = model.make_tet_body(body, material, holds, 1.0, 1.0, damping=0.0)
@@ -137,7 +116,7 @@ def rest_on_tets(model, body, material, holds, *, rtol: float | None = None) -> 
     held = eng.nodes.fixed.all(axis=1)
     check = max(1, int(round(1.0 / (w1 * dt))))
     n_max = int(math.ceil((T + 60.0 / w1) / dt))
-    settled = T + SETTLE / w1
+    settled = T + settle / w1
     wait = eng.resolution_N > 0.0 or model.settles
     step, at_rest, err = 0, False, math.inf
     while step < n_max and not at_rest:

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from fem_reference.tet import Support, TetProblem, as_mesh, clamp, translate
+from fem_reference.tet import TetProblem, as_mesh, clamp, translate
 from hybmss.models import get
 from hybmss.models._engine_model import SceneNotRepresentable
 from hybmss.models._engine_tet import TetHold
