@@ -90,6 +90,24 @@ def engine_nodes(system: System, order: int, density: float) -> Nodes:
         centers.append(tuple(system.X[ps.particles].mean(axis=0)) if rot else None)
     return Nodes(X, mass, fixed, tuple(plates), tuple(centers))
 
+def tet_nodes(body, holds, density: float) -> Nodes:
+    """The engine's nodes of a :class:`hybmss.tetbody.TetBody`: its nodes, the lumped masses
+    ``ρ V/4`` per tetrahedron vertex, each hold (:class:`hybmss.models._engine_tet.TetHold`)'s
+    nodes with their three components prescribed."""
+    X = np.asarray(body.X, dtype=float)
+    mass = np.zeros(len(X))
+    np.add.at(mass, body.tets.ravel(), np.repeat(density * np.abs(body.volumes) / 4.0, 4))
+    fixed = np.zeros((len(X), 3), dtype=bool)
+    plates, centers = [], []
+    for h in holds:
+        sel = np.flatnonzero(np.asarray(h.where(X), dtype=bool))
+        if len(sel) == 0:
+            raise ValueError(f"hold {h.name!r} selects no node of the body")
+        fixed[sel] = True
+        plates.append(PlateSet(h.name, sel, np.ones(3, dtype=bool)))
+        rot = h.motion.kind == "rotate" and h.motion.center is None
+        centers.append(tuple(X[sel].mean(axis=0)) if rot else None)
+    return Nodes(X, mass, fixed, tuple(plates), tuple(centers))
 
 
 class EngineBody:
@@ -118,13 +136,48 @@ class EngineBody:
         self.compile_time_s = 0.0
         self.warnings: list[str] = []
 
+    def setup_tets(self, body, material, holds, dt: float, ramp_time: float, damping: float,
+                   density: float | None) -> None:
+        """:meth:`setup` for the nodes of a :class:`hybmss.tetbody.TetBody` (no system: the
+        engine's own tetrahedra are the body's), the masses ``ρ V/4`` of each tetrahedron on its
+        vertices, each :class:`hybmss.models._engine_tet.TetHold` prescribing every component of
+        the nodes it selects; no gravity."""
+        self.system, self.tetbody, self.material = None, body, material
+        self.holds = tuple(holds)
+        self.dt, self.ramp_time = float(dt), float(ramp_time)
+        self.gravity = None
+        self.damping = float(damping)
+        self.nodes = tet_nodes(body, self.holds, material.rho if density is None else float(density))
+        self.fixed_dofs = np.flatnonzero(self.nodes.fixed.ravel())
+        self._held: dict = {}
+        self.step = 0
+        self.step_time_s = 0.0
+        self.compile_time_s = 0.0
+        self.warnings: list[str] = []
+
+    def extent(self) -> float:
+        """The body's largest size (m): the scale of the divergence check."""
+        if self.system is None:
+            return float(np.ptp(self.nodes.X, axis=0).max())
+        return float(max(self.system.scene.body.size))
+
+    def length(self) -> float:
+        """The body's element length (m): the scale of the finite-difference steps."""
+        return float(self.tetbody.h) if self.system is None else float(self.system.scene.body.le)
+
+    def motions(self) -> tuple:
+        """The motion of each plate (:class:`hybmss.scene.Motion`), in the order of ``nodes.plates``."""
+        if self.system is None:
+            return tuple(h.motion for h in self.holds)
+        return tuple(plate.motion for plate in self.system.scene.plates)
+
     # ------------------------------------------------------------------ prescribed motion
     def prescribed(self, s: float) -> np.ndarray:
         """Target node positions (N, 3) at load factor ``s`` (free components at reference)."""
         X = self.nodes.X
         x = X.copy()
-        for plate, ps, c in zip(self.system.scene.plates, self.nodes.plates, self.nodes.centers):
-            motion = plate.motion if c is None else dataclasses.replace(plate.motion, center=c)
+        for motion, ps, c in zip(self.motions(), self.nodes.plates, self.nodes.centers):
+            motion = motion if c is None else dataclasses.replace(motion, center=c)
             u = motion.displacement_at(X[ps.particles], s)
             for d in np.flatnonzero(ps.constrained):
                 x[ps.particles, d] = X[ps.particles, d] + u[:, d]
@@ -192,7 +245,7 @@ class EngineBody:
         if len(bad):
             return int(bad[0])
         if limit2 is None:
-            limit2 = (BLOWUP_FACTOR * max(self.system.scene.body.size)) ** 2
+            limit2 = (BLOWUP_FACTOR * self.extent()) ** 2
         i = int(np.argmax(u2))
         return i if u2[i] > limit2 else -1
 
@@ -222,7 +275,7 @@ class EngineBody:
         rng = np.random.default_rng(0)
         v = rng.standard_normal(3 * len(X)) * free
         lam = 0.0
-        eps = self.fd_step * float(self.system.scene.body.le)
+        eps = self.fd_step * self.length()
         for _ in range(iterations):
             v /= np.abs(v).max()
             Kv = (f0 - self.internal_forces(X + eps * v.reshape(-1, 3)).ravel()) / eps

@@ -210,6 +210,19 @@ class EngineModel(ModelBase):
     def check_scene(self, scene) -> None:
         """Raise :class:`SceneNotRepresentable` naming what of ``scene`` the engine cannot represent."""
 
+    def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
+        """The engine's body on the tetrahedra of a :class:`hybmss.tetbody.TetBody` with the supports
+        ``holds`` (:class:`hybmss.models._engine_tet.TetHold`), after the law check;
+        :class:`SceneNotRepresentable` for a model whose elements are not tetrahedra."""
+        raise SceneNotRepresentable(f"body: {self.name} cannot run on a tetrahedral body")
+
+    def solve_tets(self, body, material, holds, *, rtol: float | None = None):
+        """The rest state of the engine's damped run on a tetrahedral body
+        (:func:`hybmss.models._engine_tet.rest_on_tets`)."""
+        from ._engine_tet import rest_on_tets
+
+        return rest_on_tets(self, body, material, holds, settle=SETTLE, rtol=rtol)
+
     def law_errors(self) -> dict[str, float]:
         """The law check: the engine's own forces on one unit cell (E = 1e4 Pa, ν = 0.3, the bottom
         held) under a homogeneous uniaxial strain ε = :data:`LAW_STRAIN` (nominal stress −Σ f_z over

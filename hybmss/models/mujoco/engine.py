@@ -120,9 +120,29 @@ def cell_tets(cells: np.ndarray) -> np.ndarray:
 
 def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity, integrator: str = "Euler") -> str:
     """The MJCF of the scene (module docstring)."""
-    mat = system.scene.material
     lat = system.lattice
-    le = float(system.scene.body.le)
+    tets = cell_tets(lat.cells)
+    if kind == "tet":
+        return mjcf_tets(system.scene.material, nodes, tets, float(system.scene.body.le), dt, gravity, integrator)
+    f = lambda v: repr(float(v))
+    n = system.scene.body.shape
+    vert = " ".join(f(v) for v in lat.X.ravel())
+    extra = (f'dof="{kind}" cellcount="{n[0]} {n[1]} {n[2]}" body="{" ".join(["world"] * lat.n_particles)}" '
+             f'vertex="{vert}" node="{" ".join(f"n{a}" for a in range(len(nodes.X)))}"')
+    return _document(system.scene.material, nodes, tets, float(system.scene.body.le), dt, gravity, integrator, extra)
+
+
+def mjcf_tets(material, nodes: Nodes, tets: np.ndarray, le: float, dt: float, gravity,
+              integrator: str = "Euler") -> str:
+    """The MJCF of a flex whose vertices are the nodes, each a body of its own, with the
+    tetrahedra ``tets`` (vertex order as MuJoCo reads it) carrying the elasticity; ``le`` the
+    length of the nodes' rotational inertia (immaterial: slide joints only)."""
+    extra = f'body="{" ".join(f"n{a}" for a in range(len(nodes.X)))}"'
+    return _document(material, nodes, tets, le, dt, gravity, integrator, extra)
+
+
+def _document(material, nodes: Nodes, tets: np.ndarray, le: float, dt: float, gravity, integrator: str,
+              extra: str) -> str:
     f = lambda v: repr(float(v))
     bodies = []
     held = nodes.fixed.reshape(-1, 3) if integrator != "Euler" else np.zeros((len(nodes.X), 3), dtype=bool)
@@ -133,21 +153,12 @@ def mjcf(system: System, kind: str, nodes: Nodes, dt: float, gravity, integrator
                          for ax, h in zip(("1 0 0", "0 1 0", "0 0 1"), held[a]))
         bodies.append(f'<body name="n{a}" pos="{f(x[0])} {f(x[1])} {f(x[2])}"><inertial pos="0 0 0" mass="{f(m)}" '
                       f'diaginertia="{I} {I} {I}"/>{joints}</body>')
-    tets = cell_tets(lat.cells)
-    element = " ".join(map(str, tets.ravel()))
+    element = " ".join(map(str, np.asarray(tets).ravel()))
     g = "0 0 0" if gravity is None else " ".join(f(v) for v in gravity)
-    common = (f'dim="3" radius="0" element="{element}"')
-    if kind == "tet":
-        flex = (f'<flex name="body" {common} body="{" ".join(f"n{a}" for a in range(len(nodes.X)))}">')
-    else:
-        n = system.scene.body.shape
-        vert = " ".join(f(v) for v in lat.X.ravel())
-        flex = (f'<flex name="body" {common} dof="{kind}" cellcount="{n[0]} {n[1]} {n[2]}" '
-                f'body="{" ".join(["world"] * lat.n_particles)}" vertex="{vert}" '
-                f'node="{" ".join(f"n{a}" for a in range(len(nodes.X)))}">')
+    flex = f'<flex name="body" dim="3" radius="0" element="{element}" {extra}>'
     return (f'<mujoco model="hybmss"><option timestep="{f(dt)}" gravity="{g}" integrator="{integrator}">'
             f'<flag contact="disable"/></option><worldbody>{"".join(bodies)}</worldbody>'
-            f'<deformable>{flex}<elasticity young="{f(mat.E)}" poisson="{f(mat.nu)}"/>'
+            f'<deformable>{flex}<elasticity young="{f(material.E)}" poisson="{f(material.nu)}"/>'
             f'<contact contype="0" conaffinity="0" selfcollide="none"/></flex></deformable></mujoco>')
 
 
@@ -160,15 +171,35 @@ class MujocoBody(EngineBody):
 
     def __init__(self, system: System, kind: str, dt: float, ramp_time: float, *, damping: float | None = None,
                  density: float | None = None, gravity="scene", integrator: str = "Euler"):
+        self._kinds(kind, integrator)
+        self.setup(system, 2 if kind == "quadratic" else 1, dt, ramp_time, damping, density, gravity)
+        self.tets = positive(system.X, cell_tets(system.lattice.cells))
+        self._compile(mjcf(system, kind, self.nodes, self.dt, self.gravity, integrator))
+
+    @classmethod
+    def on_tets(cls, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0,
+                density: float | None = None, integrator: str = "Euler") -> "MujocoBody":
+        """The ``tet`` flex on the tetrahedra of a :class:`hybmss.tetbody.TetBody` as they are
+        (positive orientation; MuJoCo's forces do not depend on it: the same rest state with two
+        vertices of every tetrahedron swapped, measured on the patch test); ``holds``
+        (:class:`hybmss.models._engine_tet.TetHold`) prescribe every component of their nodes."""
+        self = cls.__new__(cls)
+        self._kinds("tet", integrator)
+        self.setup_tets(body, material, holds, dt, ramp_time, damping, density)
+        self.tets = np.asarray(body.tets, dtype=np.int64)
+        xml = mjcf_tets(material, self.nodes, self.tets, self.length(), self.dt, None, integrator)
+        self._compile(xml)
+        return self
+
+    def _kinds(self, kind: str, integrator: str) -> None:
         if kind not in ORDER:
             raise ValueError(f"element kind must be one of {', '.join(ORDER)}; got {kind!r}")
         if integrator not in STABILITY:
             raise ValueError(f"integrator must be one of {', '.join(STABILITY)}; got {integrator!r}")
         self.kind, self.integrator = kind, integrator
-        self.setup(system, 2 if kind == "quadratic" else 1, dt, ramp_time, damping, density, gravity)
-        self.tets = positive(system.X, cell_tets(system.lattice.cells))
+
+    def _compile(self, xml: str) -> None:
         t0 = time.perf_counter()
-        xml = mjcf(system, kind, self.nodes, self.dt, self.gravity, integrator)
         with warnings_into(self.warnings):
             self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
@@ -181,7 +212,9 @@ class MujocoBody(EngineBody):
     def describe(self) -> dict:
         return {"engine": ENGINE, "engine_version": VERSION, "element": self.kind, "device": "cpu", "threads": 1,
                 "integrator": self.integrator, "precision": "f64",
-                "tet_split": "MuJoCo's grid split: 6 tetrahedra around the diagonal (0,1,1)-(1,0,0) of each cell"}
+                "tet_split": self.split}
+
+    split = "MuJoCo's grid split: 6 tetrahedra around the diagonal (0,1,1)-(1,0,0) of each cell"
 
     def dt_crit(self) -> float:
         """The integrator's stability limit ``STABILITY[integrator] / ω_max`` on the engine's own
@@ -238,8 +271,8 @@ class MujocoBody(EngineBody):
         i = next(i for i in UNSTABLE if self.data.warning[i].number)
         name, what = UNSTABLE[i]
         node = int(self.data.warning[i].lastinfo) // 3
-        lat = self.system.lattice
-        grid = tuple(int(g) for g in lat.grid[node]) if self.kind != "quadratic" else None
+        lat = self.system.lattice if self.system is not None else None
+        grid = tuple(int(g) for g in lat.grid[node]) if self.kind != "quadratic" and lat is not None else None
         dt_c = self.dt_crit()
         cause = (f"the step {self.dt:.4g} s exceeds the stability limit 2/omega_max = {dt_c:.4g} s of MuJoCo's "
                  f"own forces; use a step below it" if self.dt > dt_c else

@@ -94,6 +94,13 @@ class NewtonModel(EngineModel):
     def make_body(self, system, dt: float, ramp_time: float, **kw):
         return _engine().NewtonBody(system, self.solver, dt, ramp_time, **kw)
 
+    def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
+        if self.solver not in ("semi", "vbd"):
+            raise SceneNotRepresentable(f"body: {self.name} cannot run on a tetrahedral body (newton-semi and "
+                                        "newton-vbd can)")
+        self.check_law()
+        return _engine().NewtonBody.on_tets(body, material, holds, self.solver, dt, ramp_time, damping=damping)
+
     def check_scene(self, scene) -> None:
         if not scene.material.nu > -5.0 / 14.0:
             raise SceneNotRepresentable(f"nu must lie in (-5/14, 0.5) for {self.name} (its k_lambda = lambda + "

@@ -168,8 +168,29 @@ class NewtonBody(EngineBody):
         self.setup(system, 1, dt, ramp_time, damping, density, gravity)
         lat = system.lattice
         self.tets = cell_tets(lat.cells, lat.cell_ijk)
-        vbd = solver == "vbd"
-        k_mu, k_lambda = lame_vbd(system.scene.material) if vbd else lame(system.scene.material)
+        self._build(system.scene.material, dt, iterations)
+
+    split = "Newton's add_soft_grid split: 5 tetrahedra, alternating with the cell's parity"
+
+    @classmethod
+    def on_tets(cls, body, material, holds, solver: str, dt: float, ramp_time: float, *, damping: float = 0.0,
+                density: float | None = None, iterations: int = VBD_ITERATIONS) -> "NewtonBody":
+        """Newton's particles at the nodes of a :class:`hybmss.tetbody.TetBody` and one
+        ``add_tetrahedron`` per tetrahedron of it (its rest pose from the nodes); ``holds``
+        (:class:`hybmss.models._engine_tet.TetHold`) prescribe every component of their nodes."""
+        if solver not in ("semi", "vbd"):
+            raise ValueError(f"solver must be semi or vbd, got {solver!r}")
+        self = cls.__new__(cls)
+        self.solver_name = solver
+        self.setup_tets(body, material, holds, dt, ramp_time, damping, density)
+        self.tets = np.asarray(body.tets, dtype=np.int64)
+        self.split = "the tetrahedra of the body's own mesh"
+        self._build(material, dt, iterations)
+        return self
+
+    def _build(self, material, dt: float, iterations: int) -> None:
+        vbd = self.solver_name == "vbd"
+        k_mu, k_lambda = lame_vbd(material) if vbd else lame(material)
         # SolverVBD moves every particle of nonzero mass (a 3x3 block each): a node whose three
         # components are prescribed is its kinematic particle (mass 0), a slide node stays free
         # and has its prescribed components set after each step
@@ -217,7 +238,7 @@ class NewtonBody(EngineBody):
                 "integrator": "SolverVBD" if self.solver_name == "vbd" else "SolverSemiImplicit", "precision": "f32",
                 "k_mu": self.k_mu, "k_lambda": self.k_lambda,
                 **({"iterations": self.iterations} if self.solver_name == "vbd" else {}),
-                "tet_split": "Newton's add_soft_grid split: 5 tetrahedra, alternating with the cell's parity"}
+                "tet_split": self.split}
 
     def load(self, x: np.ndarray, v: np.ndarray, step0: int = 0) -> None:
         self.step = int(step0)

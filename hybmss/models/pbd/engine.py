@@ -60,6 +60,11 @@ VERSION = f"pypbd {importlib.metadata.version('pypbd')}"
 G_PBD = np.array([0.0, -9.81, 0.0])
 """The library's gravity (``Simulation::m_gravitation``), not settable through the bindings."""
 XPBD_FEM = 3
+VOLUME_FLOOR = 1e-3
+"""Smallest tetrahedron volume in the engine's length unit (:attr:`PbdBody.length_unit`):
+``PositionBasedDynamics::init_FEMTetraConstraint`` drops a tetrahedron whose rest volume is below
+1e-6 (its ``eps``, in the engine's units) and adds no constraint for it (measured: none of the 451
+tetrahedra of a cylinder R 1 cm meshed at 6 mm in SI units)."""
 """``SimulationModel::addSolidConstraints`` method 3: ``XPBD_FEMTetConstraint`` per tetrahedron."""
 GATE = 1e-6
 """``eps`` of ``XPBD.cpp``: a tetrahedron with ``Σ w |∇U'|² + C² α`` below it is skipped."""
@@ -124,27 +129,51 @@ class PbdBody(EngineBody):
         self.method = method
         self.setup(system, 1, dt, ramp_time, damping, density, gravity)
         lat = system.lattice
+        self.tets = cell_tets(lat.cells, lat.cell_ijk, self.nodes.X)
+        self.length_unit = 1.0
+        self._build(system.scene.material)
+
+    split = "the library's addRegularTetModel split: 5 tetrahedra, alternating with i + j + k"
+
+    @classmethod
+    def on_tets(cls, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0,
+                density: float | None = None, method: str = "xpbd-fem") -> "PbdBody":
+        """The library's tet model on the nodes and tetrahedra of a :class:`hybmss.tetbody.TetBody`
+        (``addTetModel``, positive orientation); ``holds``
+        (:class:`hybmss.models._engine_tet.TetHold`) prescribe every component of their nodes."""
+        if method != "xpbd-fem":
+            raise ValueError(f"method must be xpbd-fem, got {method!r}")
+        self = cls.__new__(cls)
+        self.method = method
+        self.setup_tets(body, material, holds, dt, ramp_time, damping, density)
+        self.tets = np.asarray(body.tets, dtype=np.int64).copy()
+        self.split = "the tetrahedra of the body's own mesh"
+        V = np.abs(tet_volumes(self.nodes.X, self.tets))
+        self.length_unit = min(float(body.h), (float(V.min()) / VOLUME_FLOOR) ** (1.0 / 3.0))
+        self._build(material)
+        return self
+
+    def _build(self, material) -> None:
         X = self.nodes.X
-        self.tets = cell_tets(lat.cells, lat.cell_ijk, X)
         p = X[self.tets]
         Dm = np.stack((p[:, 0] - p[:, 3], p[:, 1] - p[:, 3], p[:, 2] - p[:, 3]), axis=-1)
         self.Dminv = np.linalg.inv(Dm)
         self.V = np.abs(tet_volumes(X, self.tets))
-        mat = system.scene.material
-        self.E, self.nu = float(mat.E), float(mat.nu)
+        self.E, self.nu = float(material.E), float(material.nu)
         mu_, lam_ = lame_per_E(self.nu)
         self.mu, self.lam = self.E * mu_, self.E * lam_
         # mass unit: C² α = 2 U'/(E h²) ≥ V ε² /(3 E h²) (U' ≥ V μ' ε², μ' ≥ 1/3) exceeds GATE for
-        # ε ≥ GATE_STRAIN once multiplied by M (the engine's E is E/M)
-        self.mass_unit = max(1.0, GATE * 3.0 * self.E * self.dt**2 / (self.V.min() * GATE_STRAIN**2))
+        # ε ≥ GATE_STRAIN once multiplied by M (the engine's E is E L/M, its volumes V/L³ in its length unit L)
+        L = self.length_unit
+        self.mass_unit = max(1.0, GATE * 3.0 * self.E * L * self.dt**2 / (self.V.min() / L**3 * GATE_STRAIN**2))
         t0 = time.perf_counter()
         self.sim = pypbd.Simulation.getCurrent()  # never getModel(): it may point to a freed body's model
         self.model = pypbd.SimulationModel()
         self.model.init()
         self.sim.setModel(self.model)
-        tm = self.model.addTetModel([np.array(v, dtype=float) for v in X], self.tets.ravel().tolist())
+        tm = self.model.addTetModel([np.array(v, dtype=float) / L for v in X], self.tets.ravel().tolist())
         M = self.mass_unit
-        self.model.addSolidConstraints(tm, XPBD_FEM, self.E / M, self.nu, self.E / M, False, False)
+        self.model.addSolidConstraints(tm, XPBD_FEM, self.E * L / M, self.nu, self.E * L / M, False, False)
         self.pd = self.model.getParticles()
         fixed = self.nodes.fixed
         self.held = np.flatnonzero(fixed.all(axis=1))  # kinematic particles (mass 0)
@@ -159,13 +188,13 @@ class PbdBody(EngineBody):
         self.compile_time_s = time.perf_counter() - t0
         self._targets: dict = {}
         self.kick = np.zeros(3) if self.gravity is None else np.asarray(self.gravity, dtype=float)
-        self.kick = self.dt * (self.kick - G_PBD)
+        self.kick = self.dt * (self.kick / L - G_PBD)
 
     def describe(self) -> dict:
         return {"engine": ENGINE, "engine_version": VERSION, "element": "tet", "device": "cpu", "threads": 1,
                 "integrator": "TimeStepController (XPBD, 1 substep, 1 iteration)", "precision": "f64",
-                "method": self.method, "mass_unit_kg": self.mass_unit,
-                "tet_split": "the library's addRegularTetModel split: 5 tetrahedra, alternating with i + j + k"}
+                "method": self.method, "mass_unit_kg": self.mass_unit, "length_unit_m": self.length_unit,
+                "tet_split": self.split}
 
     def _target(self, s: float) -> np.ndarray:
         """:meth:`prescribed` at load factor ``s``, kept for the last two values (constant after the ramp)."""
@@ -183,18 +212,18 @@ class PbdBody(EngineBody):
     def load(self, x: np.ndarray, v: np.ndarray, step0: int = 0) -> None:
         self.step = int(step0)
         for i in range(len(self.nodes.X)):
-            self.pd.setPosition(i, np.asarray(x[i], dtype=float))
-            self.pd.setVelocity(i, np.asarray(v[i], dtype=float))
+            self.pd.setPosition(i, np.asarray(x[i], dtype=float) / self.length_unit)
+            self.pd.setVelocity(i, np.asarray(v[i], dtype=float) / self.length_unit)
 
     def _steps(self, step0: int, n: int) -> None:
         self._current()
         damp = 1.0 / (1.0 + self.damping * self.dt)
-        ts, pd, kick = self.sim.getTimeStep(), self.pd, self.kick
+        ts, pd, kick, L = self.sim.getTimeStep(), self.pd, self.kick, self.length_unit
         spent = 0.0
         for k in range(step0, step0 + n):
             target = self._target(ramp((k + 1) * self.dt, self.ramp_time))
             for i in self.held:
-                pd.setPosition(int(i), target[i])
+                pd.setPosition(int(i), target[i] / L)
             for i in self.free:
                 i = int(i)
                 pd.setVelocity(i, np.asarray(pd.getVelocity(i)) * damp + kick)
@@ -207,15 +236,16 @@ class PbdBody(EngineBody):
                     i = int(i)
                     c = self.nodes.fixed[i]
                     q, w = np.array(pd.getPosition(i)), np.array(pd.getVelocity(i))
-                    q[c], w[c] = target[i, c], vel[i, c]
+                    q[c], w[c] = target[i, c] / L, vel[i, c] / L
                     pd.setPosition(i, q)
                     pd.setVelocity(i, w)
         self.step_time_s += spent
         self.step = step0 + n
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        x = np.array(np.asarray(self.pd.getVertices()), dtype=float)
+        x = np.array(np.asarray(self.pd.getVertices()), dtype=float) * self.length_unit
         v = np.array([np.asarray(self.pd.getVelocity(i)) for i in range(len(x))], dtype=float).reshape(-1, 3)
+        v *= self.length_unit
         return x, v
 
     def internal_forces(self, x: np.ndarray) -> np.ndarray:
