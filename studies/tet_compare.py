@@ -40,14 +40,32 @@ import time
 import numpy as np
 
 from fem_reference.tet import Support, as_mesh, tet_convergence
-from hybmss.scene import Material
+from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, Material
 from hybmss.scene.boundary import Motion
 from hybmss.tetbody import TetMeshError, mesh_surface
 
 from .tet_cylinder import H, _cylinder_stl
 
-ENGINES = ("mujoco-tet", "newton-semi", "newton-vbd", "pbd-xpbd-fem")
-VOXEL_MODELS = ("hybmss", "corot-hex8")
+
+
+def tet_engines() -> tuple[str, ...]:
+    """The registered engine models that run on a tetrahedral body (``tet_body_refused`` says
+    nothing: MuJoCo's box kinds and Newton's XPBD refuse one)."""
+    from hybmss import models
+    from hybmss.models._engine_model import EngineModel
+
+    return tuple(n for n in models.names() if isinstance(m := models.get(n), EngineModel)
+                 and not m.tet_body_refused())
+
+
+def lattice_models() -> tuple[str, ...]:
+    """The registered lattice models solved by the harness's Newton (:func:`hybmss.modes.has_tangent`)."""
+    from hybmss import models
+    from hybmss.modes import has_tangent
+
+    return tuple(n for n in models.names() if has_tangent(models.get(n)))
+
+
 SAMPLE_TOL = 1e-6
 """Barycentric tolerance of the reference's sampling (:meth:`fem_reference.tet.TetSolution.sample`)."""
 
@@ -68,7 +86,7 @@ def reference(body, mat: Material, load: str, motion: Motion, levels: int):
     tol = 1e-6 * (z1 - z0)
     supports = [Support("bottom", lambda x: x[2] < z0 + tol),
                 Support("top", lambda x: x[2] > z1 - tol, lambda x: motion.displacement_at(x.T, 1.0).T)]
-    form = "mixed" if mat.nu >= 0.45 else "p2"
+    form = "mixed" if mat.nu >= NEARLY_INCOMPRESSIBLE_NU else "p2"
     sols, conv = tet_convergence(as_mesh(body), form, mat, supports,
                                  {load: lambda s: _component(load, s.reactions["top"])}, levels=levels)
     return sols[-1], sols[-2], conv[load]
@@ -160,8 +178,11 @@ def voxel_rows(body, surface, mat, load, strain, theta, le, ref, prev, conv, mod
 
 
 def compare(surface=None, h: float = 0.005, le: float = 0.0025, nus=(0.3,), strain: float = 0.01,
-            theta: float = 0.01, levels: int = 2, engines=ENGINES, voxel_models=VOXEL_MODELS) -> list[dict]:
-    """One row per (ν, load, model): errors against the tetrahedral reference, wall times."""
+            theta: float = 0.01, levels: int = 2, engines=None, voxel_models=None) -> list[dict]:
+    """One row per (ν, load, model): errors against the tetrahedral reference, wall times
+    (``engines``: default :func:`tet_engines`; ``voxel_models``: default :func:`lattice_models`)."""
+    engines = tet_engines() if engines is None else tuple(engines)
+    voxel_models = lattice_models() if voxel_models is None else tuple(voxel_models)
     with tempfile.TemporaryDirectory() as tmp:
         surface = surface or _cylinder_stl(os.path.join(tmp, "cylinder.stl"))
         body = mesh_surface(surface, h)

@@ -210,11 +210,15 @@ class EngineModel(ModelBase):
     def check_scene(self, scene) -> None:
         """Raise :class:`SceneNotRepresentable` naming what of ``scene`` the engine cannot represent."""
 
+    def tet_body_refused(self) -> str:
+        """Why the model cannot run on a tetrahedral body (``""``: it can)."""
+        return f"body: {self.name} cannot run on a tetrahedral body"
+
     def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
         """The engine's body on the tetrahedra of a :class:`hybmss.tetbody.TetBody` with the supports
         ``holds`` (:class:`hybmss.models._engine_tet.TetHold`), after the law check;
         :class:`SceneNotRepresentable` for a model whose elements are not tetrahedra."""
-        raise SceneNotRepresentable(f"body: {self.name} cannot run on a tetrahedral body")
+        raise SceneNotRepresentable(self.tet_body_refused())
 
     def solve_tets(self, body, material, holds, *, rtol: float | None = None):
         """The rest state of the engine's damped run on a tetrahedral body

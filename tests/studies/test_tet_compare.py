@@ -32,3 +32,16 @@ def test_compare_scores_an_engine_and_the_mss_above_the_reference_error():
             assert r["outside"] > 0 and r["nodes"] > 0  # the staircase reaches past the facets
         else:
             assert r["outside"] == 0
+
+
+def test_the_engines_on_tetrahedra_are_asked_of_the_registry():
+    """The comparison takes its engines from the registry: those whose tetrahedral body is not
+    refused (MuJoCo's box kinds and Newton's XPBD refuse one, with a reason naming the body)."""
+    from hybmss import models
+    from studies.tet_compare import lattice_models, tet_engines
+
+    engines = {"mujoco-tet", "newton-semi", "newton-vbd", "pbd-xpbd-fem"} - set(models.unavailable())
+    assert set(tet_engines()) == engines
+    for name in {"mujoco-trilinear", "mujoco-quadratic", "newton-xpbd"} - set(models.unavailable()):
+        assert models.get(name).tet_body_refused().startswith("body: ")
+    assert {"hybmss", "corot-hex8"} <= set(lattice_models()) and not engines & set(lattice_models())

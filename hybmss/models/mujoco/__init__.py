@@ -118,10 +118,15 @@ class MujocoModel(EngineModel):
         integrator = getattr(system.scene.model.params, "integrator", "Euler")
         return _engine().MujocoBody(system, self.kind, dt, ramp_time, integrator=integrator, **kw)
 
-    def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
+    def tet_body_refused(self) -> str:
         if self.kind != "tet":
-            raise SceneNotRepresentable(f"body: {self.name} keeps boxes (its {self.kind} interpolation grid spans a "
-                                        "voxel box) and cannot run on a tetrahedral body; use mujoco-tet")
+            return (f"body: {self.name} keeps boxes (its {self.kind} interpolation grid spans a voxel box) and "
+                    "cannot run on a tetrahedral body; use mujoco-tet")
+        return ""
+
+    def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
+        if self.tet_body_refused():
+            raise SceneNotRepresentable(self.tet_body_refused())
         if not 0.0 <= material.nu < 0.5:
             raise SceneNotRepresentable(f"nu must lie in [0, 0.5) for {self.name}, got {material.nu:g}")
         self.check_law()

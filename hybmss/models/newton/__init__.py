@@ -94,10 +94,14 @@ class NewtonModel(EngineModel):
     def make_body(self, system, dt: float, ramp_time: float, **kw):
         return _engine().NewtonBody(system, self.solver, dt, ramp_time, **kw)
 
-    def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
+    def tet_body_refused(self) -> str:
         if self.solver not in ("semi", "vbd"):
-            raise SceneNotRepresentable(f"body: {self.name} cannot run on a tetrahedral body (newton-semi and "
-                                        "newton-vbd can)")
+            return f"body: {self.name} cannot run on a tetrahedral body (its semi-implicit and VBD solvers can)"
+        return ""
+
+    def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
+        if self.tet_body_refused():
+            raise SceneNotRepresentable(self.tet_body_refused())
         self.check_law()
         return _engine().NewtonBody.on_tets(body, material, holds, self.solver, dt, ramp_time, damping=damping)
 

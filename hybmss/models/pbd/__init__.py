@@ -80,6 +80,9 @@ class PbdModel(EngineModel):
     def make_body(self, system, dt: float, ramp_time: float, **kw):
         return _engine().PbdBody(system, self.method, dt, ramp_time, **kw)
 
+    def tet_body_refused(self) -> str:
+        return ""
+
     def make_tet_body(self, body, material, holds, dt: float, ramp_time: float, *, damping: float = 0.0):
         if not 0.0 <= material.nu <= NU_MAX:
             raise SceneNotRepresentable(f"nu must lie in [0, {NU_MAX}] for {self.name}, got {material.nu:g}")
