@@ -128,13 +128,7 @@ class EngineBody:
         rho = system.scene.material.rho if density is None else float(density)
         self.gravity = system.gravity if isinstance(gravity, str) else gravity
         self.damping = float(system.scene.damping if damping is None else damping)
-        self.nodes = engine_nodes(system, order, rho)
-        self.fixed_dofs = np.flatnonzero(self.nodes.fixed.ravel())
-        self._held: dict = {}
-        self.step = 0
-        self.step_time_s = 0.0
-        self.compile_time_s = 0.0
-        self.warnings: list[str] = []
+        self._start(engine_nodes(system, order, rho))
 
     def setup_tets(self, body, material, holds, dt: float, ramp_time: float, damping: float,
                    density: float | None) -> None:
@@ -147,7 +141,11 @@ class EngineBody:
         self.dt, self.ramp_time = float(dt), float(ramp_time)
         self.gravity = None
         self.damping = float(damping)
-        self.nodes = tet_nodes(body, self.holds, material.rho if density is None else float(density))
+        self._start(tet_nodes(body, self.holds, material.rho if density is None else float(density)))
+
+    def _start(self, nodes) -> None:
+        """The engine's nodes, their held components, and the step, timings and warnings at zero."""
+        self.nodes = nodes
         self.fixed_dofs = np.flatnonzero(self.nodes.fixed.ravel())
         self._held: dict = {}
         self.step = 0
