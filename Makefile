@@ -41,7 +41,7 @@ bench: $(STAMP)
 	HYBMSS_ASV_MESHES=10x10x10 $(BIN)/asv run --python=same --quick --show-stderr
 
 # the runs of the experiment study files in studies/data/studies/ and of the extra studies
-# (studies/reproduce.py: STUDY_FILES, EXTRA_STUDIES), one resumable store
+# (studies/paper/reproduce.py: STUDY_FILES, EXTRA_STUDIES), one resumable store
 studies: $(STAMP)
 	$(BIN)/python -m studies run --all --out $(ARTIFACTS)/results
 

@@ -4,7 +4,7 @@ Times 1,000-step runs (fewer with ``--steps``) of the compression cube and the b
 for hybmss-fd, hybmss-cf and hybmss (ν = 0.3 and ν = ¼) on small meshes, one and two threads,
 and prints the per-step figures, the ratios to hybmss-fd next to the publication's 1.4 and 2.1,
 and the fraction of the memory bandwidth measured in the same run (see
-:mod:`studies.performance` for the protocol and the bytes-per-step model).  ``--full`` runs the
+:mod:`studies.paper.performance` for the protocol and the bytes-per-step model).  ``--full`` runs the
 meshes of [G20] Table 6 (several minutes).  ``--fem`` also runs ``benchmarks.bench_fem --quick``.
 """
 
@@ -22,7 +22,7 @@ def main(argv=None) -> int:
     parser.add_argument("--fem", action="store_true", help="also run the FEM reference benchmark (quick)")
     args = parser.parse_args(argv)
 
-    from studies.performance import format_table, run_performance, summary
+    from studies.paper.performance import format_table, run_performance, summary
 
     df, bw = run_performance(quick=not args.full, steps=args.steps, threads=tuple(args.threads))
     print(f"memory bandwidth (NumPy, {bw['array_MB']:.0f} MB arrays): copy {bw['copy']:.1f} GB/s, "

@@ -21,7 +21,7 @@ import numpy as np
 
 from hybmss.experiments import SceneSpec
 from hybmss.solve import StaticSolveError, solve_static
-from studies.publications import models_of
+from studies.paper.publications import models_of
 
 CUBE, BEAM = (10, 10, 10), (8, 8, 48)
 CUBE_GOAL, BEAM_GOAL, LOST_GOAL = 0.3, 1.0, 10.0

@@ -16,7 +16,7 @@
   supports by node predicates, refinement with Richardson estimates, the field at any point;
 - :mod:`~fem_reference.solve`: ``solve(scene, element, law, refine) -> Result``.
 
-The ``hybmss fem`` subcommand (:mod:`studies.cli`) runs it on one scene.
+The ``hybmss fem`` subcommand (:mod:`studies.cli.parser`) runs it on one scene.
 """
 
 from .solve import operators, solve

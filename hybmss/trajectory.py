@@ -5,7 +5,7 @@ models and engines in :mod:`hybmss.released`, the FEM in :mod:`fem_reference.tra
 sample times ``t`` (s), the point's displacement ``u(t)`` (k, 3, m), its reference position, the
 step and the wall time of the stepping.  A run that stopped early (diverged, failed) keeps the
 samples it had and says why in ``status`` and ``reason``; the metrics of
-:mod:`studies.dynamics` give none for it.
+:mod:`studies.sweep.dynamics` give none for it.
 """
 
 from __future__ import annotations

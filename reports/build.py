@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from studies.claims import PROTOCOL_FAILURES
+from studies.paper.claims import PROTOCOL_FAILURES
 
 from . import figures as figmod
 from . import palette

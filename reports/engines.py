@@ -1,7 +1,7 @@
 """The report's section on the engines people run (MuJoCo, Newton, PositionBasedDynamics), from
 stored tables only: what each engine's parameters mean (from its source, as the model folders
 ``hybmss/models/mujoco``, ``newton``, ``pbd`` derive and their verification tests measure), the
-closing table of the 10³ cube against the FEM (``engines_closing``, :mod:`studies.engines`), the
+closing table of the 10³ cube against the FEM (``engines_closing``, :mod:`studies.paper.engines`), the
 step times as ratios to hybmss (``engines_timing``), the engines' effective moduli (rows of the
 ``moduli`` table) and what each cannot do.
 
@@ -15,7 +15,7 @@ import html
 
 import pandas as pd
 
-from studies import roles
+from studies.sweep import roles
 
 from .findings import number_or_none
 from .tables import Table, fmt, frame_table, grade

@@ -13,7 +13,7 @@ import re
 
 import pandas as pd
 
-from studies.claims import b09_frame, b09_models  # noqa: F401 - the report's [B09] tables and figures read them here
+from studies.paper.claims import b09_frame, b09_models  # noqa: F401 - the report's [B09] tables and figures read them here
 
 STATES = ("converged", "unstable", "diverged", "inverted", "missing")
 """Outcomes of a run in the stability map, in legend order."""
@@ -40,14 +40,14 @@ def number_or_none(v) -> float | None:
 # ------------------------------------------------------------------ speed against error
 MEASURE_NAMES = {"force": "plate force or torque (beam: tip deflection)", "volume": "volume change",
                  "field": "displacement field"}
-"""How a sentence names the budget study's error measures (:data:`studies.pareto.MEASURES`)."""
+"""How a sentence names the budget study's error measures (:data:`studies.paper.pareto.MEASURES`)."""
 COST_NAMES = {"static": "wall time to an equilibrium (static, implicit, FEM)",
               "explicit": "wall time per simulated second at the stable step (explicit)"}
 
 
 def budget_answers(budget: pd.DataFrame | None) -> pd.DataFrame:
     """The per-configuration answers of the pareto study's stored ``budget`` table
-    (:func:`studies.pareto.budget_table`, :func:`studies.cost.budget_answer`): for every
+    (:func:`studies.paper.pareto.budget_table`, :func:`studies.sweep.cost.budget_answer`): for every
     configuration, error measure, cost and budget, the fastest method within it (``method`` =
     "none" when none is), its mesh, cost and error, the runner-up, the lead and ``tie``.
 

@@ -1,5 +1,5 @@
 """The report's section on natural frequencies, from stored tables only (``modes_cube``,
-``modes_beam``, ``modes_pairs``: :mod:`studies.modes_study`): per body a table of each model's
+``modes_beam``, ``modes_pairs``: :mod:`studies.paper.modes_study`): per body a table of each model's
 frequency error of the first bending, torsion and axial mode against the FEM and its lowest MAC at
 each ν, a figure of those errors against ν, and a finding computed from the same numbers.
 

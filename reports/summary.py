@@ -1,6 +1,6 @@
 """The summary page: what was run, the headline table and the verdicts on the publication's claims.
 
-The studies judge the claims and store them (:mod:`studies.claims`: ``tables/headline.csv``,
+The studies judge the claims and store them (:mod:`studies.paper.claims`: ``tables/headline.csv``,
 ``tables/claims.csv``, with their criteria); this page only formats them.  A results folder without
 those tables shows no claims.
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from studies.verdict import TIE_COST, TIE_PP
-from studies.claims import E_FEM_PP, NOT, PARTLY, REL_PCT, REPRODUCED, SUPPORTED, e_threshold, thresholds
+from studies.paper.verdict import TIE_COST, TIE_PP
+from studies.paper.claims import E_FEM_PP, NOT, PARTLY, REL_PCT, REPRODUCED, SUPPORTED, e_threshold, thresholds
 
 from .data import EXPERIMENT_ORDER, Results
 from .tables import REL_DIFF_PCT, Table, fmt, grade
@@ -127,7 +127,7 @@ def claims_table(cl: pd.DataFrame) -> Table:
              (str(c["evidence"]), "")] for _, c in cl.iterrows()]
     return Table("table_claims", "Claims of the publication: reproduced or not",
                  "Verdicts computed by the studies from the stored results with the stated criteria "
-                 "(studies/claims.py, tables/claims.csv); 'partly' = at least half of the cases meet the criterion.",
+                 "(studies/paper/claims.py, tables/claims.csv); 'partly' = at least half of the cases meet the criterion.",
                  ["claim", "criterion", "verdict", "evidence"], rows, css="claims")
 
 
@@ -186,7 +186,7 @@ def verdict_table(v: pd.DataFrame, springs_only: str | None = None) -> Table:
                  "reference, relative to the reference in % or in percentage points of e), the count of large-load "
                  "scenes without equilibrium, and the explicit cost in milliseconds of wall time per simulated second "
                  f"at the model's stable step (from single stored runs; the budget study repeats its timings). Green: the best and those tied with it (within {TIE_PP:g} % / pp of the "
-                 f"best error, a factor {TIE_COST:g} of the best cost). Computed by studies/verdict.py "
+                 f"best error, a factor {TIE_COST:g} of the best cost). Computed by studies/paper/verdict.py "
                  "(tables/verdict.csv)." + (f" {springs_only} has no volume term: its ν is always 1/4, so its "
                  "cost at ν = 0.499 is that of another material." if springs_only in models else ""),
                  cols, rows, css="verdict")

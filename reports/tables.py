@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from studies.paper import printed
-from studies.equilibria import NONUNIQUE_PCT
-from studies.claims import b09_normalisation, b09_particles
-from studies.claims import MIDDLE_LAYER_TOL, PAPER_PP, REL_PCT, e_threshold, middle_layer_frame
+from studies.sweep.results import printed_match as printed
+from studies.paper.equilibria import NONUNIQUE_PCT
+from studies.paper.claims import b09_normalisation, b09_particles
+from studies.paper.claims import MIDDLE_LAYER_TOL, PAPER_PP, REL_PCT, e_threshold, middle_layer_frame
 
 from . import findings
 from .data import Results, paper_source, paper_table, run_state
@@ -27,7 +27,7 @@ E_DIFF_PP = (1.0, 3.0)
 #: relative difference thresholds of reactions and deflections against the reference (%)
 REL_DIFF_PCT = (REL_PCT, 2.5 * REL_PCT)
 """Colour grades of a relative difference (%): green within the claims' criterion
-(:data:`studies.claims.REL_PCT`), amber within 2.5 times it, as the headline grades."""
+(:data:`studies.paper.claims.REL_PCT`), amber within 2.5 times it, as the headline grades."""
 
 
 @dataclass
@@ -742,7 +742,7 @@ def equilibria_frame(results: Results) -> pd.DataFrame:
     (``tables/equilibria.csv``), or computed from the runs for a folder stored without it."""
     t = results.table("equilibria")
     if t is None:
-        from studies.equilibria import equilibria
+        from studies.paper.equilibria import equilibria
 
         t = equilibria(results)
     return t

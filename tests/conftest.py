@@ -11,11 +11,11 @@ os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 
 
 def run_cli(*argv, cwd=None) -> subprocess.CompletedProcess:
-    """``hybmss argv`` through the console script's entry point (:func:`studies.cli.main`) in
+    """``hybmss argv`` through the console script's entry point (:func:`studies.cli.parser.main`) in
     this process, run in ``cwd``: its exit status (``main``'s return value), stdout and stderr,
     as :func:`subprocess.run` gives them for the real script.  An exception escaping ``main``
     (the script would print a traceback) comes back in stderr with status -1."""
-    from studies import cli
+    from studies.cli import parser as cli
 
     out, err = io.StringIO(), io.StringIO()
     here = os.getcwd()

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 from hybmss.scene import Body, pieces
 
-from .checks import check_digits, check_extent, check_volume, check_winding, mask_measures, surface_measures
-from .keys import Table, close
+from studies.study.checks import check_digits, check_extent, check_volume, check_winding, mask_measures, surface_measures
+from studies.study.keys import Table, close
 
 SOURCES = ("box", "mesh", "pyvista", "mask", "experiment")
 BODY_KEYS = ("origin", "scale", "spacing", "labels", "cell_sizes", "quick")

@@ -23,8 +23,8 @@ import os
 
 import numpy as np
 
-from .. import sizing
-from .errors import StudyError
+from studies.sweep import sizing
+from studies.study.errors import StudyError
 
 E_RANGE = (1e-3, 1e13)
 """Young's moduli a study accepts, Pa: from below the softest gels (about 10 Pa) to above diamond
@@ -47,7 +47,7 @@ more, the same ones at every run)."""
 def run_estimates(shape, models, reference, materials) -> list[tuple[str, sizing.Estimate, int]]:
     """Each run a configuration of ``shape`` asks for: (the key that sets its size, its estimate,
     how many times it is solved: an untimed run and the timed repeats are counted by the caller)."""
-    from .tasks import AUTO_REFINE_MAX
+    from studies.study.tasks import AUTO_REFINE_MAX
 
     out = []
     for i, m in enumerate(models):
@@ -63,7 +63,7 @@ def run_estimates(shape, models, reference, materials) -> list[tuple[str, sizing
 
 def check_size(t, grid_shape, sizes, models, reference, materials) -> None:
     """Refuse cell sizes whose grid's runs would not fit this machine's memory
-    (:func:`studies.sizing.fits`), before the body is voxelized (``grid_shape(le)``: the body's grid
+    (:func:`studies.sweep.sizing.fits`), before the body is voxelized (``grid_shape(le)``: the body's grid
     at cell size ``le``, :func:`studies.study.body.grid_shape`); the message gives the memory
     needed and the cell size from which the runs fit."""
     for le in sizes:
@@ -86,10 +86,10 @@ def check_size(t, grid_shape, sizes, models, reference, materials) -> None:
 
 
 def check_time(study, top) -> None:
-    """Refuse a study one of whose runs would take over :data:`studies.sizing.TIME_LIMIT_S` (a
+    """Refuse a study one of whose runs would take over :data:`studies.sweep.sizing.TIME_LIMIT_S` (a
     model run with its timed repeats), or whose runs together would take over
-    :data:`studies.sizing.SWEEP_TIME_LIMIT_S` on this machine's cores (the estimates of
-    ``hybmss run``, :mod:`studies.sizing`), naming the key that sets it."""
+    :data:`studies.sweep.sizing.SWEEP_TIME_LIMIT_S` on this machine's cores (the estimates of
+    ``hybmss run``, :mod:`studies.sweep.sizing`), naming the key that sets it."""
     every = []
     for vox in study.voxels:
         for key, est, timed in run_estimates(vox.body.shape, study.models, study.reference, study.materials):

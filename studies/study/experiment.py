@@ -5,7 +5,7 @@ Such a file names an experiment of :mod:`hybmss.experiments` (its body, plates a
 lattices it is meshed with, the material and the load parameters (each a value or a list: every
 combination is one configuration), the models with their solvers and the FEM reference.  The
 publication's studies are files of this kind (``studies/data/studies/*.toml``,
-:mod:`studies.reproduce`).
+:mod:`studies.paper.reproduce`).
 
 - :func:`validate_experiment` checks every key before any work (:class:`StudyError` naming the
   key, its value and what is allowed; unknown keys with their close matches);
@@ -21,9 +21,9 @@ study order (:meth:`hybmss.models.base.ModelBase.study_variants`), each with the
 parameter: ``deformation`` (compression, tension, shear, uniaxial), ``angle_deg`` (torsion),
 ``gravity`` (bending), by magnitude.
 
-A model whose study part gives it meshes of its own (:attr:`studies.roles.Part.meshes`: the
+A model whose study part gives it meshes of its own (:attr:`studies.sweep.roles.Part.meshes`: the
 engines, whose damped runs to rest cost far more than a Newton solve) runs each configuration on
-its own mesh (:func:`studies.roles.mesh_for`), with the file's FEM references solved on that mesh
+its own mesh (:func:`studies.sweep.roles.mesh_for`), with the file's FEM references solved on that mesh
 too, so that its row is compared with the FEM of its own mesh.  Its runs and their references
 follow the configuration's references (one mesh after the other, in the order the models first
 give them); a run or reference that two configurations share (the full tension study's two beams
@@ -41,11 +41,11 @@ import re
 from hybmss import models
 from hybmss.experiments import DEFAULTS, EXPERIMENTS, ParameterError, Range, SceneSpec
 
-from .. import roles
-from ..runner import SolverSpec, Task
+from studies.sweep import roles
+from studies.sweep.runner import SolverSpec, Task
 
-from .errors import StudyError
-from .keys import close
+from studies.study.errors import StudyError
+from studies.study.keys import close
 
 BODY_KEYS = ("experiment", "mesh", "quick")
 QUICK_KEYS = ("mesh",)
@@ -372,7 +372,7 @@ def _own_mesh(model: str) -> bool:
 
 
 def experiment_tasks(doc: dict, quick: bool = False) -> list:
-    """The runner's tasks (:class:`studies.runner.Task`, study ``[study] name``) of the parsed
+    """The runner's tasks (:class:`studies.sweep.runner.Task`, study ``[study] name``) of the parsed
     experiment study ``doc``, at the file's ``[body.quick]`` meshes and without its
     ``skip_quick`` models when ``quick`` (order: module docstring).  Raises :class:`StudyError`
     for a file :func:`validate_experiment` refuses."""

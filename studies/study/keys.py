@@ -7,7 +7,7 @@ import difflib
 import math
 from pathlib import Path
 
-from .errors import StudyError
+from studies.study.errors import StudyError
 
 
 def is_number(v) -> bool:

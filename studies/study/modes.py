@@ -1,6 +1,6 @@
 """A study's natural frequencies (``[metrics] modes = k``): per load case, material and resolution
 the FEM reference's lowest k modes of the body with the load case's supports, and each model's
-paired with them (:mod:`studies.mode_pairs`), as the table ``modes_<load case>``.
+paired with them (:mod:`studies.sweep.mode_pairs`), as the table ``modes_<load case>``.
 
 Small vibrations about the rest state, ``K φ = ω² M φ``: the supports hold the components they
 constrain at zero; gravity, tractions and plate motions do not enter.  The FEM is the study's
@@ -21,7 +21,7 @@ import pandas as pd
 
 from hybmss.lattice import Lattice
 
-from .errors import StudyError
+from studies.study.errors import StudyError
 
 K_MAX = 100
 """Most modes a study computes (as ``hybmss modes``)."""
@@ -58,7 +58,7 @@ def check_modes(study, file: str) -> None:
 
 def _configs(study) -> dict:
     """(load case, material, cell size) -> (the FEM reference's scene, [(label, model scene)])."""
-    from .tasks import is_reference
+    from studies.study.tasks import is_reference
 
     out: dict = {}
     tasks = study.tasks()
@@ -74,10 +74,10 @@ def _configs(study) -> dict:
 
 
 def _fem(scene, reference, k: int) -> dict | str:
-    """The FEM's ``k`` lowest modes (:func:`studies.mode_pairs.fem_modes`), or why they failed."""
+    """The FEM's ``k`` lowest modes (:func:`studies.sweep.mode_pairs.fem_modes`), or why they failed."""
     from fem_reference.solve import resolve_element
 
-    from ..mode_pairs import fem_modes
+    from studies.sweep.mode_pairs import fem_modes
 
     element = resolve_element(reference.element, scene.material.nu)
     refine = reference.refine if isinstance(reference.refine, int) else 1
@@ -91,7 +91,7 @@ def modes_tables(study) -> dict[str, pd.DataFrame]:
     """``modes_<load case>`` of a study with ``[metrics] modes`` (none otherwise)."""
     if study.experiment is not None or not study.metrics.modes:
         return {}
-    from ..mode_pairs import model_rows
+    from studies.sweep.mode_pairs import model_rows
 
     rows: dict[str, list] = {c.name: [] for c in study.load_cases}
     for (case, mat, le), (fem_scene, runs) in _configs(study).items():

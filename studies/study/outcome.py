@@ -1,8 +1,8 @@
 """What a study's runs came to: a result, an expected non-answer, or a failure.
 
 A run reaches no result when its stored row's ``status`` is not ``ok``
-(:func:`studies.runner.no_result_because`).  Its kind is ``not-at-rest`` for a time-stepping run
-that ended its step budget before rest (:func:`studies.runner.not_at_rest`), else its status
+(:func:`studies.sweep.runner.no_result_because`).  Its kind is ``not-at-rest`` for a time-stepping run
+that ended its step budget before rest (:func:`studies.sweep.runner.not_at_rest`), else its status
 (``not-converged`` for a static solve, ``diverged``, ``unstable``, ``non-finite``, ``error``,
 ``not-representable``; ``missing`` when not stored).  A model's table may declare the kinds it
 expects (``expect_no_result = ["not-at-rest"]``): such a run is counted apart, as a finding of the
@@ -15,11 +15,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..outcomes import expected_not_at_rest, not_at_rest
-from ..runner import no_result_because
-from ..store import Store
-from .keys import close
-from .tasks import is_reference
+from studies.sweep.outcomes import expected_not_at_rest, not_at_rest
+from studies.sweep.runner import no_result_because
+from studies.sweep.store import Store
+from studies.study.keys import close
+from studies.study.tasks import is_reference
 
 NO_RESULT_KINDS = ("not-at-rest", "not-converged", "diverged", "unstable", "non-finite", "error",
                    "not-representable")
@@ -47,7 +47,7 @@ def no_result_kind(row: dict | None) -> str:
 
 
 def expectation(study):
-    """``expected(task, row)`` for :meth:`studies.runner.Runner.run`: whether a run without result
+    """``expected(task, row)`` for :meth:`studies.sweep.runner.Runner.run`: whether a run without result
     is one its model's ``expect_no_result`` declares (a reference never is); in an experiment
     study, as in the publication's, a time-stepping run not at rest."""
     if study.experiment is not None:
@@ -80,7 +80,7 @@ def study_outcome(study, out) -> dict:
             continue
         line = f"{run_name(task)}: {why}"
         (declared if expected(task, row) else failures).append(line)
-    from .release import release_outcome, released_runs  # the released transients' stored rows
+    from studies.study.release import release_outcome, released_runs  # the released transients' stored rows
 
     more, more_declared = release_outcome(study, out)
     failures, declared = failures + more, declared + more_declared

@@ -12,7 +12,7 @@ import numpy as np
 
 from hybmss.scene import Load, Motion, Plate, Region
 
-from .keys import Table, close, is_number
+from studies.study.keys import Table, close, is_number
 
 FACES = tuple(a + s for a in "xyz" for s in "-+")
 MOTIONS = ("clamped", "slide", "translate", "rotate")

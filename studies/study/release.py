@@ -1,6 +1,6 @@
 """A study's released transients (``release = true`` in a load case): per material and cell size
 the body held at static equilibrium under the load case's gravity and tractions, released at t = 0,
-stepped by every model's own integrator and by the FEM (:mod:`studies.transients`), as the tables
+stepped by every model's own integrator and by the FEM (:mod:`studies.sweep.transients`), as the tables
 ``dynamics_<load case>`` and ``dynamics_budget_<load case>``.
 
 After the release the load is gone and the supports hold what they held; each model's nodes obey
@@ -88,7 +88,7 @@ def read_point(t, points, cases) -> str | None:
 
 
 def _row_of(trial: dict) -> dict:
-    """A table row from :func:`studies.transients.model_row`'s ``trial``."""
+    """A table row from :func:`studies.sweep.transients.model_row`'s ``trial``."""
     err = trial.get("period_error")
     reason = trial.get("reason") or ""
     status = trial.get("status") or ("ok" if not reason else "error")
@@ -109,7 +109,7 @@ def _fem(scene, study, case, name_point):
     """The FEM reference transient of ``scene`` and its figures, or why it failed."""
     from fem_reference.transient import ReleasedFem
 
-    from ..transients import fem_transient, largest_static_point
+    from studies.sweep.transients import fem_transient, largest_static_point
 
     rel, ref = case.release, study.reference
     element = "hex1" if ref.element == "hex1" else "hex2"
@@ -125,7 +125,7 @@ def _fem(scene, study, case, name_point):
 
 
 def _phase_periods(tr, rel) -> int:
-    from ..dynamics import trajectory_oscillation
+    from studies.sweep.dynamics import trajectory_oscillation
 
     if rel.release_time is None:
         return rel.periods
@@ -134,7 +134,7 @@ def _phase_periods(tr, rel) -> int:
 
 
 def _case_rows(study, case, mat, le, fem_scene, runs) -> list[dict]:
-    from ..transients import model_row
+    from studies.sweep.transients import model_row
 
     named = dict(study.metrics.points).get(study.metrics.point) if study.metrics.point else None
     by_label = {m.label: m for m in study.models}
@@ -196,7 +196,7 @@ def dynamics_tables(study) -> dict[str, pd.DataFrame]:
     """``dynamics_<case>`` and ``dynamics_budget_<case>`` of every load case with ``release = true``."""
     if study.experiment is not None or not any(c.release for c in study.load_cases):
         return {}
-    from .modes import _configs
+    from studies.study.modes import _configs
 
     cases = {c.name: c for c in study.load_cases if c.release}
     rows: dict[str, list] = {name: [] for name in cases}

@@ -1,4 +1,4 @@
-"""Running a study: its tasks through :mod:`studies.runner` into a :class:`studies.store.Store`
+"""Running a study: its tasks through :mod:`studies.sweep.runner` into a :class:`studies.sweep.store.Store`
 (resumable: a stored run is not computed again; the machine's cores or a Dask cluster), then its
 tables written under ``tables/``."""
 
@@ -6,12 +6,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..runner import Runner, run_tasks
-from ..store import Store
-from .modes import modes_tables
-from .outcome import expectation, study_outcome
-from .release import dynamics_tables
-from .tables import study_tables
+from studies.sweep.runner import Runner, run_tasks
+from studies.sweep.store import Store
+from studies.study.modes import modes_tables
+from studies.study.outcome import expectation, study_outcome
+from studies.study.release import dynamics_tables
+from studies.study.tables import study_tables
 
 
 def run_study(study, out, jobs=None, runner: Runner | None = None, progress: bool = True) -> dict:

@@ -26,14 +26,14 @@ from hybmss import models as registry
 from hybmss.lattice import Lattice
 from hybmss.scene import Load, Material, NU_OPEN_RANGE, Scene, plates_cross
 
-from . import checks
-from .body import BodySource, Voxels, body_checks, cell_sizes, folder_of, grid_shape, read_source, source_typo
-from .errors import StudyError
-from .outcome import read_expected
-from .keys import Table, close
-from .modes import check_modes, read_modes
-from .release import Release, read_point, read_release
-from .regions import SupportSpec, TractionSpec, held_modes, read_support, read_traction
+from studies.study import checks
+from studies.study.body import BodySource, Voxels, body_checks, cell_sizes, folder_of, grid_shape, read_source, source_typo
+from studies.study.errors import StudyError
+from studies.study.outcome import read_expected
+from studies.study.keys import Table, close
+from studies.study.modes import check_modes, read_modes
+from studies.study.release import Release, read_point, read_release
+from studies.study.regions import SupportSpec, TractionSpec, held_modes, read_support, read_traction
 
 TOP_KEYS = ("study", "body", "material", "load_case", "model", "reference", "metrics")
 EXPERIMENT_KEYS = ("study", "body", "material", "load", "model", "reference")
@@ -138,21 +138,21 @@ class Study:
 
     # ------------------------------------------------------------------ what it does
     def tasks(self):
-        from .tasks import study_tasks
+        from studies.study.tasks import study_tasks
 
         if self.experiment is not None:
-            from .experiment import experiment_tasks
+            from studies.study.experiment import experiment_tasks
 
             return experiment_tasks(self.experiment, self.quick)
         return study_tasks(self)
 
     def run(self, out, jobs=None, runner=None, progress=True):
-        from .run import run_study
+        from studies.study.run import run_study
 
         return run_study(self, out, jobs=jobs, runner=runner, progress=progress)
 
     def tables(self, out):
-        from .tables import study_tables
+        from studies.study.tables import study_tables
 
         return study_tables(self, out)
 
@@ -209,7 +209,7 @@ def _experiment_study(top: Table, doc: dict, quick: bool) -> Study:
         raise t.error("name", name, "lower-case letters, digits, - and _ (it names the results folder)")
     title = t.text("title", default=name)
     try:
-        from .experiment import validate_experiment  # the publication's experiments as study files
+        from studies.study.experiment import validate_experiment  # the publication's experiments as study files
     except ImportError:
         raise top.error("body.experiment", doc["body"]["experiment"],
                         "a body source this version reads: box, mesh, pyvista or mask") from None

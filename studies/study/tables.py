@@ -1,12 +1,12 @@
 """The tables of a study, from its stored runs: per load case the errors of every model run
 against its reference (:mod:`studies.study.metrics`), its cost beside its error, and the budget
-answer (:func:`studies.cost.budget_answer`: the fastest model whose displacement field error
+answer (:func:`studies.sweep.cost.budget_answer`: the fastest model whose displacement field error
 ``u_rel_l2`` meets each budget, at its cheapest resolution within it, its lead over the next
 fastest, a tie when the lead is below 1 + the larger spread); and the references (element,
 refinement, own error estimate, time).
 
 Times are the best of the study's ``repeats`` runs after an untimed one, with their spread
-(median − best) / best (:class:`studies.cost.Timing`); an explicit run's cost adds µs per step,
+(median − best) / best (:class:`studies.sweep.cost.Timing`); an explicit run's cost adds µs per step,
 its dt_crit and the wall time of one simulated second at its dt and at the stable step."""
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import cost
-from ..runner import no_result_because
-from ..store import Store
-from .metrics import errors, support_radius
-from .tasks import is_reference
+from studies.sweep import cost
+from studies.sweep.runner import no_result_because
+from studies.sweep.store import Store
+from studies.study.metrics import errors, support_radius
+from studies.study.tasks import is_reference
 
 BUDGET_ERROR = "u_rel_l2"
 """The error a budget bounds: the displacement field's relative L2 error against the FEM."""
@@ -78,7 +78,7 @@ NO_RESULT_COST = ("time_s", "time_median_s", "time_spread", "us_per_step", "wall
 def _cost(task, row: dict) -> dict:
     """Best wall time, median and spread of the run's repeats; for an explicit run also µs per
     step, dt_crit and the wall time of one simulated second at the run's dt and at the stable step
-    (:func:`studies.cost.stable_dt`)."""
+    (:func:`studies.sweep.cost.stable_dt`)."""
     info = row.get("info", {}) or {}
     best = info.get("time_s", np.nan)
     out = {"time_s": best, "time_median_s": info.get("time_median_s", np.nan),
@@ -95,7 +95,7 @@ def _cost(task, row: dict) -> dict:
 
 
 def budget_answer(rows: pd.DataFrame, budgets) -> pd.DataFrame:
-    """Per material, :func:`studies.cost.budget_answer` of the runs (a model at several
+    """Per material, :func:`studies.sweep.cost.budget_answer` of the runs (a model at several
     resolutions is one method: its cheapest run within the budget stands for it), on the
     displacement field error :data:`BUDGET_ERROR` and the best wall time."""
     keys = ["load_case", "E", "nu", "rho"]

@@ -1,10 +1,10 @@
 """The runs of a study: one per load case × material × resolution × model, and ONE FEM
 reference per load case × material × resolution (every model at that resolution is compared with
-it), as :class:`studies.runner.Task` s holding a :class:`StudyScene`.
+it), as :class:`studies.sweep.runner.Task` s holding a :class:`StudyScene`.
 
 A :class:`StudyScene` is a built :class:`hybmss.scene.Scene` with the fields of a row (study,
 load case, cell size, model label, material), a ``build()`` like the experiments'
-:class:`~studies.scenes.SceneSpec` and its own ``solve``: a model run is timed ``repeats`` times
+:class:`~studies.sweep.scenes.SceneSpec` and its own ``solve``: a model run is timed ``repeats`` times
 (best and spread kept), a reference with ``refine = "auto"`` refines until its own error estimate
 is below its target.  Both add the reactions of every support to the result's ``info``."""
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from hybmss import models
 from hybmss.scene import Material, Model, Scene
 
-from ..runner import SolverSpec, Task, solve_scene
+from studies.sweep.runner import SolverSpec, Task, solve_scene
 
 AUTO_REFINE_MAX = 3
 """``refine = "auto"`` refines up to this factor (cells split into 3³ elements)."""
@@ -89,8 +89,8 @@ def _once(scene: Scene, solver: SolverSpec):
 
 def _timed(scene: Scene, solver: SolverSpec, repeats: int):
     """The result of an untimed first run (compilation, caches), with the timing of ``repeats``
-    more (:func:`studies.cost.time_repeated`: best, median, spread) in ``info['time_*']``."""
-    from ..cost import time_repeated
+    more (:func:`studies.sweep.cost.time_repeated`: best, median, spread) in ``info['time_*']``."""
+    from studies.sweep.cost import time_repeated
 
     first = solve_scene(scene, solver)
     timing = time_repeated(lambda: solve_scene(scene, solver), repeats=repeats, warmup=0)
@@ -129,7 +129,7 @@ def reference_estimate(scene: Scene, results, refinements) -> float:
     from fem_reference.convergence import EXPECTED_ORDER, analyze
     from hybmss.lattice import Lattice
 
-    from .metrics import norm, support_radius
+    from studies.study.metrics import norm, support_radius
 
     order = EXPECTED_ORDER[results[-1].info["element"]]
     X = Lattice.from_body(scene.body).X

@@ -5,7 +5,7 @@ stderr naming the parameter, its value and the allowed range, refused before any
 valid simulation that failed, one line (and with ``--json`` one object with ``status`` and
 ``message``).  Never a traceback.
 
-Every refused invocation is run through :func:`studies.cli.main` (the ``hybmss`` console
+Every refused invocation is run through :func:`studies.cli.parser.main` (the ``hybmss`` console
 script's entry point) in this process, in a working folder of its own, with stdout and stderr
 captured; a representative subset (every subcommand and every kind of refusal) is run again
 through the real ``hybmss`` script in a fresh interpreter.  The invocations that solve go through
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from studies import reproduce
+from studies.paper import reproduce
 
 HYBMSS = str(Path(sys.executable).with_name("hybmss"))
 
@@ -206,7 +206,7 @@ def _argv(i, files):
 
 @pytest.fixture(scope="module")
 def refused_runs(refusal_files, cli_in_process):
-    """Every refused invocation through ``studies.cli.main`` in this process, each in its own
+    """Every refused invocation through ``studies.cli.parser.main`` in this process, each in its own
     empty working folder."""
     d, files = refusal_files
     runs = []
@@ -298,7 +298,7 @@ def test_fem_and_compare_solve_the_same_scene(experiment):
 
 @pytest.mark.slow
 def test_scene_json_solves_the_stored_scene(tmp_path):
-    from studies.scenes import SceneSpec
+    from studies.sweep.scenes import SceneSpec
 
     scene = SceneSpec.default("torsion", mesh=(2, 2, 2), angle_deg=2.0).build()
     path = tmp_path / "scene.json"

@@ -9,8 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from studies import cli, commands, sizing
-from studies.compare import default_law
+from studies.cli import parser as cli
+
+from studies.cli import commands
+
+from studies.sweep import sizing
+from studies.sweep.compare import default_law
 from hybmss.experiments import DEFAULTS, SceneSpec
 
 
@@ -91,7 +95,7 @@ def test_fem_choices_are_the_fem_reference_s():
 
 
 def test_the_publications_scenes_pass_the_checks():
-    from studies.reproduce import STUDIES, tasks_for
+    from studies.paper.reproduce import STUDIES, tasks_for
 
     for quick in (True, False):
         for task in tasks_for(list(STUDIES), quick):

@@ -10,7 +10,8 @@ import pytest
 
 from hybmss.experiments import SceneSpec, uniaxial_scene
 from hybmss.scene import Body, Material, Model, Motion, Plate, Scene
-from studies import cli, commands
+from studies.cli import parser as cli
+from studies.cli import commands
 
 
 def parse(*argv):

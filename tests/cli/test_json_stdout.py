@@ -12,7 +12,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 SCRIPT = textwrap.dedent("""
     import os, sys
-    from studies import cli, commands
+    from studies.cli import parser as cli
+    from studies.cli import commands
 
     info = commands.info
 

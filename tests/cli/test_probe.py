@@ -280,7 +280,7 @@ def test_probe(text, status, names, as_json, files, tmp_path, cli_in_process):
 
 
 def test_the_probe_covers_every_subcommand_and_status():
-    from studies.cli import build_parser
+    from studies.cli.parser import build_parser
 
     parser, _ = build_parser()
     commands = set(parser._subparsers._group_actions[0].choices)

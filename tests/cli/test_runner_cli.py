@@ -12,7 +12,7 @@ import time
 import psutil
 import pytest
 
-from studies.store import Store
+from studies.sweep.store import Store
 
 
 def hybmss(*args) -> list[str]:
@@ -73,13 +73,13 @@ def test_sigint_stops_the_sweep_and_keeps_finished_runs(executor, signals, tmp_p
 
 GATED = """\
 import pathlib, sys, time
-from studies.cli import main
+from studies.cli.parser import main
 pathlib.Path(sys.argv[1]).touch()  # imported: ready
 while not pathlib.Path(sys.argv[2]).exists():
     time.sleep(0.01)
 sys.exit(main(sys.argv[3:]))
 """
-"""The ``hybmss`` command (:func:`studies.cli.main`), started once the file ``argv[2]`` exists."""
+"""The ``hybmss`` command (:func:`studies.cli.parser.main`), started once the file ``argv[2]`` exists."""
 
 
 @pytest.mark.slow
@@ -103,7 +103,7 @@ def test_two_run_processes_compute_each_run_once(tmp_path):
     res = [json.loads(o) for o, _ in outs]
     runs = res[0]["runs"]
     # the quick bending study's tasks (its models, their own meshes' engines and the FEM references)
-    from studies import reproduce
+    from studies.paper import reproduce
     assert runs == len({t.key() for t in reproduce.tasks_for(["bending"], True)}) > 14
     assert all(r["runs"] == runs for r in res)
     assert sum(r["computed"] for r in res) == runs  # each run computed by exactly one of them
@@ -139,8 +139,8 @@ def test_run_guard_refuses_a_sweep_that_does_not_fit_before_any_work(cli_in_proc
     so 10,000 workers would need about 19 TiB: exit 2, one line with the estimate, nothing
     written; the full reproduction on 2 workers fits and is not refused as too long (its 3,638 runs
     took 87 min: over a single command's hour, within a sweep's limit)."""
-    from studies import sizing
-    from studies.commands import sweep_estimate
+    from studies.sweep import sizing
+    from studies.cli.commands import sweep_estimate
 
     out = tmp_path / "res"
     r = cli_in_process("run", "--all", "--jobs", "10000", "--out", out, "--no-progress")
@@ -156,9 +156,9 @@ def test_run_guard_refuses_a_sweep_that_does_not_fit_before_any_work(cli_in_proc
 def test_run_guard_counts_only_runs_not_stored_and_no_guard_insists(cli_in_process, tmp_path, monkeypatch):
     """Over the time limit (here lowered to 1 ms) the sweep is refused; the runs already stored
     are not counted (a stored study leaves nothing to estimate), and --no-guard runs it anyway."""
-    import studies.reproduce as reproduce
-    from studies import sizing
-    from studies.commands import sweep_estimate
+    import studies.paper.reproduce as reproduce
+    from studies.sweep import sizing
+    from studies.cli.commands import sweep_estimate
 
     out = tmp_path / "res"
     store = Store(out)

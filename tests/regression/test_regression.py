@@ -4,7 +4,7 @@ baseline (studies/data/regression_baseline.csv) beyond its per-metric tolerances
 import pandas as pd
 import pytest
 
-from studies.regression import load_baseline, load_tolerances, measure, regressions, unbaselined
+from studies.paper.regression import load_baseline, load_tolerances, measure, regressions, unbaselined
 
 
 @pytest.mark.slow

@@ -1,4 +1,4 @@
-"""The budget study (studies.pareto with studies.cost): its lead and ties from known timings, its
+"""The budget study (studies.paper.pareto with studies.sweep.cost): its lead and ties from known timings, its
 error measures against the FEM reference, and hybmss-cf near incompressibility."""
 
 import re
@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 
 from hybmss.experiments import SceneSpec
-from studies import pareto
-from studies.runner import SolverSpec, Task, compute
-from studies.store import Store
+from studies.paper import pareto
+from studies.sweep.runner import SolverSpec, Task, compute
+from studies.sweep.store import Store
 
 STATIC = SolverSpec("static")
 
@@ -156,7 +156,7 @@ def test_a_run_that_reached_no_result_neither_wins_nor_is_runner_up():
     So b (0.5 s, 2 %) wins 5 % and 10 % with c (2.0 s, 0.4 %) the runner-up, lead 2.0 / 0.5 = 4;
     at 1 % only c.  'a' is listed once as 'no result' with its reason, and so is 'd', whose run
     failed (no error at all); neither is listed as meeting no budget."""
-    from studies import cost
+    from studies.sweep import cost
 
     df = pd.DataFrame({
         "method": ["a", "b", "c", "d"], "mesh": "2x2x2",
@@ -191,7 +191,7 @@ def test_a_candidate_not_at_rest_has_no_error_and_wins_nothing(tmp_path, monkeyp
     import dataclasses
 
     from reports.figures import no_result_count
-    from studies import cost
+    from studies.sweep import cost
 
     monkeypatch.setattr(pareto, "PROTOCOL", dataclasses.replace(pareto.PROTOCOL, steps=200))
     monkeypatch.setattr(pareto, "pareto_models", lambda: ("hybmss", "hybmss-cf"))
@@ -201,7 +201,7 @@ def test_a_candidate_not_at_rest_has_no_error_and_wins_nothing(tmp_path, monkeyp
     ex = df[df["kind"] == "explicit"]
     assert len(ex) == 4  # two models on two meshes
     assert not ex["at_rest"].any()
-    # not run: the ramp alone needs 1,000 steps (studies.rest_bound), said with the budget
+    # not run: the ramp alone needs 1,000 steps (studies.sweep.rest_bound), said with the budget
     assert ex["failure"].str.fullmatch(r"not-converged: not at rest after 200 steps: not run, it needs at least "
                                        r"1000 steps .* and its budget is 200").all()
     for m in pareto.MEASURES:

@@ -13,9 +13,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import store as store_module
-from studies.executors import SweepError, map_local, map_stored
-from studies.store import Store, decode, dumps, encode, loads
+from studies.sweep import store as store_module
+from studies.sweep.executors import SweepError, map_local, map_stored
+from studies.sweep.store import Store, decode, dumps, encode, loads
 
 
 def job(item):

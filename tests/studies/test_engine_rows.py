@@ -1,14 +1,18 @@
 """The engines' rows in the studies: on meshes of their own with the FEM of the same mesh, the quick
 mode's one case, failure rows that say what an engine cannot represent, and the closing study's
-table (:mod:`studies.engines`)."""
+table (:mod:`studies.paper.engines`)."""
 
 from __future__ import annotations
 
 import pytest
 
-from studies import engines, pareto, roles
-from studies.runner import SolverSpec, Task, compute
-from studies.store import Store
+from studies.paper import engines
+
+from studies.paper import pareto
+
+from studies.sweep import roles
+from studies.sweep.runner import SolverSpec, Task, compute
+from studies.sweep.store import Store
 
 pytest.importorskip("mujoco")
 
@@ -49,7 +53,7 @@ def test_the_report_says_what_each_registered_engine_is():
 
 # ------------------------------------------------------------------ the publication's experiment tables
 def _doc(name: str, **over):
-    from studies.reproduce import load_study_file
+    from studies.paper.reproduce import load_study_file
 
     doc = load_study_file(name)
     for k, v in over.items():
@@ -133,9 +137,9 @@ def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path, t
     from hybmss.solve import solve_static
     from reports.data import Results
     from reports.tables import competitors_volume_tables, volume_table
-    from studies.runner import run_tasks
+    from studies.sweep.runner import run_tasks
     from studies.study.experiment import experiment_tasks
-    from studies.tables import write_tables
+    from studies.paper.tables import write_tables
 
     doc = _doc("compression", body__mesh=[[3, 3, 3]], material__nu=[0.25, -0.1], load__deformation=[0.05])
     ts = [t for t in experiment_tasks(doc, quick=False)
@@ -193,8 +197,8 @@ def test_the_stability_hard_cases_of_the_engines_are_runs_of_the_tables():
     """Full mode: every run of part (g) (engines and their same-mesh FEM) is a run of the
     experiment tables (the same key), so the part costs make reproduce-paper nothing; each engine
     on its own cube, at ν = 0.499 and 20 %."""
-    from studies import stability
-    from studies.reproduce import tasks_for
+    from studies.paper import stability
+    from studies.paper.reproduce import tasks_for
 
     g = stability.engine_tasks(quick=False)
     table_keys = {t.key() for t in tasks_for(["compression", "shear"], quick=False)}
@@ -212,7 +216,7 @@ def test_the_stability_table_says_rest_locking_no_rest_and_refusal():
     """The behaviour of each engine row from its run and the same-mesh FEM's: a force 2× the FEM's
     at rest locks, 1.2× is rest; a run that did not come to rest and a refused scene say so."""
     from hybmss.experiments import SceneSpec
-    from studies import stability
+    from studies.paper import stability
 
     spec = SceneSpec.default("compression", mesh=(5, 5, 5), nu=0.499, deformation=0.2)
     ts = [("engine", Task(spec.replace(model=m), SolverSpec("static"), "stability"))
@@ -242,7 +246,7 @@ def pd_isna(v) -> bool:
 def test_the_speed_against_error_study_runs_no_engine_on_a_base_finer_than_its_own_mesh():
     """Cost: mujoco-quadratic's 27-node cells on the full level's 5³ cube (2.6–12 s a run, three
     timed runs each) were about half the engines' time; it keeps its rows at the quick level."""
-    from studies.engines import engine_models
+    from studies.paper.engines import engine_models
 
     for quick in (True, False):
         ts = [t for _, t in pareto.all_tasks(quick) if t.scene.model in engine_models()]

@@ -1,4 +1,4 @@
-"""The reproduction's natural frequencies (:mod:`studies.modes_study`, quick level) and their report
+"""The reproduction's natural frequencies (:mod:`studies.paper.modes_study`, quick level) and their report
 section (:mod:`reports.modes`) from stored rows only.
 
 Theory for the quick beam (the bending experiment's 2×2×12 cantilever) at ν = 0, where its axial
@@ -25,8 +25,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    from studies import modes_study
-    from studies.store import Store
+    from studies.paper import modes_study
+    from studies.sweep.store import Store
 
     out = tmp_path_factory.mktemp("modes")
     modes_study.run(Store(out), quick=True)
@@ -34,7 +34,7 @@ def quick(tmp_path_factory):
 
 
 def test_quick_tables_have_a_row_per_model_and_nu(quick):
-    from studies import modes_study
+    from studies.paper import modes_study
 
     _, t = quick
     names = modes_study.modal_models()
@@ -75,7 +75,7 @@ ROWS = [  # model, nu, bending, torsion, axial, min MAC
 
 
 def _store(tmp_path: Path) -> Path:
-    from studies.store import Store
+    from studies.sweep.store import Store
 
     store = Store(tmp_path / "results")
     rows = [{"body": "beam", "mesh": "2x2x12", "nu": nu, "model": m, "fem_element": "hex2", "status": "ok",
@@ -94,7 +94,7 @@ from reports.data import Results
 from reports import modes
 title, intro, items = modes.section(Results({str(root)!r}), {str(tmp_path / 'fig')!r})
 solvers = sorted(m for m in sys.modules if m.split('.')[0] in ('hybmss', 'fem_reference')
-                 or m in ('studies.mode_pairs', 'studies.modes_study', 'studies.study'))
+                 or m in ('studies.sweep.mode_pairs', 'studies.paper.modes_study', 'studies.study'))
 tabs = [i for k, i in items if k == 'table']
 figs = [str(i.path) for k, i in items if k == 'figure']
 print(json.dumps({{"title": title, "intro": intro, "solvers": solvers, "figs": figs,

@@ -10,10 +10,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import stability, verdict
-from studies.runner import SolverSpec, Task, no_result_because
-from studies.scenes import SceneSpec
-from studies.store import Store
+from studies.paper import stability
+
+from studies.paper import verdict
+from studies.sweep.runner import SolverSpec, Task, no_result_because
+from studies.sweep.scenes import SceneSpec
+from studies.sweep.store import Store
 
 
 def test_the_reason_of_no_result():

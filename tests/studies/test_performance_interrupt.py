@@ -10,7 +10,7 @@ import textwrap
 
 LONG_TIMING = textwrap.dedent("""
     import sys
-    from studies import performance
+    from studies.paper import performance
     performance.variants = lambda: (("hybmss", 0.3),)  # one kernel to load
     performance.time_mesh("compression", (10, 10, 10), 1e-3, 5, 1, threads=(1,))  # compiled or loaded
     print("timing", flush=True)
@@ -32,7 +32,7 @@ def test_sigint_stops_a_timed_performance_run_within_seconds(signal_a_run):
 def test_a_short_timed_run_is_one_kernel_call_a_long_one_calls_of_half_a_second():
     """What is timed stays one call where it was short (the figures of 1,000 steps of the cubes and
     beams), and a long run is called in pieces of about CALL_SECONDS, never under 100 steps."""
-    from studies.performance import CALL_SECONDS, check_steps
+    from studies.paper.performance import CALL_SECONDS, check_steps
 
     assert check_steps(1000, 30e-6) == 1000  # 30 ms: one call
     assert check_steps(10**9, 30e-6) == int(CALL_SECONDS / 30e-6)  # about 0.5 s a call

@@ -36,7 +36,7 @@ def row(task, quick: bool) -> dict:
 
 
 def current_rows() -> list[dict]:
-    from studies.reproduce import STUDIES, tasks_for
+    from studies.paper.reproduce import STUDIES, tasks_for
 
     return [row(t, quick) for quick in (True, False) for t in tasks_for(list(STUDIES), quick)]
 
@@ -110,7 +110,7 @@ def test_the_frozen_list_covers_every_study_and_solver():
 
 def test_the_reproduction_runs_the_files():
     """Each study of the reproduction is its shipped files' tasks: a changed file changes it."""
-    from studies import reproduce
+    from studies.paper import reproduce
     from studies.study.experiment import experiment_tasks
 
     assert set(reproduce.STUDIES) == {"compression", "tension", "shear", "torsion", "bending"}
@@ -125,7 +125,7 @@ def test_the_reproduction_runs_the_files():
 
 def test_a_changed_file_breaks_the_equality(monkeypatch):
     """The comparison can fail: one ν changed in one shipped file gives other runs than the frozen."""
-    from studies import reproduce
+    from studies.paper import reproduce
 
     original = reproduce.load_study_file
 
@@ -143,7 +143,7 @@ def test_a_changed_file_breaks_the_equality(monkeypatch):
 def test_the_shipped_files_are_package_data():
     import tomllib as _tomllib
 
-    from studies.reproduce import STUDY_FILES, study_file_path
+    from studies.paper.reproduce import STUDY_FILES, study_file_path
 
     root = Path(__file__).resolve().parents[2]
     pyproject = _tomllib.loads((root / "pyproject.toml").read_text())
@@ -156,7 +156,7 @@ def test_the_shipped_files_are_package_data():
 
 # ----------------------------------------------------------------------------- refusals
 def _compression() -> dict:
-    from studies.reproduce import load_study_file
+    from studies.paper.reproduce import load_study_file
 
     return load_study_file("compression")
 
@@ -252,7 +252,7 @@ def test_a_named_model_with_its_parameters_and_the_close_match():
 def test_the_reproduction_refuses_an_invalid_shipped_file(tmp_path, monkeypatch, cli_in_process, edit, key):
     """``hybmss run`` reads the study files before any work: one of them invalid exits 2 with one
     line naming the file and its key, and writes nothing."""
-    from studies import reproduce
+    from studies.paper import reproduce
 
     original = reproduce.study_file_path("compression")
     broken = tmp_path / "compression.toml"

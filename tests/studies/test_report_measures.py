@@ -11,7 +11,7 @@ import pytest
 def test_tolerance_crossing_of_an_exponential_decay_is_where_it_crosses():
     """e(n) = exp(−n / 1000) crosses 1e-3 at n = 1000 ln 1000 = 6907.76; the checkpoints only
     bracket it (6000, 7000), and log-linear interpolation is exact for an exponential."""
-    from studies.stability import tolerance_crossing
+    from studies.paper.stability import tolerance_crossing
 
     ns = np.array([1000, 2000, 4000, 6000, 7000, 8000, 10_000])
     steps, bracket = tolerance_crossing(ns, np.exp(-ns / 1000.0), 1e-3)
@@ -26,7 +26,7 @@ def test_tolerance_crossing_of_an_exponential_decay_is_where_it_crosses():
 
 
 def test_ranks_declare_ties_by_the_stated_margins():
-    from studies.verdict import BEST, NO_RESULT, TIE_COST, TIE_PP, TIED, WORSE, rank
+    from studies.paper.verdict import BEST, NO_RESULT, TIE_COST, TIE_PP, TIED, WORSE, rank
 
     f = pd.DataFrame({"regime": "r", "quantity": "q", "unit": "%", "scene": "s",
                       "method": ["a", "b", "c", "d"], "value": [3.8, -3.8 - 0.99 * TIE_PP, 27.0, np.nan],
@@ -37,7 +37,7 @@ def test_ranks_declare_ties_by_the_stated_margins():
 
 
 def test_relative_l2_of_two_equilibria():
-    from studies.equilibria import NONUNIQUE_PCT, rel_l2_pct
+    from studies.paper.equilibria import NONUNIQUE_PCT, rel_l2_pct
 
     b = np.ones((8, 3))
     assert rel_l2_pct(1.3 * b, b) == pytest.approx(30.0)  # 30 % apart: flagged

@@ -8,9 +8,9 @@ import shutil
 import pytest
 
 from reports.__main__ import main
-from studies.runner import Runner, SolverSpec, Task
-from studies.scenes import SceneSpec
-from studies.store import Store
+from studies.sweep.runner import Runner, SolverSpec, Task
+from studies.sweep.scenes import SceneSpec
+from studies.sweep.store import Store
 
 
 @pytest.fixture(scope="module")

@@ -16,14 +16,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import baudet
+from studies.paper import baudet
 
 NUS = (0.0, 0.25, 0.499)
 
 
 def _tasks():
-    from studies.runner import SolverSpec, Task
-    from studies.scenes import SceneSpec
+    from studies.sweep.runner import SolverSpec, Task
+    from studies.sweep.scenes import SceneSpec
 
     static = SolverSpec("static")
     hex1 = SolverSpec("fem", element="hex1", law="linear")
@@ -50,9 +50,9 @@ def _tasks():
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
     """A results folder with the real layout, one failed run and a performance table."""
-    from studies.runner import run_tasks
-    from studies.store import Store
-    import studies.tables as studies_tables
+    from studies.sweep.runner import run_tasks
+    from studies.sweep.store import Store
+    import studies.paper.tables as studies_tables
 
     root = tmp_path_factory.mktemp("results")
     store = Store(root)
@@ -69,7 +69,7 @@ def results(tmp_path_factory):
         mp.setattr(studies_tables, "moduli_table", functools.partial(studies_tables.moduli_table, nus=NUS))
         studies_tables.write_tables(store)
     # [B09]'s two experiments on their coarsest mesh, every model, against a Hex2 solve twice as fine
-    from studies import baudet
+    from studies.paper import baudet
 
     store.write_table("baudet_cantilever", baudet._experiment(baudet.cantilever_scene, (1,), 2, 1, False, "c"))
     store.write_table("baudet_lshape", baudet._experiment(baudet.lshape_scene, (2,), 4, 2, False, "l"))
@@ -84,7 +84,7 @@ def results(tmp_path_factory):
         "per_step_us": [100.0, 150.0, 200.0, 800.0, 1150.0, 1700.0], "baseline": "hybmss-fd",
         "ratio_to_baseline": [1.0, 1.5, 2.0, 1.0, 1.44, 2.12], "paper_ratio_to_baseline": [np.nan, 1.4, 2.1] * 2,
         "springs_only": "hybmss-cf", "ratio_to_springs_only": [0.67, 1.0, 1.33, 0.7, 1.0, 1.48], "noise": 0.01}))
-    from studies.claims import write_claims
+    from studies.paper.claims import write_claims
 
     write_claims(store)  # as the reproduction does once every study wrote its tables
     return root
@@ -226,7 +226,7 @@ def test_vtu_files_open_with_fields(report, results):
 @pytest.mark.slow
 def test_summary_derives_verdicts_from_the_data(results):
     from reports.data import Results
-    from studies.claims import REPRODUCED, claims, headline
+    from studies.paper.claims import REPRODUCED, claims, headline
 
     r = Results(results)
     h = headline(r)
@@ -280,7 +280,7 @@ def test_cell_volume_change_of_a_stretched_lattice():
     ("Euler-Bernoulli", "Euler-Bernoulli")])
 def test_one_colour_per_model(method, family):
     from reports import palette
-    from studies.tables import models_table
+    from studies.paper.tables import models_table
 
     with palette.models(models_table()) as styles:
         assert palette.family(method) == family
@@ -290,7 +290,7 @@ def test_one_colour_per_model(method, family):
 def test_unknown_model_is_not_coloured_as_another():
     """A method of no stored model gets the neutral 'other' style, never a model's colour."""
     from reports import palette
-    from studies.tables import models_table
+    from studies.paper.tables import models_table
 
     with palette.models(models_table()) as styles:
         assert palette.family("hybmss-xyz static") == palette.OTHER
@@ -340,7 +340,7 @@ def _visible_text(html: str) -> str:
 
 @pytest.mark.slow
 def test_new_tables_have_their_rows_and_published_columns(report):
-    from studies.paper import load
+    from studies.paper.values import load
 
     res, _ = report
     page = _parse(res.html)
@@ -521,7 +521,7 @@ def _runs(rows):
 
 
 def test_eform_check_never_borrows_the_g_form_value():
-    from studies.tables import eform_check
+    from studies.paper.tables import eform_check
 
     rows = []
     for model in ("hybmss", "hybmss-fd"):
@@ -548,7 +548,7 @@ def _eform(closers):
 
 
 def test_eform_verdict_supported_counts_only_decisive_rows():
-    from studies.claims import SUPPORTED, eform_claim
+    from studies.paper.claims import SUPPORTED, eform_claim
 
     c = eform_claim(_eform(["E-form", "E-form", "G-form", "undecided (E-form failed (unstable))",
                             "same (differ by ≤ 0.01 pp)"]), "Table 2", "compression")
@@ -557,7 +557,7 @@ def test_eform_verdict_supported_counts_only_decisive_rows():
 
 
 def test_eform_verdict_not_supported():
-    from studies.claims import NOT_SUPPORTED, eform_claim
+    from studies.paper.claims import NOT_SUPPORTED, eform_claim
 
     c = eform_claim(_eform(["G-form", "G-form", "E-form", "undecided (G-form missing)", "undecided (G-form missing)",
                             "undecided (G-form missing)"]), "Table 3", "tension")
@@ -565,7 +565,7 @@ def test_eform_verdict_not_supported():
 
 
 def test_eform_verdict_not_tested_without_decisive_rows():
-    from studies.claims import UNTESTED, eform_claim
+    from studies.paper.claims import UNTESTED, eform_claim
 
     c = eform_claim(_eform(["same (differ by ≤ 0.01 pp)", "undecided (E-form missing)"]), "Table 2", "compression")
     assert c.verdict == UNTESTED and "0 of 2 rows" in c.evidence
@@ -574,7 +574,7 @@ def test_eform_verdict_not_tested_without_decisive_rows():
 @pytest.mark.parametrize("n_ok, n, kind", [(4, 4, "reproduced"), (2, 4, "partly reproduced"),
                                            (1, 4, "not reproduced"), (0, 0, "not tested")])
 def test_count_verdicts(n_ok, n, kind):
-    from studies.claims import count_verdict
+    from studies.paper.claims import count_verdict
 
     assert count_verdict(n_ok, n) == kind
 
@@ -583,8 +583,8 @@ def test_count_verdicts(n_ok, n, kind):
 def test_published_claims_follow_their_criteria(results):
     """The Table 4 claim, recomputed here from the stored runs and the published CSV."""
     from reports.data import Results
-    from studies.claims import REL_PCT, count_verdict, published_claims
-    from studies.paper import load
+    from studies.paper.claims import REL_PCT, count_verdict, published_claims
+    from studies.paper.values import load
 
     r = Results(results)
     cl = {c.statement: c for c in published_claims(r)}
@@ -612,7 +612,7 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
     from reports.data import Results
     from reports.findings import performance_sentence
     from reports.tables import performance_short
-    from studies.claims import REPRODUCED, claims, headline
+    from studies.paper.claims import REPRODUCED, claims, headline
 
     r = Results(results)
     perf = [c for c in claims(r, headline(r)) if c.statement.startswith("Per step")]
@@ -627,7 +627,7 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
 
 def test_budget_answers_pick_the_fastest_method_that_meets_the_budget():
     from reports.findings import budget_answers, budget_sentence
-    from studies.pareto import budget_table
+    from studies.paper.pareto import budget_table
 
     n = 5
     pareto = pd.DataFrame({"config": ["c"] * n, "experiment": ["shear"] * n, "nu": [0.25] * n,
@@ -714,8 +714,8 @@ def test_the_report_prints_the_claims_the_studies_judged(report, results):
     """``tables/claims.csv`` is what the studies judge from the stored results (recomputed here
     from the same folder) and the summary page prints its rows, verdicts included, as stored:
     the report formats, it does not decide."""
-    from studies.claims import CLAIMS_COLUMNS, claims, headline
-    from studies.results import Results
+    from studies.paper.claims import CLAIMS_COLUMNS, claims, headline
+    from studies.sweep.results import Results
 
     res, _ = report
     r = Results(results)
@@ -791,7 +791,7 @@ def test_no_two_series_share_a_colour_or_marker():
     """Every registered variant, and the references, have a colour of their own, and no two variants
     share a marker while spare markers remain; explicit and static runs of one model differ in line."""
     from reports import palette
-    from studies.tables import models_table
+    from studies.paper.tables import models_table
 
     table = models_table()
     with palette.models(table) as styles:

@@ -1,5 +1,5 @@
 """The rule that does not run an explicit candidate which cannot come to rest in its step budget
-(studies.rest_bound): its decay on a damped single-mode body against the closed form and the
+(studies.sweep.rest_bound): its decay on a damped single-mode body against the closed form and the
 scheme itself, the threshold on a real scene (one step below it is not run, at it the run is
 computed), and the row of a run not computed counted as an expected non-answer."""
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from hybmss.experiments import SceneSpec
-from studies import rest_bound
-from studies.runner import Runner, SolverSpec, Task, no_result_because
-from studies.store import Store
+from studies.sweep import rest_bound
+from studies.sweep.runner import Runner, SolverSpec, Task, no_result_because
+from studies.sweep.store import Store
 
 RTOL = 1e-3
 

@@ -11,8 +11,8 @@ import warnings
 import numpy as np
 from study_files import changed, small_study, write
 
-from studies.runner import Interrupted, Runner, Summary, Task, compute, run_tasks
-from studies.store import Store
+from studies.sweep.runner import Interrupted, Runner, Summary, Task, compute, run_tasks
+from studies.sweep.store import Store
 from studies.study import Study
 from studies.study.tasks import StudyScene
 

@@ -12,9 +12,9 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from studies.runner import Runner, SolverSpec, Task  # noqa: E402
-from studies.scenes import SceneSpec  # noqa: E402
-from studies.store import Store, dumps  # noqa: E402
+from studies.sweep.runner import Runner, SolverSpec, Task  # noqa: E402
+from studies.sweep.scenes import SceneSpec  # noqa: E402
+from studies.sweep.store import Store, dumps  # noqa: E402
 
 TIMINGS = ("elapsed_s", "wall_time_s")
 

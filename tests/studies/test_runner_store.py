@@ -15,10 +15,10 @@ import pandas as pd
 import pytest
 
 from reports.data import Results
-from studies.runner import Runner, SolverSpec, Task
-from studies.scenes import SceneSpec
-from studies.store import Store, arrays_digest, code_version, dumps, loads
-from studies.tables import differences_table, runs_frame, volume_table
+from studies.sweep.runner import Runner, SolverSpec, Task
+from studies.sweep.scenes import SceneSpec
+from studies.sweep.store import Store, arrays_digest, code_version, dumps, loads
+from studies.paper.tables import differences_table, runs_frame, volume_table
 
 
 def tiny_tasks() -> list[Task]:
@@ -156,7 +156,7 @@ def test_lock_of_a_killed_process_does_not_block(tmp_path):
     task = tiny_tasks()[0]
     code = textwrap.dedent(f"""
         import sys, time
-        from studies.store import Store
+        from studies.sweep.store import Store
         claim = Store({str(tmp_path)!r}).claim({task.key()!r})
         print("claimed" if claim else "refused", flush=True)
         time.sleep(60)
@@ -199,8 +199,8 @@ def test_runner_arguments_are_checked(kw, words):
 def test_results_of_other_solver_code_are_not_stored(tmp_path, monkeypatch):
     """A worker whose hybmss differs from this process's (its rows name another code version)
     stops the sweep instead of storing its results under this code's keys."""
-    import studies.runner as runner_mod
-    from studies.executors import SweepError
+    import studies.sweep.runner as runner_mod
+    from studies.sweep.executors import SweepError
 
     real = runner_mod.compute
 
@@ -218,8 +218,8 @@ def test_results_of_other_solver_code_are_not_stored(tmp_path, monkeypatch):
 def test_interrupt_leaves_no_temporary_file_of_a_killed_writer(tmp_path, monkeypatch):
     """Ctrl-C while a worker writes: the worker is killed and its temporary file is left behind;
     the interrupted sweep deletes it before it returns (not only the next sweep)."""
-    import studies.runner as runner_mod
-    from studies.runner import Interrupted
+    import studies.sweep.runner as runner_mod
+    from studies.sweep.runner import Interrupted
 
     store = Store(tmp_path)
 
@@ -284,8 +284,8 @@ MEASURED_S = {
 def test_sweep_starts_with_its_longest_runs():
     """The expected costs that order a sweep (longest first, so that no core idles behind a long
     run at the end) rank the measured runs of the reproduction as their measured times do."""
-    from studies.reproduce import STUDIES, tasks_for
-    from studies.runner import _expected_cost
+    from studies.paper.reproduce import STUDIES, tasks_for
+    from studies.sweep.runner import _expected_cost
 
     found = {}
     for t in tasks_for(list(STUDIES), False):
@@ -306,7 +306,7 @@ def test_a_row_keeps_its_scene_under_the_specifications_own_names(base):
     """A stored run records its scene as :meth:`SceneSpec.to_dict` names it (no ``scene_``
     prefix), lists those fields, and the scene it records rebuilds the very scene that was run
     (same digest); the tables name the same quantities the same way."""
-    from studies.tables import spec_of
+    from studies.paper.tables import spec_of
 
     root, tabs = base
     store = Store(root)

@@ -11,11 +11,11 @@ import pandas as pd
 import pytest
 
 from reports.data import Results
-from studies.executors import map_stored
-from studies.runner import Runner, SolverSpec, Task
-from studies.scenes import SceneSpec
-from studies.store import ROW_FIELD, DamagedRun, Store, dumps, loads, row_digest
-from studies.tables import runs_frame, volume_table
+from studies.sweep.executors import map_stored
+from studies.sweep.runner import Runner, SolverSpec, Task
+from studies.sweep.scenes import SceneSpec
+from studies.sweep.store import ROW_FIELD, DamagedRun, Store, dumps, loads, row_digest
+from studies.paper.tables import runs_frame, volume_table
 
 
 def tiny_tasks() -> list[Task]:

@@ -8,10 +8,10 @@ import sys
 import numpy as np
 import pytest
 
-from studies.reproduce import run_studies, tasks_for
-from studies.runner import SolverSpec, Task, measure, run_tasks, solve
-from studies.scenes import EXPERIMENTS, SceneSpec
-from studies.store import Store
+from studies.paper.reproduce import run_studies, tasks_for
+from studies.sweep.runner import SolverSpec, Task, measure, run_tasks, solve
+from studies.sweep.scenes import EXPERIMENTS, SceneSpec
+from studies.sweep.store import Store
 
 
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if e != "uniaxial"])
@@ -115,7 +115,7 @@ def test_compare_cli_schema():
 def test_middle_layer_metrics_on_a_known_difference():
     """A 3×3×4-cell grid: the plane z = 2 le is the middle layer (16 particles); a difference of
     (3, 4, 0) there and (0, 0, 7) elsewhere gives a 3D and in-plane mean of 5, whatever the rest."""
-    from studies.compare import diff_metrics, middle_layer
+    from studies.sweep.compare import diff_metrics, middle_layer
 
     ii, jj, kk = np.meshgrid(np.arange(4), np.arange(4), np.arange(5), indexing="ij")
     X = 0.5 * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(float)

@@ -6,10 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studies import pareto, performance, runner, stability
-from studies.runner import SolverSpec, Task, run_tasks
-from studies.scenes import SceneSpec
-from studies.store import Store
+from studies.paper import pareto
+
+from studies.paper import performance
+
+from studies.sweep import runner
+
+from studies.paper import stability
+from studies.sweep.runner import SolverSpec, Task, run_tasks
+from studies.sweep.scenes import SceneSpec
+from studies.sweep.store import Store
 
 
 @pytest.fixture(scope="module")

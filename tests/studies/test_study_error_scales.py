@@ -16,7 +16,7 @@ from studies.study.metrics import errors, load_scales, published_relative, suppo
 
 
 def _errors(tmp_path, doc, case):
-    from studies.cli import main
+    from studies.cli.parser import main
 
     f = write(doc, tmp_path / "s.toml")
     assert main(["study", str(f), "--out", str(tmp_path / "out"), "--jobs", "1", "--no-report",
@@ -117,7 +117,7 @@ def test_the_reference_s_estimate_measures_reactions_on_the_load_s_scale(tmp_pat
     import dataclasses
 
     from hybmss.result import Reaction
-    from studies.runner import SolverSpec, solve_scene
+    from studies.sweep.runner import SolverSpec, solve_scene
     from studies.study.tasks import reference_estimate
 
     study = Study.from_toml(write(changed(small_study(), _twist), tmp_path / "s.toml"))

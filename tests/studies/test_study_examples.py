@@ -267,7 +267,7 @@ def test_a_run_not_at_rest_has_no_error_nor_cost_and_wins_no_budget(tmp_path):
     error, no cost, is neither fastest nor runner-up in any budget (a generous one, 50 %, that the
     static run meets), and is listed as 'no result' with its reason."""
     from study_files import small_study
-    from studies.cost import NO_RESULT
+    from studies.sweep.cost import NO_RESULT
     from studies.study import Study
 
     doc = small_study()

@@ -223,7 +223,7 @@ def test_a_grid_that_does_not_fit_memory(tmp_path, cli_in_process):
     doc["metrics"] = {}
     line = _refused(cli_in_process, tmp_path, doc, "body.cell_sizes", "TiB", "or more fit")
     fit = float(line.split("cell sizes of ")[1].split(" m or more")[0])
-    from studies import sizing
+    from studies.sweep import sizing
     from studies.study.body import grid_shape
     from studies.study.checks import run_estimates
     from studies.study.spec import Reference

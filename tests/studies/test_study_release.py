@@ -166,7 +166,7 @@ def test_the_study_report_shows_the_stored_tables(swing):
 
 
 def test_a_model_that_raises_has_a_row_with_its_reason(tmp_path, monkeypatch):
-    import studies.transients as transients
+    import studies.sweep.transients as transients
     from studies.study import Study
     from studies.study.release import dynamics_tables
 

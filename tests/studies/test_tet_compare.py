@@ -1,4 +1,4 @@
-"""studies.tet_compare: which lattice nodes are scored (inside the faceted tetrahedral body) and
+"""studies.paper.tet_compare: which lattice nodes are scored (inside the faceted tetrahedral body) and
 one engine and the MSS scored on the squeezed cylinder with the reference resolving their errors."""
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 import pyvista as pv
 
 from hybmss.tetbody import mesh_surface
-from studies.tet_compare import compare, inside
-from studies.tet_cylinder import H, R
+from studies.paper.tet_compare import compare, inside
+from studies.paper.tet_cylinder import H, R
 
 pytest.importorskip("gmsh")
 
@@ -38,7 +38,7 @@ def test_the_engines_on_tetrahedra_are_asked_of_the_registry():
     """The comparison takes its engines from the registry: those whose tetrahedral body is not
     refused (MuJoCo's box kinds and Newton's XPBD refuse one, with a reason naming the body)."""
     from hybmss import models
-    from studies.tet_compare import lattice_models, tet_engines
+    from studies.paper.tet_compare import lattice_models, tet_engines
 
     engines = {"mujoco-tet", "newton-semi", "newton-vbd", "pbd-xpbd-fem"} - set(models.unavailable())
     assert set(tet_engines()) == engines

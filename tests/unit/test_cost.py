@@ -1,4 +1,4 @@
-"""studies.cost against hand-computed cases: the timing of repeats, the explicit cost at the stable
+"""studies.sweep.cost against hand-computed cases: the timing of repeats, the explicit cost at the stable
 step, and the budget answer with its lead and ties (the rule: tie ⇔ lead < 1 + max spread)."""
 
 import math
@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import cost
-from studies.cost import NO_BUDGET, NONE_WITHIN, Timing, budget_answer, is_tie
+from studies.sweep import cost
+from studies.sweep.cost import NO_BUDGET, NONE_WITHIN, Timing, budget_answer, is_tie
 
 
 # ------------------------------------------------------------------------------ timing

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hybmss.trajectory import Trajectory
-from studies.dynamics import metrics, oscillation, trajectory_oscillation
+from studies.sweep.dynamics import metrics, oscillation, trajectory_oscillation
 
 T, ZETA, A, OFFSET = 0.37, 0.02, 1.5, 0.3
 

@@ -40,7 +40,8 @@ LOADS = {"compression": ["--deformation", "0.1"], "tension": ["--deformation", "
 
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if e != "uniaxial"])
 def test_fem_and_compare_build_the_same_scene(experiment):
-    from studies import cli, commands
+    from studies.cli import parser as cli
+    from studies.cli import commands
 
     parser, opts = cli.build_parser()
 

@@ -91,7 +91,7 @@ def test_the_walk_sees_imports():
     assert "hybmss.scene" in g["hybmss.system"]  # from .scene import Scene
     assert "hybmss.models.base" in g["hybmss.models.hybmss"]
     assert "hybmss.experiments" in g["studies.study.experiment"]
-    assert "studies.study.experiment" in g["studies.reproduce"]  # from .study.experiment import ...
+    assert "studies.study.experiment" in g["studies.paper.reproduce"]  # from .study.experiment import ...
     # a circle is found when there is one
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
@@ -106,4 +106,22 @@ def test_no_import_circle(package):
 def test_packages_import_one_way():
     bad = [(m, t) for m, ts in import_graph().items() for t in ts
            if LAYER[t.split(".")[0]] > LAYER[m.split(".")[0]]]
+    assert bad == []
+
+
+#: the floors of :mod:`studies`: the machinery of a sweep, the study-file format on it, the
+#: publication's studies on both, the command line on top (a module at the package's root is the
+#: package's own and may import any floor)
+STUDIES_FLOOR = {"studies.sweep": 0, "studies.study": 1, "studies.paper": 2, "studies.cli": 3}
+
+
+def _floor(module: str) -> int | None:
+    return next((f for p, f in STUDIES_FLOOR.items() if module == p or module.startswith(p + ".")), None)
+
+
+def test_studies_floors_import_downwards():
+    """The sweep machinery knows no study file, publication or command line; the study-file
+    format knows no publication or command line; the publication's studies know no command line."""
+    bad = [(m, t) for m, ts in import_graph().items() for t in ts
+           if _floor(m) is not None and _floor(t) is not None and _floor(t) > _floor(m)]
     assert bad == []

@@ -289,7 +289,7 @@ def test_bench_times_one_configuration_from_the_command_line():
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-m", "studies.cli", "bench", "--model", "hybmss-cf", "--mesh", "3x3x3",
+    out = subprocess.run([sys.executable, "-m", "studies.cli.parser", "bench", "--model", "hybmss-cf", "--mesh", "3x3x3",
                           "--precision", "f32", "--threads", "1", "--steps", "10", "--quick", "--json"],
                          capture_output=True, text=True, check=True).stdout
     d = json.loads(out)

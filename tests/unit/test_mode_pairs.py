@@ -1,4 +1,4 @@
-"""The kind of a mode shape and the pairing rows (:mod:`studies.mode_pairs`).
+"""The kind of a mode shape and the pairing rows (:mod:`studies.sweep.mode_pairs`).
 
 Kinds, on fields built by hand on a 3×3×4-node lattice: each layer translating sideways is
 bending, each layer turning rigidly about its centre line torsion, u = (0, 0, w(z)) axial, an
@@ -13,7 +13,7 @@ import pytest
 
 from hybmss.lattice import Lattice
 from hybmss.scene import Body, Material, Model, Plate, Region, Scene
-from studies.mode_pairs import MAC_MIN, first_of_kinds, fem_modes, mode_kinds, model_rows
+from studies.sweep.mode_pairs import MAC_MIN, first_of_kinds, fem_modes, mode_kinds, model_rows
 
 
 def _grid():

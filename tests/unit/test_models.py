@@ -92,7 +92,7 @@ class _Rods(ModelBase):
 
 
 def test_register_a_model_at_run_time():
-    from studies import roles
+    from studies.sweep import roles
 
     models.register(_Rods())
     try:
@@ -118,7 +118,7 @@ def test_register_a_model_at_run_time():
 def test_study_roles_publications_and_costs_are_the_studies_own():
     """The core declares no study role, publication name or run cost; the studies' table gives
     each in-tree model the roles it had, and a model's roles stop where its solvers do."""
-    from studies import roles
+    from studies.sweep import roles
 
     for path in (ROOT / "hybmss").rglob("*.py"):
         text = path.read_text()
@@ -144,7 +144,7 @@ def test_run_costs_order_a_sweep():
     """The default cost is (d / 5 %)² above 5 % for a static solve and 0.5 for the explicit
     protocol; hybmss-fd's static solves cost 16 times that, xpbd-nh's grow as its volumetric wave
     speed √(2(1 − ν)/(1 − 2ν)) (√3 at ν = 1/4)."""
-    from studies import roles
+    from studies.sweep import roles
 
     spec = SceneSpec.default("compression", deformation=0.2)
     assert roles.run_cost(spec, "static") == 16.0 and roles.run_cost(spec, "explicit") == 0.5
@@ -161,7 +161,7 @@ def test_a_package_declares_its_models_part_through_an_entry_point(monkeypatch):
     their first look-up; an entry point that is not a Part is refused with its name."""
     import importlib.metadata
 
-    from studies import roles
+    from studies.sweep import roles
 
     class EP:
         def __init__(self, name, obj):
@@ -176,7 +176,7 @@ def test_a_package_declares_its_models_part_through_an_entry_point(monkeypatch):
     parts = roles.Parts(roles.IN_TREE)
     assert parts.get("test-ep") is part and parts.get("hybmss") is roles.IN_TREE["hybmss"]
     monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [EP("test-bad", {"roles": ()})])
-    with pytest.raises(RuntimeError, match="study part 'test-bad'.*must be a studies.roles.Part"):
+    with pytest.raises(RuntimeError, match="study part 'test-bad'.*must be a studies.sweep.roles.Part"):
         roles.Parts({}).get("test-bad")
 
 
@@ -224,9 +224,9 @@ def test_a_model_without_springs_builds_a_system_with_none():
 CHECKED = ("hybmss", "fem_reference", "studies", "benchmarks", "reports")
 """Everything that builds, solves, lists, studies, styles or reports models (a model's own module
 in ``hybmss/models/`` excepted)."""
-OWN_TABLES = ("studies/roles.py",)
+OWN_TABLES = ("studies/sweep/roles.py",)
 """The studies' one table of each model's part (roles, publication names, run cost): it names models."""
-NOT_A_MODEL = {("studies/cli.py", "hybmss"): "the command's name (prog), which is the project's",
+NOT_A_MODEL = {("studies/cli/parser.py", "hybmss"): "the command's name (prog), which is the project's",
                ("hybmss/_stencil_gen.py", "hybmss"): "the project's folder of the kernel cache"}
 """String literals that equal a model's name but do not name the model, with the reason."""
 
@@ -292,7 +292,8 @@ def test_a_publication_names_its_models_through_their_declarations():
     """[G20]'s and [B09]'s tables name their models; each registered model that a publication
     reports declares that name (``published``), and the publication's data file of models
     gives its part in the claims."""
-    from studies import paper, publications
+    from studies.paper import values as paper
+    from studies.paper import publications
 
     t = publications.published_models()
     own = dict(zip(zip(t["publication"], t["role"]), t["model"]))

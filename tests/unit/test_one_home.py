@@ -45,10 +45,10 @@ def _hits(pattern: str, root: Path = ROOT) -> list[str]:
     ("the mixed-element threshold", r"(>=|<)\s*0\.45\b|=\s*0\.45\s*$", ["hybmss/scene/material.py"]),
     ("the open Poisson-ratio range", r"-1(\.0)?\s*<[^<]*nu[^<]*<\s*0\.5\b|\(-1(\.0)?, 0\.5\)|Range\(-1(\.0)?,\s*0\.5\b",
      ["hybmss/scene/material.py"]),
-    ("the error budgets", r"^\s*BUDGETS\s*=", ["studies/pareto.py"]),
-    ("the strict-JSON walker", r"^def strict\(", ["studies/store.py"]),
+    ("the error budgets", r"^\s*BUDGETS\s*=", ["studies/paper/pareto.py"]),
+    ("the strict-JSON walker", r"^def strict\(", ["studies/sweep/store.py"]),
     ("the claims' criteria", r"^(E_MODULI_TOL|E_FEM_PP|INCOMPRESSIBLE_E_PCT|PAPER_PP|REL_PCT|MIDDLE_LAYER_TOL)\s*=",
-     ["studies/claims.py"]),
+     ["studies/paper/claims.py"]),
 ])
 def test_a_decision_has_one_home(what, pattern, home):
     assert sorted({h.split(":")[0] for h in _hits(pattern)}) == home, what
@@ -66,8 +66,8 @@ def test_the_users_of_each_home_agree_with_it():
     from fem_reference.solve import resolve_element
     from hybmss.experiments import SceneSpec
     from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, NU_OPEN_RANGE, Material, admissible_nu
-    from studies import sizing
-    from studies.cli import build_parser
+    from studies.sweep import sizing
+    from studies.cli.parser import build_parser
 
     lo, hi = NU_OPEN_RANGE
     assert (lo, hi) == (-1.0, 0.5) and not admissible_nu(lo) and not admissible_nu(hi) and admissible_nu(0.499)
@@ -90,7 +90,9 @@ def test_the_command_line_writes_strict_json_with_the_stores_walker():
 
     import numpy as np
 
-    from studies import cli, store
+    from studies.cli import parser as cli
+
+    from studies.sweep import store
 
     obj = {"a": float("nan"), "b": [np.float32(1.5), 2], "c": (np.int64(3), np.array([np.inf]))}
     assert json.loads(cli.dump(obj)) == store.strict(obj) == {"a": None, "b": [1.5, 2], "c": [3, [None]]}

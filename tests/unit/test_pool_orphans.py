@@ -1,5 +1,5 @@
 """A local pool's fork server and workers end with the process that started them, even when it is
-killed with SIGKILL (no clean-up runs): :mod:`studies.pool_worker`'s parent-death signal."""
+killed with SIGKILL (no clean-up runs): :mod:`studies.sweep.pool_worker`'s parent-death signal."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 CHILD = textwrap.dedent("""
     import sys, time
-    from studies.executors import LocalPool
+    from studies.sweep.executors import LocalPool
     from test_pool_orphans import work
 
     pool = LocalPool(work, 2)

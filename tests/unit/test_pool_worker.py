@@ -1,5 +1,5 @@
 """A worker of the local pool runs one BLAS thread: the thread variables are in force when its
-numpy and scipy load OpenBLAS (:mod:`studies.pool_worker`), whatever this process loaded."""
+numpy and scipy load OpenBLAS (:mod:`studies.sweep.pool_worker`), whatever this process loaded."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import os
 import numpy as np
 import scipy.linalg  # noqa: F401 - scipy's own OpenBLAS, loaded here as in a worker
 
-from studies.executors import LocalPool
+from studies.sweep.executors import LocalPool
 
 GETTERS = ("scipy_openblas_get_num_threads64_", "scipy_openblas_get_num_threads", "openblas_get_num_threads64_",
            "openblas_get_num_threads")

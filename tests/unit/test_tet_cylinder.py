@@ -2,7 +2,7 @@
 
 import pytest
 
-from studies.tet_cylinder import main
+from studies.paper.tet_cylinder import main
 
 
 @pytest.mark.parametrize("argv,key", [(["--h", "0"], "--h"), (["--h", "nan"], "--h"), (["--levels", "5"], "--levels"),

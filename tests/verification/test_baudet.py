@@ -120,7 +120,7 @@ def test_springs_alone_miss_nu():
 
 
 def test_cantilever_error_decreases_with_refinement_for_both_variants():
-    from studies.baudet import MODELS, cantilever_scene, displacement_error
+    from studies.paper.baudet import MODELS, cantilever_scene, displacement_error
     from fem_reference.solve import solve as fem_solve
 
     ref = fem_solve(cantilever_scene(4, "hybmss"), element="hex2", refine=1)  # h = 25 mm
@@ -169,8 +169,8 @@ def test_equilibrium_never_accepts_an_inverted_lattice():
 
 @pytest.mark.slow
 def test_study_driver_writes_its_tables(tmp_path):
-    from studies.baudet import run
-    from studies.store import Store
+    from studies.paper.baudet import run
+    from studies.sweep.store import Store
 
     run(Store(tmp_path), quick=True, progress=False)
     for name in ("baudet_moduli", "baudet_cantilever", "baudet_lshape", "baudet_volume"):
@@ -178,8 +178,8 @@ def test_study_driver_writes_its_tables(tmp_path):
     # the volume table reads the stored static runs: the value of a direct solve of the same scene
     import pandas as pd
 
-    from studies.reproduce import cube
-    from studies.scenes import SceneSpec
+    from studies.paper.reproduce import cube
+    from studies.sweep.scenes import SceneSpec
 
     vol = pd.read_csv(tmp_path / "tables" / "baudet_volume.csv")
     row = vol[(vol["experiment"] == "compression") & (vol["nu"] == 0.25) & (vol["d_pct"] == 5.0)].iloc[0]

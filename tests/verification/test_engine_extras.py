@@ -80,7 +80,7 @@ def _run(code: str, cwd=None) -> subprocess.CompletedProcess:
 
 
 def test_missing_engine_compare_exits_2_with_install_command():
-    p = _run("from studies.cli import main; sys.exit(main(['compare', 'compression', '--model', 'mujoco-tet']))")
+    p = _run("from studies.cli.parser import main; sys.exit(main(['compare', 'compression', '--model', 'mujoco-tet']))")
     assert p.returncode == 2, p.stderr
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in p.stderr

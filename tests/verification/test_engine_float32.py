@@ -107,7 +107,7 @@ def test_resolved_moduli_at_3e_3():
 def test_command_refuses_an_unresolved_strain(capsys):
     """Strain 3e-6: exit 3, one line naming the smallest strain; 3e-3: the answer with its
     float32 equilibrium error."""
-    from studies.cli import main
+    from studies.cli.parser import main
 
     assert main(["moduli", "--model", "newton-semi", "--nu", "0.45", "--strain", "3e-6"]) == 3
     err = capsys.readouterr().err.strip().splitlines()

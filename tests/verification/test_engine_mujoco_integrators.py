@@ -34,7 +34,7 @@ from hybmss.released import (FRAME, UNLIMITED_SUBSTEPS, _stepper, released_model
                              released_scene, released_transient, user_step, with_model)
 from hybmss.scene import Body, Material, Model, Plate, Scene  # noqa: E402
 from hybmss.system import build  # noqa: E402
-from studies.dynamics import trajectory_oscillation  # noqa: E402
+from studies.sweep.dynamics import trajectory_oscillation  # noqa: E402
 
 TIP = (0.05, 0.05, 0.2)
 

@@ -141,7 +141,7 @@ def test_cli_json_is_one_object_on_stdout():
     import subprocess
     import sys
 
-    p = subprocess.run([sys.executable, "-m", "studies.cli", "moduli", "--model", NAME, "--strain", str(STRAIN),
+    p = subprocess.run([sys.executable, "-m", "studies.cli.parser", "moduli", "--model", NAME, "--strain", str(STRAIN),
                         "--nu", "0.25", "--json"], capture_output=True, text=True, timeout=600, env=dict(os.environ))
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout)
@@ -169,7 +169,7 @@ def test_missing_engine_leaves_its_models_out():
     code = block + "import hybmss.models as m; print(m.unavailable()['newton-semi'])"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert "newton" in p.stdout and "pip install 'hybmss[engines]'" in p.stdout, p.stdout + p.stderr
-    code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'newton-semi']))"
+    code = block + "from studies.cli.parser import main; sys.exit(main(['moduli', '--model', 'newton-semi']))"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "hybmss[engines]" in p.stderr, p.stderr

@@ -33,7 +33,7 @@ pytest.importorskip("warp")
 from hybmss.released import released_scene  # noqa: E402
 from hybmss.scene import Body, Material, Plate, Scene  # noqa: E402
 from hybmss.system import build  # noqa: E402
-from studies.dynamics import oscillation  # noqa: E402
+from studies.sweep.dynamics import oscillation  # noqa: E402
 
 H = 1.0 / 600.0
 """The step (s): a tenth of a 1/60 s frame (ω₁h = 0.024 on the 1×1×6 body, 0.08 on the 1×1×3)."""

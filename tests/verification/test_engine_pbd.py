@@ -147,7 +147,7 @@ def test_missing_engine_leaves_its_models_out():
     code = block + "import hybmss.models as m; print(m.unavailable()['pbd-xpbd-fem'])"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert "pypbd" in p.stdout and "pip install 'hybmss[engines]'" in p.stdout, p.stdout + p.stderr
-    code = block + "from studies.cli import main; sys.exit(main(['moduli', '--model', 'pbd-xpbd-fem']))"
+    code = block + "from studies.cli.parser import main; sys.exit(main(['moduli', '--model', 'pbd-xpbd-fem']))"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "hybmss[engines]" in p.stderr, p.stderr

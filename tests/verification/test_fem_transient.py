@@ -17,7 +17,7 @@ import scipy.sparse.linalg as spla
 
 from fem_reference.transient import ReleasedFem, newmark_period_ratio, newmark_step_for
 from hybmss.scene import Body, Load, Material, Plate, Scene
-from studies.dynamics import l2_error, trajectory_oscillation
+from studies.sweep.dynamics import l2_error, trajectory_oscillation
 
 E, RHO = 1e6, 1000.0
 

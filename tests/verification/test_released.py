@@ -23,7 +23,7 @@ from hybmss.released import USER_CFL, released_scene, released_transient, static
 from hybmss.scene import Body, Material, Plate, Scene
 from hybmss.system import build
 from hybmss.trajectory import Trajectory
-from studies.dynamics import oscillation, trajectory_oscillation
+from studies.sweep.dynamics import oscillation, trajectory_oscillation
 
 TIP = (0.05, 0.05, 0.6)
 

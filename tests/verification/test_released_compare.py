@@ -6,8 +6,8 @@ import pytest
 
 from fem_reference.transient import ReleasedFem
 from hybmss.scene import Body, Load, Material, Plate, Scene
-from studies.dynamics import trajectory_oscillation
-from studies.transients import compare_released, fem_transient
+from studies.sweep.dynamics import trajectory_oscillation
+from studies.sweep.transients import compare_released, fem_transient
 
 TIP = (0.05, 0.05, 0.4)
 

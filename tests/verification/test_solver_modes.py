@@ -12,7 +12,7 @@ from hybmss.solve import NU_RANGE, ImplicitOptions, StaticSolveError, simulate_i
 from hybmss.solve.common import force_floor
 from hybmss.system import build
 from hybmss.terms import DeadLoad, ForceTerm
-from studies.scenes import SceneSpec
+from studies.sweep.scenes import SceneSpec
 
 
 def _fd_jacobian_of_minus(force, x, h):

@@ -192,8 +192,8 @@ def test_a_plugged_in_stepper_reaches_the_closed_form_at_rest(chain):
 
 
 def test_a_plugged_in_stepper_runs_in_compare_and_in_a_study(chain, cli_in_process, tmp_path):
-    from studies.runner import SolverSpec, Task, run_tasks
-    from studies.store import Store
+    from studies.sweep.runner import SolverSpec, Task, run_tasks
+    from studies.sweep.store import Store
 
     spec = _spec()
     _, Fz = closed_form(spec)

@@ -223,7 +223,7 @@ def test_small_strain_rest_state_is_located_relative_to_its_displacements(monkey
 def test_relaxation_does_not_stop_at_a_quiet_moment_after_the_ramp():
     """The [B09] 4×1×1 cantilever under gravity: the relaxed rest state's tip is within 2e-4 of
     the converged one (a 1e-11 criterion); a criterion over 10 frames stopped it 2e-3 away."""
-    from studies.baudet import cantilever_scene
+    from studies.paper.baudet import cantilever_scene
 
     S = build(cantilever_scene(1, "xpbd-nh"))
     T = xpbd_term(S)
@@ -336,7 +336,7 @@ def test_cantilever_static_answer_is_at_rest_and_carries_its_weight():
     scale), and the clamp carries the weight ρ g V (a closed form) within 1e-3.  At 10 substeps
     the fixed point's residual was 3.2e-3 (the substep bias): a verdict by motion alone called it
     converged."""
-    from studies.baudet import CANTILEVER_RHO, GRAVITY, cantilever_scene
+    from studies.paper.baudet import CANTILEVER_RHO, GRAVITY, cantilever_scene
 
     scene = cantilever_scene(1, "xpbd-nh")
     r = harness_static(scene)

@@ -1,0 +1,358 @@
+"""Performance of the explicit kernel: [G20] Figs 11–12 and Table 6.
+
+Wall time of ``steps`` (1,000; fewer on the largest grids, :func:`timed_steps`) semi-implicit
+Euler steps of
+
+- the compression scene on the cubes 10³, 15³, 20³, 30³ (dt = 1 ms, the publication's);
+- the beam under gravity (the bending scene, E = 10 MPa) on 4×4×24, 8×8×48, 10×10×60,
+  16×16×96 ([G20] ran 300,000 steps; the per-step figure is what compares).  The stiff beam
+  needs a smaller step than 1 ms: ``dt = ½ dt_crit`` of the finest beam (the cost of a step does
+  not depend on dt);
+
+for the variants :func:`variants`: every model of the ``performance`` role that [G20] reports
+(``published``; hybmss, hybmss-fd and hybmss-cf) at ν = 0.3 (≠ ¼, so the volume term is present)
+and [G20]'s proposed model at ν = ¼ (κ = 0: :func:`hybmss.system.build` drops the volume term,
+so it should cost what the springs-only lattice costs), with the numba stencil kernel on 1 and 2
+threads.  Times are divided by those of [G20]'s model without face diagonals (the ``baseline``
+of its ratios) and of its springs-only lattice on the same mesh and thread count; the
+publication's ratios (``studies/data/g20_performance.csv``) are joined by its names for the models.
+
+**Timing protocol.**  The machine is shared, so every figure is the best of ``repeats`` runs
+(more for runs shorter than :data:`MIN_SPAN`/``repeats``),
+and the variants of one mesh and thread count are timed round-robin (variant 1, 2, 3, 4, then
+again) so that the ratios compare runs made in the same minute.  Every timed run on several
+threads follows :data:`hybmss.explicit.WARM_UP_THREADS` of untimed steps, so that it is not
+timed while the second core wakes up.  ``wall_time_s`` of
+:func:`hybmss.explicit.simulate_explicit` is the stepping alone (no set-up, no dt_crit).
+
+**Bandwidth ceiling.**  The memory bandwidth is measured in the same run with NumPy on arrays
+far larger than the caches: ``np.copyto(b, a)`` (2 streams of 8 B per element) and
+``np.add(a, b, out=c)`` (3 streams); the best of several trials of either is the ceiling.  The
+bytes one step must move follow the stencil kernel's streaming model (8-byte words per grid node
+of the ``(nx+1)(ny+1)(nz+1)`` grid, each array counted once per pass that reads or writes it,
+caches ignored): springs ``7 n_off`` (K read, T written then read back, ×3 components) +
+``22`` (x read twice, v read and written, x written, F written then read, 1/m) ; volume
+``+ 64`` (κ and V₀, averaged edges ABC written and read, cross products and W written and
+read, 12 corner gradients written and read); gravity ``+ 3``.  ``n_off`` = 13 with face
+diagonals, 7 without.  Small meshes fit in the caches, so their fraction can exceed 1: the
+ceiling is DRAM bandwidth.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from hybmss.explicit import WARM_UP_THREADS
+
+from studies.paper import values as paper
+
+from studies.paper import publications
+
+from studies.sweep import roles
+from studies.sweep.scenes import SceneSpec
+from studies.sweep.store import Store
+
+PUBLICATION = "G20"
+
+CUBES = ((10, 10, 10), (15, 15, 15), (20, 20, 20), (30, 30, 30))
+BEAMS = ((4, 4, 24), (8, 8, 48), (10, 10, 60), (16, 16, 96))
+NU_OTHER = 0.3
+NU_QUARTER = 0.25
+THREADS = (1, 2)
+BEAM_E = 1e7
+CUBE_DT = 1e-3
+WORD = 8  # bytes (float64)
+MIN_SPAN = 0.5
+"""Seconds of stepping each figure spans at least (short runs get more repeats)."""
+MAX_NODE_STEPS = 10_000_000
+"""Grid nodes × steps of one timed run at most (:func:`timed_steps`): the 30³ cube and the
+16×16×96 beam (~3·10⁴ nodes) run 300 steps instead of 1,000, about 0.4 s on one thread (three
+rounds still span over 1 s)."""
+MAX_REPEATS = 25
+CALL_SECONDS = 0.5
+"""Seconds of stepping per kernel call of a timed run, at most about (:func:`check_steps`): a run
+longer than that is called in pieces, between which Ctrl-C stops it; a shorter one (most of
+them) is one call, as before.  Each further call costs a divergence check (one pass over the
+nodes) and, on two threads, a start of the threads."""
+MIN_CHECK_STEPS = 100
+
+
+# ------------------------------------------------------------------------------ bandwidth
+def measure_bandwidth(n_bytes: int = 256 * 2**20, trials: int = 5) -> dict:
+    """Memory bandwidth (GB/s) of NumPy streaming kernels on arrays of ``n_bytes`` each:
+    ``copy`` (np.copyto, 2 streams) and ``add`` (c = a + b, 3 streams); best of ``trials``."""
+    n = n_bytes // WORD
+    a = np.ones(n)
+    b = np.full(n, 2.0)
+    c = np.empty(n)
+    best = {"copy": 0.0, "add": 0.0}
+    for _ in range(trials):
+        t0 = time.perf_counter()
+        np.copyto(b, a)
+        dt = time.perf_counter() - t0
+        best["copy"] = max(best["copy"], 2 * n * WORD / dt / 1e9)
+        t0 = time.perf_counter()
+        np.add(a, b, out=c)
+        dt = time.perf_counter() - t0
+        best["add"] = max(best["add"], 3 * n * WORD / dt / 1e9)
+    best["ceiling"] = max(best["copy"], best["add"])
+    best["array_MB"] = n_bytes / 2**20
+    return best
+
+
+def bytes_per_step(n_grid: int, n_off: int, has_volume: bool, has_gravity: bool) -> int:
+    """Bytes one explicit step streams under the model of the module docstring."""
+    words = 7 * n_off + 22 + (64 if has_volume else 0) + (3 if has_gravity else 0)
+    return int(words * WORD * n_grid)
+
+
+# ------------------------------------------------------------------------------ variants
+def variants() -> tuple[tuple[str, float], ...]:
+    """(model, ν) of every timed variant: the ``performance`` models [G20] reports at
+    :data:`NU_OTHER`, then its proposed model at ν = ¼ (registry order)."""
+    timed = [m for m in roles.in_role("performance") if publications.published_name(m, PUBLICATION)]
+    out = [(m, NU_OTHER) for m in timed]
+    proposed = publications.model_in(PUBLICATION, "proposed")
+    if proposed in timed:
+        out.append((proposed, NU_QUARTER))
+    return tuple(out)
+
+
+def baseline() -> str | None:
+    """The model the time ratios divide by: [G20]'s model without face diagonals."""
+    return publications.model_in(PUBLICATION, "no-face-diagonals")
+
+
+# ------------------------------------------------------------------------------ scenes
+def _spec(kind: str, mesh, model: str, nu: float) -> SceneSpec:
+    if kind == "compression":
+        return SceneSpec.default("compression", mesh=mesh, nu=nu, model=model, deformation=0.05, damping=2.0)
+    return SceneSpec.default("bending", mesh=mesh, nu=nu, model=model, E=BEAM_E, gravity=10.0, damping=2.0)
+
+
+def beam_dt(meshes) -> float:
+    """½ dt_crit of the finest beam: dt_crit (∝ le at fixed material) is computed on the
+    coarsest beam for each variant, the smallest is scaled to the finest le."""
+    from hybmss.explicit import dt_crit
+
+    coarse = min(meshes, key=lambda m: m[2])
+    fine = max(meshes, key=lambda m: m[2])
+    dts = [dt_crit(_spec("beam", coarse, m, nu).build()) for m, nu in variants()]
+    return 0.5 * min(dts) * coarse[2] / fine[2]
+
+
+# ------------------------------------------------------------------------------ compiling
+def _compile_one(job: tuple) -> tuple:
+    """Compile (into the on-disk kernel cache) the kernel of one configuration: two steps of it."""
+    from hybmss.explicit import simulate_explicit
+
+    kind, mesh, model, nu, threads, dt = job
+    simulate_explicit(_spec(kind, mesh, model, nu).build(), dt=dt, steps=2, threads=threads,
+                      compute_dt_crit=False)
+    return job
+
+
+def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = None, progress: bool = False) -> int:
+    """Compile the generated kernel of every configuration the timings will run, ``workers``
+    processes at a time, before any is timed: each (mesh, offsets, terms, threads) has its own
+    kernel (:mod:`hybmss._stencil_gen`), about 3 s of compilation on one thread and 6 s on two
+    (the 10³ cube at ν = 0.499), most of it Numba's type inference of the step bodies.  The
+    timings then load them from the cache.  ``jobs``: (kind, mesh, dt); returns the kernels
+    compiled."""
+    from hybmss.explicit import stencil
+    from hybmss.system import build
+
+    from studies.sweep.executors import map_local
+
+    todo = {}
+    for kind, mesh, dt in jobs:
+        for model, nu in variants():
+            S = build(_spec(kind, mesh, model, nu).build())
+            for th in threads:
+                todo.setdefault(stencil(S, dt, 1.0, threads=th).config.key(), (kind, mesh, model, nu, th, dt))
+    if progress:
+        print(f"performance: compiling {len(todo)} kernels", flush=True)
+    # the longest (two threads, large meshes) first, so that no worker is left with one at the end
+    map_local(_compile_one, sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1])))), workers)
+    return len(todo)
+
+
+# ------------------------------------------------------------------------------ timing
+def timed_steps(mesh, steps: int) -> int:
+    """Steps of one timed run on ``mesh`` (cells per axis): ``steps``, or fewer (in hundreds, at
+    least 100) where the grid has so many nodes that ``steps`` would exceed :data:`MAX_NODE_STEPS`."""
+    nodes = int(np.prod([n + 1 for n in mesh]))
+    if steps * nodes <= MAX_NODE_STEPS:
+        return steps
+    return min(steps, max(100, 100 * (MAX_NODE_STEPS // (100 * nodes))))
+
+
+def check_steps(steps: int, step_s: float) -> int:
+    """Steps between the divergence checks of a timed run of ``steps`` steps of about ``step_s``
+    seconds each: the loop calls the kernel in whole multiples of them, so a run is one call when
+    it lasts under :data:`CALL_SECONDS`, else calls of about that long (at least
+    :data:`MIN_CHECK_STEPS` steps)."""
+    per_call = int(CALL_SECONDS / max(float(step_s), 1e-9))
+    return max(1, min(int(steps), max(MIN_CHECK_STEPS, per_call)))
+
+
+def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS,
+              min_span: float = MIN_SPAN) -> list[dict]:
+    """Best-of-``repeats`` wall time of ``steps`` steps for every variant and thread count on
+    one mesh (variants timed round-robin)."""
+    from hybmss.explicit import simulate_explicit, stencil
+    from hybmss.system import build
+
+    timed = variants()
+    systems = {}
+    for model, nu in timed:
+        spec = _spec(kind, mesh, model, nu)
+        scene = spec.build()
+        systems[(model, nu)] = (scene, build(scene))
+    rows = []
+    for th in threads:
+        times = {v: [] for v in timed}
+        step_s = {}
+
+        def timed_run(v, th=th):
+            scene, S = systems[v]
+            t = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S, compute_dt_crit=False,
+                                  check_every=check_steps(steps, step_s[v]),
+                                  warm_up=WARM_UP_THREADS if th > 1 else 0.0).wall_time_s
+            step_s[v] = min(step_s[v], t / steps)  # the warm-up's 5 steps overstate a step up to 4x
+            return t
+
+        for v in timed:  # warm-up (loads the cached compiled kernels), a first figure of the step's time
+            scene, S = systems[v]
+            step_s[v] = simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S,
+                                          compute_dt_crit=False).wall_time_s / 5
+        for v in timed:  # the first round, whose longest run sets the number of rounds
+            times[v].append(timed_run(v))
+        t_est = max(ts[0] for ts in times.values())
+        # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
+        n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(min_span / max(t_est, 1e-6)))))
+        for _ in range(n_rep - 1):
+            for v in timed:
+                times[v].append(timed_run(v))
+        for (model, nu), ts in times.items():
+            scene, S = systems[(model, nu)]
+            st = stencil(S, dt, 1.0)
+            counts = S.lattice.counts()
+            rows.append({
+                "scene": kind,
+                "mesh": "x".join(map(str, mesh)),
+                "variant": model,
+                "nu": nu,
+                "label": f"{model} ν={nu:g}",
+                "threads": th,
+                "steps": steps,
+                "dt": dt,
+                "best_s": float(min(ts)),
+                "median_s": float(np.median(ts)),
+                "repeats": len(ts),
+                "volumes": counts["volumes"],
+                "vertices": counts["vertices"],
+                "springs": int(len(S.spring_k)),
+                "springs_paper_no_fd": counts["paper_springs_no_fd"],
+                "springs_paper_with_fd": counts["paper_springs_with_fd"],
+                "volume_term": bool(S.has_volume),
+                "gravity_term": S.gravity is not None,
+                "stencil_offsets": int(len(st.offs)),
+                "grid_nodes": st.N,
+                "bytes_per_step": bytes_per_step(st.N, len(st.offs), S.has_volume, S.gravity is not None),
+            })
+    return rows
+
+
+def _ratios_to(df: pd.DataFrame, model: str | None, nu: float) -> np.ndarray:
+    """``best_s`` of each row over that of ``model`` at ``nu`` on the same scene, mesh, threads."""
+    key = ["scene", "mesh", "threads"]
+    ref = df[(df["variant"] == model) & (df["nu"] == nu)].set_index(key)["best_s"]
+    return df["best_s"].to_numpy() / ref.reindex(pd.MultiIndex.from_frame(df[key])).to_numpy()
+
+
+def _derive(df: pd.DataFrame, bandwidth: dict) -> pd.DataFrame:
+    published = paper.load("g20_performance")
+    df = df.copy()
+    df["per_step_us"] = 1e6 * df["best_s"] / df["steps"]
+    df["per_10k_steps_s"] = 1e4 * df["best_s"] / df["steps"]
+    df["springs_per_s"] = df["springs"] * df["steps"] / df["best_s"]
+    df["cells_per_s"] = df["volumes"] * df["steps"] / df["best_s"]
+    df["achieved_GBps"] = df["bytes_per_step"] * df["steps"] / df["best_s"] / 1e9
+    df["bandwidth_GBps"] = bandwidth["ceiling"]
+    df["fraction_of_bandwidth"] = df["achieved_GBps"] / bandwidth["ceiling"]
+    base, springs = baseline(), publications.model_in(PUBLICATION, "springs-only")
+    df["baseline"], df["springs_only"] = base or "", springs or ""
+    df["ratio_to_baseline"] = _ratios_to(df, base, NU_OTHER)
+    df["ratio_to_springs_only"] = _ratios_to(df, springs, NU_OTHER)
+    # the relative spread of one figure (median vs best) is the noise of the comparison
+    df["noise"] = df["median_s"] / df["best_s"] - 1.0
+    other = df["nu"] != NU_QUARTER
+    df["paper_ratio_to_baseline"] = np.nan
+    df["paper_per_10k_steps_s"] = np.nan
+    cube10 = (df["scene"] == "compression") & (df["mesh"] == "10x10x10") & (df["threads"] == 1)
+    for p in published.itertuples():
+        timed = df["variant"] == publications.model_named(PUBLICATION, p.name)
+        at = other if p.nu == "other" else ~other
+        if p.quantity == "time_ratio_per_step" and publications.model_named(PUBLICATION, p.over) == base:
+            df.loc[timed & at, "paper_ratio_to_baseline"] = p.value
+        elif p.quantity == "time_10k_steps":
+            df.loc[timed & at & cube10, "paper_per_10k_steps_s"] = p.value
+    return df
+
+
+SUMMARY_COLUMNS = ["scene", "mesh", "threads", "volumes", "variant", "nu", "label", "per_step_us", "baseline",
+                   "ratio_to_baseline", "paper_ratio_to_baseline", "springs_only", "ratio_to_springs_only", "noise"]
+
+
+def summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Per mesh, thread count and variant: time per step, its ratio to the baseline (and the
+    publication's) and to the springs-only lattice, and the noise of the figure."""
+    return df[SUMMARY_COLUMNS].reset_index(drop=True)
+
+
+def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
+                    threads=THREADS, progress: bool = False, min_span: float = MIN_SPAN,
+                    bandwidth_MB: int | None = None, cubes=None, beams=None,
+                    workers: int | None = None) -> tuple[pd.DataFrame, dict]:
+    """Time every mesh (``cubes``/``beams`` replace the default lists; the kernels compiled first
+    on ``workers`` processes, :func:`compile_kernels`); returns (table, bandwidth)."""
+    cubes = tuple(cubes) if cubes is not None else (((4, 4, 4), (6, 6, 6)) if quick else CUBES)
+    beams = tuple(beams) if beams is not None else (((2, 2, 12), (3, 3, 18)) if quick else BEAMS)
+    steps = steps or (200 if quick else 1000)
+    repeats = repeats or (2 if quick else 3)
+    n_bytes = (bandwidth_MB or (64 if quick else 256)) * 2**20
+    bw = measure_bandwidth(n_bytes, trials=3 if quick else 5)
+    dt_b = beam_dt(beams) if beams else CUBE_DT
+    rows = []
+    jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
+    compile_kernels(jobs, threads, workers, progress)
+    for kind, mesh, dt in jobs:
+        if progress:
+            print(f"performance: {kind} {'x'.join(map(str, mesh))}", flush=True)
+        rows += time_mesh(kind, mesh, dt, timed_steps(mesh, steps), repeats, threads, min_span)
+    bw2 = measure_bandwidth(n_bytes, trials=3 if quick else 5)
+    bandwidth = {k: max(bw[k], bw2[k]) for k in bw}
+    return _derive(pd.DataFrame(rows), bandwidth), bandwidth
+
+
+def format_table(df: pd.DataFrame) -> str:
+    cols = ["scene", "mesh", "label", "threads", "per_step_us", "ratio_to_baseline", "paper_ratio_to_baseline",
+            "per_10k_steps_s", "paper_per_10k_steps_s", "springs_per_s", "cells_per_s",
+            "achieved_GBps", "fraction_of_bandwidth"]
+    with pd.option_context("display.width", 200, "display.max_columns", 30, "display.float_format",
+                           "{:.4g}".format):
+        return df[cols].to_string(index=False)
+
+
+def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True,
+        runner=None) -> pd.DataFrame:
+    """Study driver (``EXTRA_STUDIES``): always serial in this process (timings), whatever ``runner``."""
+    df, bw = run_performance(quick=quick, progress=progress, workers=jobs)
+    store.write_table("performance", df)
+    store.write_table("performance_summary", summary(df))
+    store.write_table("bandwidth", pd.DataFrame([bw]))
+    return df

@@ -1,0 +1,163 @@
+"""CI regression on error metrics: a quick subset of the publication's scenes (coarse meshes,
+small deformations) whose errors against the FEM reference must not get worse.
+
+The baseline ``studies/data/regression_baseline.csv`` holds, per case, the MSS error metrics
+measured when it was last updated; ``studies/data/regression_tolerances.csv`` holds, per metric,
+how much worse a value may get (``value ≤ baseline · (1 + rtol) + atol``).  Updating the
+baseline is a reviewed change with a reason::
+
+    python -m studies.paper.regression --update --reason "why the errors changed"
+
+which rewrites the CSV and prints the differences.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hybmss.experiments import SceneSpec
+
+from studies.sweep import roles
+from studies.sweep.compare import diff_metrics
+from studies.sweep.runner import SolverSpec, Task, run_tasks
+from studies.sweep.store import Store, atomic_write_text
+
+METRICS = ("rel_l2", "volume_err_pp", "reaction_rel_err")
+NUS = (0.0, 0.25, 0.499)
+
+
+def cases() -> list[SceneSpec]:
+    """Coarse versions of the five experiments at 5 % (torsion 1°, bending E = 10 MPa)."""
+    out = []
+    for nu in NUS:
+        out.append(SceneSpec.default("compression", mesh=(4, 4, 4), nu=nu, deformation=0.05))
+        out.append(SceneSpec.default("tension", mesh=(2, 2, 12), nu=nu, deformation=0.05))
+        out.append(SceneSpec.default("shear", mesh=(4, 4, 4), nu=nu, deformation=0.05))
+        out.append(SceneSpec.default("torsion", mesh=(4, 4, 4), nu=nu, angle_deg=1.0))
+    out.append(SceneSpec.default("bending", mesh=(2, 2, 12), E=1e7, nu=0.25, gravity=10.0))
+    return out
+
+
+def _reaction(row) -> float:
+    if row["experiment"] == "torsion":
+        return row["torque_z"]
+    if row["experiment"] == "shear":
+        return row["force_x"]
+    if row["experiment"] == "bending":
+        return row["tip_deflection"]
+    return row["force_z"]
+
+
+def measure(store: Store | None = None, jobs: int | None = 1, progress: bool = False) -> pd.DataFrame:
+    """Run the cases (MSS static for each variant, FEM Hex2/mixed linear) and return one row of
+    error metrics per (case, variant)."""
+    tmp = None
+    if store is None:
+        tmp = tempfile.TemporaryDirectory(prefix="hybmss-regression-")
+        store = Store(tmp.name)
+    try:
+        tasks, pairs = [], []
+        for spec in cases():
+            fem = Task(spec, SolverSpec("fem", element="auto", law="linear"), "regression")
+            tasks.append(fem)
+            for m in roles.in_role("regression"):
+                t = Task(spec.replace(model=m), SolverSpec("static"), "regression")
+                tasks.append(t)
+                pairs.append((spec, m, t, fem))
+        rows = {r["key"]: r for r in run_tasks(tasks, store, jobs=jobs, progress=progress, desc="regression")}
+        out = []
+        for spec, m, t, fem in pairs:
+            rm, rf = rows[t.key()], rows[fem.key()]
+            case = f"{spec.experiment} {'x'.join(map(str, spec.mesh))} nu={spec.nu:g}"
+            if rm["status"] != "ok" or rf["status"] != "ok":
+                out.append({"case": case, "model": m, "status": f"{rm['status']}/{rf['status']}",
+                            **{k: np.nan for k in METRICS}})
+                continue
+            a, b = store.arrays(t.key()), store.arrays(fem.key())
+            d = diff_metrics(a["X"], a["u"], b["u"])
+            ref = _reaction(rf)
+            out.append({
+                "case": case, "model": m, "status": "ok",
+                "rel_l2": d["rel_l2"],
+                "volume_err_pp": 100 * abs(rm["volume_change"] - rf["volume_change"]),
+                "reaction_rel_err": abs(_reaction(rm) - ref) / abs(ref) if ref else np.nan,
+            })
+        return pd.DataFrame(out)
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+
+
+def _data_path(name: str) -> Path:
+    return Path(str(resources.files("studies").joinpath("data", name)))
+
+
+def load_baseline() -> pd.DataFrame:
+    return pd.read_csv(_data_path("regression_baseline.csv"), comment="#")
+
+
+def load_tolerances() -> dict[str, tuple[float, float]]:
+    t = pd.read_csv(_data_path("regression_tolerances.csv"), comment="#")
+    return {r.metric: (float(r.rtol), float(r.atol)) for r in t.itertuples()}
+
+
+def unbaselined(current: pd.DataFrame, baseline: pd.DataFrame) -> list[str]:
+    """Models measured now that have no row in the baseline at all (a model added to the
+    registry, or another package's): nothing to regress from until a baseline is recorded."""
+    return sorted(set(current["model"]) - set(baseline["model"]))
+
+
+def regressions(current: pd.DataFrame, baseline: pd.DataFrame, tolerances) -> list[str]:
+    """Human-readable list of the metrics that got worse than allowed (empty: all good).  Rows of
+    :func:`unbaselined` models are not compared."""
+    current = current[~current["model"].isin(unbaselined(current, baseline))]
+    merged = baseline.merge(current, on=["case", "model"], how="outer", suffixes=("_base", "_now"),
+                            indicator="where")
+    problems = []
+    for r in merged.itertuples():
+        if r.where != "both":
+            problems.append(f"{r.case} / {r.model}: present only in the {'baseline' if r.where == 'left_only' else 'current run'}")
+            continue
+        if r.status_now != r.status_base:
+            problems.append(f"{r.case} / {r.model}: status {r.status_base} -> {r.status_now}")
+            continue
+        for m in METRICS:
+            base, now = getattr(r, f"{m}_base"), getattr(r, f"{m}_now")
+            if np.isnan(base) and np.isnan(now):
+                continue
+            rtol, atol = tolerances[m]
+            if not (now <= base * (1 + rtol) + atol):
+                problems.append(f"{r.case} / {r.model}: {m} {now:.4g} > baseline {base:.4g} (rtol {rtol}, atol {atol})")
+    return problems
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m studies.paper.regression", description=__doc__.split("\n\n")[0])
+    p.add_argument("--update", action="store_true", help="rewrite the baseline (needs --reason)")
+    p.add_argument("--reason", default="", help="why the baseline changes (kept in the file's header)")
+    args = p.parse_args(argv)
+    now = measure(progress=True)
+    if args.update:
+        if not args.reason.strip():
+            p.error("--update needs --reason")
+        header = f"# Regression baseline of MSS errors against the linear FEM (Hex2, mixed at nu >= 0.45). Reason of last update: {args.reason.strip()}\n"
+        atomic_write_text(_data_path("regression_baseline.csv"), header + now.to_csv(index=False, float_format="%.6g"))
+        print(now.to_string(index=False))
+        return 0
+    base = load_baseline()
+    problems = regressions(now, base, load_tolerances())
+    for m in unbaselined(now, base):
+        print(f"model {m}: no baseline yet (measured, not compared; record one with --update --reason)")
+    print("\n".join(problems) if problems else "no regression")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

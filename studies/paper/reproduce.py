@@ -1,0 +1,156 @@
+"""The studies of ``make reproduce-paper``: the publication's experiments as study files.
+
+Each of the five experiment studies is one or more study files shipped in
+``studies/data/studies/`` (the format: ``docs/study-format.md``), read with ``tomllib`` and
+turned into the runner's tasks by :func:`studies.study.experiment.experiment_tasks`: the
+publication's meshes, materials, loads, the models of each study role with their solvers, and
+the FEM references.  ``quick`` takes each file's ``[body.quick]`` meshes (the cube 4×4×4, the
+beam 2×2×12) and leaves out its ``skip_quick`` models, so the same files run in the test suite
+within seconds.
+
+Explicit runs follow the publication's protocol (symplectic Euler, dt = 1 ms, 10,000 steps),
+with the plates ramped over 1 s and mass-proportional damping c = 2 s⁻¹ (about critical for the
+cube's slowest mode; [G20] does not state its damping): the ``solver`` of the files'
+``explicit-tables`` models.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+from studies.sweep.runner import SolverSpec, Task, run_tasks
+from studies.sweep.store import Store
+from studies.study.experiment import experiment_tasks, validate_experiment
+
+STATIC = SolverSpec("static")
+
+STUDY_FILES = {
+    "compression": ("compression",),
+    "tension": ("tension",),
+    "shear": ("shear",),
+    "torsion": ("torsion", "torsion-sweep"),  # the table's angles, then torque against angle (full only)
+    "bending": ("bending",),
+}
+"""Each study of the reproduction: its files in ``studies/data/studies`` (``<name>.toml``)."""
+
+
+def study_file_path(name: str) -> Path:
+    """The shipped study file ``name`` (``compression``, ``torsion-sweep``, ...)."""
+    return Path(str(resources.files("studies").joinpath("data", "studies", f"{name}.toml")))
+
+
+def load_study_file(name: str) -> dict:
+    """The shipped study file ``name``, parsed and validated (:class:`studies.study.StudyError`)."""
+    path = study_file_path(name)
+    with path.open("rb") as fh:
+        doc = tomllib.load(fh)
+    validate_experiment(doc, str(path))
+    return doc
+
+
+class FileStudy:
+    """A study of the reproduction: ``study(quick) -> list[Task]``, the tasks of its ``files``
+    in order (read at each call, so that the files are the one place the studies are declared)."""
+
+    def __init__(self, files: tuple[str, ...]):
+        self.files = tuple(files)
+
+    def __call__(self, quick: bool = False) -> list[Task]:
+        return [t for f in self.files for t in experiment_tasks(load_study_file(f), quick)]
+
+    def __repr__(self) -> str:
+        return f"FileStudy({', '.join(f + '.toml' for f in self.files)})"
+
+
+STUDIES = {name: FileStudy(files) for name, files in STUDY_FILES.items()}
+
+
+def check_study_files(names=None) -> None:
+    """Read and validate the files of the named studies (every one by default) before any work:
+    :class:`studies.study.StudyError` at the first key that is not allowed."""
+    for name in (list(STUDIES) if not names else [n for n in names if n in STUDIES]):
+        for f in STUDIES[name].files:
+            load_study_file(f)
+
+
+def _meshes(name: str, quick: bool) -> tuple[tuple[int, int, int], ...]:
+    body = load_study_file(name)["body"]
+    meshes = body["quick"]["mesh"] if quick and "mesh" in body.get("quick", {}) else body["mesh"]
+    return tuple(tuple(m) for m in meshes)
+
+
+def cube(quick: bool) -> tuple[int, int, int]:
+    """The cube's mesh of the compression study (other studies that run its scenes take it here)."""
+    return _meshes("compression", quick)[0]
+
+
+def beams(quick: bool) -> tuple[tuple[int, int, int], ...]:
+    """The beam's meshes of the tension study."""
+    return _meshes("tension", quick)
+
+
+EXTRA_STUDIES: dict[str, str] = {
+    "b09": "studies.paper.baudet:run",  # [B09]'s cantilever and L-shape (models of the b09 role); moduli
+    "performance": "studies.paper.performance:run",  # [G20] Figs 11-12: explicit kernel time per step
+    "pareto": "studies.paper.pareto:run",  # speed against error vs a converged FEM reference; error budgets
+    "stability": "studies.paper.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input
+    "modes": "studies.paper.modes_study:run",  # natural frequencies of the cube and beam against the FEM's
+}
+"""Studies with their own driver, run after the task lists above: name -> "module:function",
+where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool, runner)``
+(``runner``: the :class:`studies.sweep.runner.Runner` its runs go to, or ``None``) and writes its own
+tables into ``store`` (e.g. performance, speed against error, stability)."""
+
+ON_REQUEST_STUDIES: dict[str, str] = {
+    "engines": "studies.paper.engines:run",  # the engines on the 10³ cube against the FEM: the closing table
+}
+"""Studies with their own driver that ``--all`` (``make reproduce-paper``) leaves out for their
+cost, run when named (``--study engines``); the signature of :data:`EXTRA_STUDIES`' drivers."""
+
+
+def tasks_for(names=None, quick: bool = False) -> list[Task]:
+    names = list(STUDIES) if not names else list(names)
+    unknown = [n for n in names if n not in STUDIES]
+    if unknown:
+        raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(STUDIES)}")
+    return [t for n in names for t in STUDIES[n](quick)]
+
+
+def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, progress: bool = True,
+                runner=None):
+    """Run (or resume) the named studies into the results folder ``out`` and write the tables.
+    ``runner`` (a :class:`studies.sweep.runner.Runner`) chooses where runs are computed."""
+    from studies.paper.claims import write_claims
+    from studies.paper.tables import write_tables
+
+    import importlib
+
+    store = Store(Path(out))
+    names = list(STUDIES) + list(EXTRA_STUDIES) if not names else list(names)
+    drivers = {**EXTRA_STUDIES, **ON_REQUEST_STUDIES}
+    unknown = [n for n in names if n not in STUDIES and n not in drivers]
+    if unknown:
+        raise ValueError(f"unknown study {unknown[0]!r}; studies: {', '.join(list(STUDIES) + list(drivers))}")
+    # one pool for every task list, the extra studies' pooled runs included (their ``tasks``), so
+    # that no core idles at the end of a study's slowest run; each extra study then finds its
+    # runs stored
+    listed = [n for n in names if n in STUDIES]
+    pooled = tasks_for(listed, quick) if listed else []
+    n_listed = len(pooled)
+    extra = [n for n in names if n in drivers]
+    for name in extra:
+        module = importlib.import_module(drivers[name].split(":")[0])
+        if hasattr(module, "tasks"):
+            pooled += module.tasks(quick)
+    rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
+                     runner=runner)[:n_listed] if pooled else []
+    write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None)
+    for name in names:
+        if name in drivers:
+            module, func = drivers[name].split(":")
+            getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress,
+                                                           runner=runner)
+    write_claims(store)  # the verdicts, from every table the studies just wrote
+    return rows

@@ -1,0 +1,232 @@
+"""Where the runs of a sweep are computed: in this process, on a local process pool, or on a
+``dask.distributed`` cluster (:mod:`studies.sweep.dask_cluster`, imported only when one is asked for:
+Dask is an optional dependency and takes a second to import).
+
+An executor only computes: it is handed ``(key, task)`` pairs and gives back each run's row and
+arrays (``compute(task)``); the process that runs the sweep stores them (:mod:`studies.sweep.runner`).
+Workers therefore need no shared filesystem, and a retried or duplicated task cannot corrupt a
+stored result.
+
+Worker death.  On the local pool a dead worker breaks the pool: the sweep stops with
+:class:`SweepError` (finished runs are stored; rerun to resume).  On Dask the scheduler resubmits
+the runs of a worker that dies (killed, out of memory) to another worker, up to its
+``distributed.scheduler.allowed-failures`` setting (Dask's default: 3, so a run is tried on at most
+4 workers; a cluster started here uses :data:`DASK_ALLOWED_FAILURES`); past it the run comes back as
+:class:`WorkerDied` and is stored as a failed row.  Nothing here schedules, queues or retries.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import threading
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Callable
+
+from studies.sweep.store import DamagedRun
+
+EXECUTORS = ("local", "dask")
+
+#: worker deaths a run survives on a cluster started by the runner (the scheduler's
+#: ``allowed-failures``): a run is tried on at most DASK_ALLOWED_FAILURES + 1 workers
+DASK_ALLOWED_FAILURES = 3
+
+
+class SweepError(RuntimeError):
+    """The sweep cannot go on (a worker pool broke, workers cannot run the tasks): one line with
+    the cause and the remedy.  Finished runs are stored."""
+
+
+class WorkerDied:
+    """Outcome of a run whose worker died more often than the scheduler allows."""
+
+    def __init__(self, message: str):
+        self.message = message
+
+
+def ignore_interrupt(*_args) -> None:
+    """Ignore SIGINT in a worker process: Ctrl-C (sent to the whole process group) is handled by
+    the process that runs the sweep, which shuts the workers down."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def kill_processes(procs) -> None:
+    for p in procs:
+        if p.is_alive():
+            p.kill()
+    for p in procs:
+        p.join(timeout=2)
+
+
+# ----------------------------------------------------------------------------------- local
+class InProcess:
+    """One run at a time in this process (``jobs = 1``)."""
+
+    dashboard = None
+
+    def __init__(self, fn: Callable):
+        self.fn = fn
+        self.queue: list = []
+
+    def capacity(self) -> int:
+        return 1
+
+    def submit(self, key: str, task) -> None:
+        self.queue.append((key, task))
+
+    def wait_one(self):
+        key, task = self.queue.pop(0)
+        return key, self.fn(task, key)
+
+    def abandon(self) -> None:
+        self.queue.clear()
+
+    def close(self) -> None:
+        self.queue.clear()
+
+
+WORKER_START = "studies.sweep.pool_worker"
+"""The module a local pool's worker processes import first (one BLAS thread per worker)."""
+
+
+def worker_context():
+    """The multiprocessing context of the local pool: workers forked from a server process that
+    has imported :data:`WORKER_START` (:mod:`studies.sweep.pool_worker`: the BLAS and OpenMP thread
+    variables set to 1 before numpy is imported, then the runner and the solvers).  Forking
+    this process instead would hand every worker the BLAS thread pool numpy started here, one
+    thread per core, whatever the variables say afterwards."""
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([WORKER_START])  # read when the server starts (once per process)
+    return ctx
+
+
+class LocalPool:
+    """A pool of ``jobs`` worker processes on this machine (:func:`worker_context`)."""
+
+    dashboard = None
+
+    def __init__(self, fn: Callable, jobs: int):
+        self.fn, self.jobs = fn, jobs
+        self._before = set(multiprocessing.active_children())
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=worker_context(),
+                                        initializer=ignore_interrupt)
+        self.procs: list = []
+        self.futures: dict = {}
+
+    def capacity(self) -> int:
+        return self.jobs
+
+    def submit(self, key: str, task) -> None:
+        self.futures[self.pool.submit(self.fn, task, key)] = key
+        # workers are started as runs are submitted, up to ``jobs``
+        self.procs += [p for p in multiprocessing.active_children() if p not in self._before and p not in self.procs]
+
+    def wait_one(self):
+        done, _ = wait(list(self.futures), return_when=FIRST_COMPLETED)
+        fut = next(iter(done))
+        key = self.futures.pop(fut)
+        try:
+            return key, fut.result()
+        except BrokenProcessPool:
+            raise SweepError("a worker process died (killed or out of memory); finished runs are "
+                             "stored: rerun to resume (--executor dask resubmits the runs of a dead "
+                             "worker)") from None
+
+    def abandon(self) -> None:
+        """Drop queued runs and kill the workers (their running runs are abandoned)."""
+        self.futures.clear()
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        kill_processes(self.procs)
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True)
+
+
+def map_local(fn: Callable, items: list, workers: int | None = None) -> list:
+    """``[fn(i) for i in items]`` on up to ``workers`` processes of this machine (all cores by
+    default; :func:`worker_context`), in order: for the work of a study that is not a stored run
+    (compiling kernels; :func:`map_stored` keeps the results).  ``fn`` must be importable (a
+    module-level function).  Ctrl-C (or an exception in ``fn``) kills the workers at once."""
+    items = list(items)
+    out: list = [None] * len(items)
+
+    def keep(i, result):
+        out[i] = result
+
+    _map(fn, items, list(range(len(items))), workers, keep)
+    return out
+
+
+def map_stored(store, name: str, fn: Callable, items: list, workers: int | None = None) -> list:
+    """:func:`map_local` for the results a study computes outside runs (a bisection, a table of
+    its own): the result of each item is kept in ``store`` (a :class:`studies.sweep.store.Store`) as
+    computation ``name`` as soon as it is done (:meth:`~studies.sweep.store.Store.save_computed`, keyed by
+    the item and the code version), and an item whose result is stored is not computed again, so
+    an interrupted study resumes and a finished one costs nothing when run again.  A damaged
+    stored result is moved aside and computed again.  Results come back as stored (the same
+    values, NumPy scalars made plain, tuples lists).  ``store`` None: :func:`map_local`."""
+    if store is None:
+        return map_local(fn, items, workers)
+    items = list(items)
+    store.remove_orphans()
+    keys = [store.computed_key(name, item) for item in items]
+    out: list = [None] * len(items)
+    todo = []
+    for i, key in enumerate(keys):
+        try:
+            found, result = store.load_computed(name, key)
+        except DamagedRun as exc:
+            store.quarantine(exc)
+            print(f"{name}: damaged stored result moved aside, computing it again ({exc.reason})", flush=True)
+            found = False
+        if found:
+            out[i] = result
+        else:
+            todo.append(i)
+
+    def keep(i, result):
+        out[i] = store.save_computed(name, keys[i], result)
+
+    _map(fn, items, todo, workers, keep)
+    return out
+
+
+def _map(fn: Callable, items: list, todo: list, workers: int | None, done: Callable) -> None:
+    """``done(i, fn(items[i]))`` for each ``i`` of ``todo``, on up to ``workers`` processes (in this
+    one for a single worker), each as soon as it finishes.  On an exception or Ctrl-C the queued
+    items are dropped and the workers killed before it is raised."""
+    n = min(workers or os.cpu_count() or 1, len(todo))
+    if n <= 1:
+        for i in todo:
+            done(i, fn(items[i]))
+        return
+    before = set(multiprocessing.active_children())
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt)
+    try:
+        futures = {pool.submit(fn, items[i]): i for i in todo}
+        pending = set(futures)
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in sorted(finished, key=futures.get):
+                try:
+                    result = fut.result()
+                except BrokenProcessPool:
+                    raise SweepError("a worker process died (killed or out of memory): rerun (stored "
+                                     "results are kept)") from None
+                done(futures[fut], result)
+    except BaseException:
+        procs = [p for p in multiprocessing.active_children() if p not in before]
+        pool.shutdown(wait=False, cancel_futures=True)
+        kill_processes(procs)
+        raise
+    pool.shutdown(wait=True)
+
+
+def local_executor(fn: Callable, jobs: int | None, todo: int):
+    """The executor of a sweep of ``todo`` runs on this machine: in this process for one job,
+    else a pool of ``jobs`` workers (all cores by default)."""
+    n = min(jobs or os.cpu_count() or 1, max(todo, 1))
+    return InProcess(fn) if n == 1 else LocalPool(fn, n)

@@ -1,0 +1,616 @@
+"""The study runner: tasks (scene × solver) executed once, stored, resumable.
+
+A :class:`Task` pairs a :class:`~studies.sweep.scenes.SceneSpec` with a :class:`SolverSpec`.
+:func:`run_tasks` skips tasks whose key is already stored intact, computes the rest with an
+executor (:class:`Runner`: the machine's cores or a Dask cluster, :mod:`studies.sweep.executors`) and a
+progress bar, and stores each result atomically, in this process, as soon as it comes back.  A
+failure (divergence, loss of equilibrium, an exception in a solver, a worker that died too often)
+is stored as a row with ``status`` and ``message``: it is reported, never raised past the runner.
+A damaged stored run is reported, moved aside and computed again; a run is claimed in the store
+before it is computed, so two sweeps on one folder share the work.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+import time
+import traceback
+import warnings
+from collections import deque
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from hybmss.scene import nearly_incompressible
+
+from studies.sweep.scenes import BEAM_LENGTH, SceneSpec
+from studies.sweep.executors import EXECUTORS, SweepError, WorkerDied, local_executor
+from studies.sweep.rest_bound import skip_reason, skipped_row
+from studies.sweep.outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
+from studies.sweep.store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
+
+SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """How to solve a scene.  MSS: ``static`` (Newton), ``explicit`` (symplectic Euler,
+    ``dt``, ``steps``, ``ramp_time``, ``kernel``), ``implicit`` (backward Euler to rest).
+    FEM: ``fem`` with ``element`` (hex1, hex2, mixed, auto), ``law`` (linear, neo-hookean, svk)
+    and ``refine`` (cells split into refine³).  ``repeat`` > 0 numbers a repeat of the same run
+    (its own stored run, for a timing's spread: :mod:`studies.sweep.cost`); 0, the run itself, leaves
+    the key as it was."""
+
+    kind: str = "static"
+    element: str = "hex2"
+    law: str = "linear"
+    refine: int = 1
+    dt: float = 1e-3
+    steps: int = 10_000
+    ramp_time: float = 1.0
+    kernel: str = "numba"
+    repeat: int = 0
+
+    def __post_init__(self):
+        if self.kind not in SOLVER_KINDS:
+            raise ValueError(f"solver must be one of {', '.join(SOLVER_KINDS)}; got {self.kind!r}")
+        if not self.dt > 0:
+            raise ValueError(f"dt (time step) must be > 0 s, got {self.dt}")
+        if self.steps < 1:
+            raise ValueError(f"steps must be >= 1, got {self.steps}")
+        if self.refine < 1:
+            raise ValueError(f"refine must be an integer >= 1, got {self.refine}")
+        if self.repeat < 0:
+            raise ValueError(f"repeat must be an integer >= 0, got {self.repeat}")
+
+    def relevant(self) -> dict:
+        if self.kind == "fem":
+            out = {"kind": "fem", "element": self.element, "law": self.law, "refine": self.refine}
+        elif self.kind == "static":
+            out = {"kind": "static"}
+        elif self.kind == "implicit":
+            out = {"kind": "implicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time}
+        else:
+            out = {"kind": "explicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time,
+                   "kernel": self.kernel}
+        return {**out, "repeat": self.repeat} if self.repeat else out
+
+    @property
+    def label(self) -> str:
+        if self.kind == "fem":
+            r = f" r{self.refine}" if self.refine != 1 else ""
+            return f"fem-{self.element}-{self.law}{r}"
+        if self.kind == "static":
+            return "mss-static"
+        return f"mss-{self.kind}"
+
+
+@dataclass(frozen=True)
+class Task:
+    """A scene with its solver, for a study.  ``answer_only``: the run is of use only if it reaches a
+    result (not its state or its time): the runner does not compute it when it cannot
+    (:func:`studies.sweep.rest_bound.skip_reason`) and stores it as a run not at rest, with the reason."""
+
+    scene: SceneSpec
+    solver: SolverSpec
+    study: str = ""
+    answer_only: bool = False
+
+    def key(self) -> str:
+        fields = {"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
+                  "code": code_version(code_side(self.solver.kind))}
+        extra = getattr(self.scene, "key_extra", None)
+        if extra is not None:  # what else a scene holder changes in the answer (a study's reference)
+            fields["extra"] = extra
+        payload = json.dumps(fields, sort_keys=True)
+        return hashlib.sha256(payload.encode()).hexdigest()[:24]
+
+
+# --------------------------------------------------------------------------------- execution
+def solve(task: Task):
+    """Run one task; returns the :class:`hybmss.result.Result`.  A scene holder with a ``solve``
+    of its own (a study's :class:`studies.study.tasks.StudyScene`: repeats, an adaptive
+    reference) runs it; otherwise :func:`solve_scene`."""
+    own = getattr(task.scene, "solve", None)
+    if own is not None:
+        return own(task.solver)
+    return solve_scene(task.scene.build(), task.solver)
+
+
+def solve_scene(scene, s: SolverSpec):
+    """Solve the :class:`hybmss.scene.Scene` ``scene`` with solver ``s``."""
+    if s.kind == "static":
+        from hybmss.solve import solve_static
+
+        return solve_static(scene)
+    if s.kind == "implicit":
+        from hybmss.solve import ImplicitOptions, simulate_implicit
+
+        return simulate_implicit(scene, ImplicitOptions(dt=s.dt, steps=s.steps, ramp_time=s.ramp_time))
+    if s.kind == "explicit":
+        from hybmss.explicit import simulate_explicit
+
+        spec = scene.model.spec  # an engine computes in its own precision (Newton: float32)
+        precision = spec.precisions[0] if s.kernel == "engine" else "f64"
+        return simulate_explicit(scene, dt=s.dt, steps=s.steps, kernel=s.kernel, ramp_time=s.ramp_time,
+                                 precision=precision)
+    from fem_reference.solve import solve as fem_solve
+
+    return fem_solve(scene, element=s.element, law=s.law, refine=s.refine)
+
+
+def measure(spec: SceneSpec, result) -> dict:
+    """Scalar outputs of one result (SPEC §8): volume change, plate reaction, tip deflection.
+    The solver's iteration count is ``solver_iterations``: ``iterations`` is a model parameter's
+    name (xpbd-nh's), and a row keeps the scene's fields under their own names."""
+    row = {
+        "volume_change": float(result.volume_change),
+        "max_displacement": float(result.max_displacement),
+        "converged": bool(result.converged),
+        "solver_iterations": int(result.iterations),
+        "wall_time_s": float(result.wall_time_s),
+    }
+    plate = "bottom" if spec.experiment == "bending" else "top"
+    if plate in result.reactions:
+        r = result.reactions[plate]
+        row.update({f"force_{c}": float(v) for c, v in zip("xyz", r.force)})
+        row.update({f"torque_{c}": float(v) for c, v in zip("xyz", r.torque)})
+    if spec.experiment == "bending":
+        row["tip_deflection"] = tip_deflection(result.X, result.u)
+        row["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
+    for k in ("inverted_cells", "kappa", "dt_crit", "load_steps", "volume_avg_edges", "volume_lnJ",
+              "newton_iterations", "steps", "stable", "saddle_escapes", "min_eigenvalue"):
+        if k in result.info:
+            v = result.info[k]
+            row[k] = v if isinstance(v, bool) else (
+                float(v) if isinstance(v, (int, float, np.floating, np.integer)) else v)
+    return row
+
+
+def centre_line(X: np.ndarray) -> np.ndarray:
+    """Indices of the particles on the beam's centre line (x = w/2, y = h/2), sorted by z; for an
+    odd number of cells across, the two nearest lines are averaged by the caller."""
+    cx, cy = (X[:, 0].min() + X[:, 0].max()) / 2, (X[:, 1].min() + X[:, 1].max()) / 2
+    d = np.hypot(X[:, 0] - cx, X[:, 1] - cy)
+    sel = np.flatnonzero(d <= d.min() + 1e-9)
+    return sel[np.argsort(X[sel, 2], kind="stable")]
+
+
+def neutral_axis(X: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(z, mean vertical displacement u_y) along the beam's centre line."""
+    sel = centre_line(X)
+    z = np.round(X[sel, 2], 12)
+    zs = np.unique(z)
+    uy = np.array([u[sel][z == v, 1].mean() for v in zs])
+    return zs, uy
+
+
+def tip_deflection(X: np.ndarray, u: np.ndarray) -> float:
+    """Signed vertical displacement of the free end's centre (m)."""
+    z, uy = neutral_axis(X, u)
+    return float(uy[np.argmax(z)])
+
+
+def base_row(task: Task, key: str | None = None) -> dict:
+    """The fields of a run's row that describe it: the scene's under the specification's own
+    names (:meth:`SceneSpec.to_dict`: the experiment's fields, the model's parameters, the variant
+    name), listed in ``scene_fields``; the solver's (``solver_*``); the environment's (``env_*``)."""
+    scene = task.scene.to_dict()
+    return {
+        "key": key or task.key(),
+        "study": task.study,
+        "solver": task.solver.label,
+        **scene,
+        "scene_fields": " ".join(scene),
+        **{f"solver_{k}": v for k, v in task.solver.relevant().items()},
+        "label": task.scene.label,
+        CODE_FIELD: code_version(code_side(task.solver.kind)),
+        **{f"env_{k}": v for k, v in environment().items()},
+    }
+
+
+def failure_row(exc: Exception) -> dict:
+    """The fields of a failed run's row: its ``status`` by the exception's type ("diverged": an
+    explicit run left the physical range, :class:`hybmss.explicit.DivergenceError`; "unstable": a
+    Newton solve lost the equilibrium, :class:`hybmss.solve.StaticSolveError`; an exception's own
+    ``row_status``, e.g. "not-representable": a scene an engine cannot represent; else "error"), its
+    ``message`` (the type's name and the message on one line) and, for a solver error, its numbers
+    (``failure_<name>`` for each field of :meth:`hybmss.solve.StaticSolveError.fields`, None where
+    it does not apply: top-level scalars, so the store keeps a non-finite one)."""
+    from hybmss.explicit import DivergenceError
+    from hybmss.solve import StaticSolveError
+
+    row = {"status": getattr(exc, "row_status", None) or ("diverged" if isinstance(exc, DivergenceError) else (
+               "unstable" if isinstance(exc, StaticSolveError) else "error")),
+           "message": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+    if isinstance(exc, StaticSolveError):
+        row.update({f"failure_{k}": v for k, v in exc.fields().items()})
+    return row
+
+
+def no_result_because(row: dict | None) -> str:
+    """Why a stored row is no result, on one line; ``""`` for a result (``status`` ok: a static
+    solve that converged, an explicit run at rest by :func:`hybmss.explicit.rest_report`).  A run
+    not at rest ("not-converged") without a message of its own reads "not at rest after n steps"
+    (a static solve: "not converged"); a failed run, its status and message."""
+    if row is None:
+        return "missing: not computed"
+    status = str(row.get("status") or "missing")
+    if status == "ok":
+        return ""
+    msg = row.get("message")
+    msg = "" if msg is None or (isinstance(msg, float) and np.isnan(msg)) else " ".join(str(msg).split())
+    if status == "not-converged" and not msg:
+        steps = row.get("steps", row.get("solver_steps"))
+        explicit = str(row.get("solver", "")).endswith("explicit")
+        if explicit:
+            msg = (f"not at rest after {int(steps)} steps" if steps is not None and np.isfinite(float(steps))
+                   else "not at rest")
+        else:
+            msg = "not converged"
+    return f"{status}: {msg}" if msg else status
+
+
+OUT_OF_MEMORY = "out-of-memory"
+"""Status of a run that ran out of this machine's memory: counted as a failure, never stored (a
+stored row is the code's answer to its scene; memory is the machine's, and the next run retries)."""
+
+
+def compute(task: Task, key: str | None = None) -> tuple[dict, dict | None]:
+    """Execute ``task``; return its row and arrays (a worker's part: nothing is written here,
+    the process that runs the sweep stores them)."""
+    row = base_row(task, key)
+    t0 = time.perf_counter()
+    arrays = None
+    with warnings.catch_warnings(record=True) as caught:  # kept in the row, never printed by a worker
+        warnings.simplefilter("always")
+        row, arrays = _compute(task, row)
+    if caught:
+        row["warnings"] = warning_lines(caught)
+    row["elapsed_s"] = time.perf_counter() - t0
+    return row, arrays
+
+
+def _compute(task: Task, row: dict) -> tuple[dict, dict | None]:
+    arrays = None
+    try:
+        res = solve(task)
+        row.update(measure(task.scene, res))
+        row["status"] = "ok" if res.converged else "not-converged"
+        row["message"] = str(res.info.get("warning", "") or "")
+        bad = non_finite(res)
+        if bad:
+            row.update(status="non-finite", message=f"non-finite result: {bad}; the scene's numbers (E, loads, "
+                       "sizes) are out of the range double precision resolves: rescale the units or the load")
+        from hybmss.lattice import Lattice
+
+        arrays = {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
+        if res.cell_volumes is not None:
+            arrays["cell_volumes"] = res.cell_volumes
+        row["info"] = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
+    except MemoryError:  # the machine's limit, not the scene's answer: reported, never stored
+        row.update(status=OUT_OF_MEMORY, message="MemoryError: this machine's memory ran out during the run; "
+                   "it is not stored, so a rerun computes it again (with fewer --jobs, or a coarser mesh)")
+        arrays = None
+    except Exception as exc:  # noqa: BLE001 - every failure becomes a stored, reported row
+        row.update(failure_row(exc))
+        row["traceback"] = traceback.format_exc(limit=4)
+    return row, arrays
+
+
+def _expected_cost(task: Task) -> float:
+    """A rough relative cost, only to order the runs (longest first): finite-strain FEM on large
+    meshes, the other runs by their model's estimate (:func:`studies.sweep.roles.run_cost`)."""
+    cells = float(np.prod(task.scene.mesh))
+    s = task.solver
+    if s.kind == "fem":
+        per = {"linear": 3.0, "neo-hookean": 20.0, "svk": 20.0}.get(s.law, 10.0) * s.refine**3
+        if nearly_incompressible(task.scene.nu):
+            per *= 3.0  # mixed u-p
+        return cells * per
+    from studies.sweep import roles
+
+    try:
+        per = roles.run_cost(task.scene, s.kind)
+    except (KeyError, ValueError, AttributeError):
+        per = 1.0
+    if s.kind == "explicit":
+        per *= (getattr(s, "steps", None) or 10_000) / 10_000
+    return cells * per  # the FEM's units (8×8×48 beam: about 3,800 per second)
+
+
+@dataclass
+class Summary:
+    """What a sweep did: runs asked for, computed here, found stored, computed meanwhile by
+    another process, damaged runs moved aside; and over every run asked for (computed or stored),
+    ``failed``: the runs without result that were not expected, and ``expected``: the runs without
+    result that were (a run not at rest within its step budget), counted by ``"study: reason"`` in
+    ``expected_by``."""
+
+    runs: int = 0
+    computed: int = 0
+    stored: int = 0
+    by_other: int = 0
+    failed: int = 0
+    expected: int = 0
+    skipped: int = 0
+    orphans: int = 0
+    failed_stored: int = 0
+    damaged: list[str] = field(default_factory=list)
+    expected_by: dict[str, int] = field(default_factory=dict)
+
+    def add(self, other: "Summary") -> None:
+        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "skipped", "orphans",
+                  "failed_stored"):
+            setattr(self, k, getattr(self, k) + getattr(other, k))
+        self.damaged += other.damaged
+        for k, n in other.expected_by.items():
+            self.expected_by[k] = self.expected_by.get(k, 0) + n
+
+    def count(self, task, row: dict | None, expected, computed: bool = True) -> None:
+        """Count one run asked for by its stored ``row``: a result, an expected non-answer
+        (``expected(task, row)``) or a failure (``computed``: by this sweep, else found stored)."""
+        if no_result_because(row) == "":
+            return
+        if expected(task, row):
+            self.expected += 1
+            why = "not at rest within its step budget" if not_at_rest(row) else no_result_because(row).split(":")[0]
+            where = f"{task.study}, {why}" if task.study else why
+            self.expected_by[where] = self.expected_by.get(where, 0) + 1
+        else:
+            self.failed += 1
+            self.failed_stored += not computed
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def line(self) -> str:
+        out = (f"{self.runs} runs: {self.computed} computed, {self.stored} already stored"
+               f"{f', {self.by_other} computed by another process' if self.by_other else ''}, "
+               f"{self.failed} failed")
+        if self.failed_stored:
+            out += (f" ({self.failed_stored} of them stored by an earlier run and not computed again: a stored "
+                    "failure is this code's answer to its scene; a changed scene or code computes it anew)")
+        if self.expected:
+            parts = "; ".join(f"{k}: {n}" for k, n in sorted(self.expected_by.items()))
+            out += f", {self.expected} without result as expected ({parts})"
+        if self.skipped:
+            out += f", {self.skipped} of them not run (their step budget is below the steps to rest)"
+        if self.damaged:
+            out += f", {len(self.damaged)} damaged (moved to damaged/ and computed again)"
+        return out
+
+
+class Interrupted(KeyboardInterrupt):
+    """A sweep stopped by SIGINT: finished runs are stored, running ones were abandoned."""
+
+    def __init__(self, summary: Summary):
+        super().__init__(f"{summary.computed} runs computed and stored before the "
+                         "interrupt, running ones abandoned; rerun to resume")
+        self.summary = summary
+
+
+def exit_now(signum, frame):  # a second Ctrl-C while the first is being handled
+    os.write(2, b"interrupted again: exiting now\n")
+    for p in multiprocessing.active_children():
+        p.kill()
+    os._exit(130)
+
+
+class Runner:
+    """How the runs of a sweep are computed: ``executor`` ``"local"`` (a process pool of ``jobs``
+    workers, all cores by default; ``jobs = 1`` runs in this process) or ``"dask"`` (the
+    ``dask.distributed`` scheduler at ``scheduler``, or a ``LocalCluster`` of ``jobs``
+    single-threaded workers).  Whatever computes, this process stores every result.
+
+    Arguments are checked here, before any work (``ValueError`` naming the parameter, its value
+    and what is allowed).  Use it as a context manager to keep one Dask cluster for several
+    sweeps; :attr:`summary` adds up what every sweep did."""
+
+    def __init__(self, executor: str = "local", jobs: int | None = None, scheduler: str | None = None,
+                 progress: bool = True):
+        if executor not in EXECUTORS:
+            raise ValueError(f"executor {executor!r} is not allowed; one of {', '.join(EXECUTORS)}")
+        if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer))
+                                 or jobs < 1):
+            raise ValueError(f"jobs {jobs!r} is not allowed: an integer >= 1 (parallel runs), or "
+                             "none for all cores")
+        if scheduler is not None and executor != "dask":
+            raise ValueError(f"scheduler {scheduler!r} is given with executor {executor!r}; a "
+                             "scheduler address needs executor dask")
+        if scheduler is not None and not str(scheduler).strip():
+            raise ValueError("scheduler '' is not allowed: the address of a running dask scheduler, "
+                             "e.g. tcp://host:8786")
+        if executor == "dask":
+            try:
+                import distributed  # noqa: F401 - optional dependency, checked before any work
+            except ImportError:
+                raise ValueError("executor 'dask' needs dask.distributed, which is not installed: "
+                                 "pip install 'hybmss[dask]'") from None
+        self.executor, self.jobs, self.scheduler, self.progress = executor, jobs, scheduler, progress
+        self.summary = Summary()
+        self._seen: set[str] = set()  # keys of earlier sweeps of this runner: counted once in the summary
+        self._dask = None
+
+    # -------------------------------------------------------------- dask session
+    def __enter__(self):
+        if self.executor == "dask" and self._dask is None:
+            from studies.sweep.dask_cluster import DaskCluster  # optional dependency, imported when asked for
+
+            self._dask = DaskCluster(compute, self.jobs, self.scheduler)
+            if self._dask.dashboard:
+                self._write(f"dask dashboard: {self._dask.dashboard}")
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self) -> None:
+        if self._dask is not None:
+            self._dask.close()
+            self._dask = None
+
+    def _write(self, msg: str) -> None:
+        from tqdm import tqdm
+
+        tqdm.write(msg, file=sys.stderr)
+
+    # -------------------------------------------------------------- one sweep
+    def run(self, tasks: list[Task], store: Store, desc: str = "runs", expected=expected_not_at_rest) -> list[dict]:
+        """Compute the tasks not yet stored (or stored damaged); return every task's row, in
+        task order; every run asked for the first time is counted in :attr:`summary` as a
+        result, an expected non-answer (``expected(task, row)``) or a failure.  SIGINT stops at
+        once: runs finished are kept, running ones abandoned, the workers shut down
+        (:class:`Interrupted`); a second SIGINT exits immediately."""
+        from tqdm import tqdm
+
+        store.check_writable()
+        keys = [t.key() for t in tasks]
+        unique: dict[str, Task] = {}
+        state: set[str] = set()  # runs some task needs whether or not they answer: never skipped
+        for t, k in zip(tasks, keys):  # two studies may share a run
+            unique.setdefault(k, t)
+            if not t.answer_only:
+                state.add(k)
+        new = set(unique) - self._seen
+        s = Summary(runs=len(new), orphans=len(store.remove_orphans()))
+        todo = []
+        for k, t in unique.items():
+            if store.has(k):
+                s.stored += k not in self._seen
+            elif k not in state and (why := skip_reason(t)):  # cannot answer: stored as not at rest, never computed
+                store.save(k, skipped_row(t, base_row(t, k), why))
+                s.skipped += 1
+            else:
+                todo.append((k, t))
+        self._seen.update(unique)
+        todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)  # longest first: a short tail
+        bar = tqdm(total=len(unique), initial=s.stored, desc=desc, disable=not self.progress, unit="run",
+                   dynamic_ncols=True, file=sys.stderr)
+        own = self._dask is None and self.executor == "dask" and bool(todo)
+        if own:
+            self.__enter__()
+        ex = None
+        claims: dict = {}
+        unstored: dict = {}
+        try:
+            if todo:
+                ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo))
+                self._sweep(ex, todo, store, s, bar, claims, unstored)
+        except KeyboardInterrupt:
+            main = threading.current_thread() is threading.main_thread()
+            previous = signal.signal(signal.SIGINT, exit_now) if main else None
+            try:
+                if ex is not None:
+                    ex.abandon()
+                    if ex is self._dask:
+                        self._dask = None
+            finally:
+                for c in claims.values():
+                    c.release()
+                if ex is not None and self.executor != "dask":
+                    # a worker killed while writing leaves its temporary file: the workers are
+                    # dead and their claims released, so it is an orphan now, not at the next run
+                    store.remove_orphans()
+                bar.close()
+                self.summary.add(s)
+                if main:
+                    signal.signal(signal.SIGINT, previous)
+            raise Interrupted(self.summary) from None
+        except BaseException:
+            for c in claims.values():
+                c.release()
+            if ex is not None and ex is not self._dask:
+                ex.abandon()
+            if own:
+                self.close()
+            bar.close()
+            self.summary.add(s)
+            raise
+        if ex is not None and ex is not self._dask:
+            ex.close()
+        if own:
+            self.close()
+        bar.close()
+        rows = {k: unstored[k] if k in unstored else store.row(k) for k in unique}
+        computed = {k for k, _ in todo}
+        for k in new:
+            s.count(unique[k], rows[k], expected, computed=k in computed)
+        self.summary.add(s)
+        return [rows[k] for k in keys]
+
+    def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict,
+               unstored: dict) -> None:
+        pending = deque(todo)
+        by_key = dict(todo)
+        waiting: list[tuple[str, Task]] = []
+        own_version = code_version()
+        while pending or claims or waiting:
+            while pending and len(claims) < ex.capacity():
+                k, t = pending.popleft()
+                claim = store.claim(k)
+                if claim is None:  # another process is computing it
+                    waiting.append((k, t))
+                    continue
+                try:
+                    done = store.check(k) is not None
+                except DamagedRun as d:
+                    where = store.quarantine(d)
+                    s.damaged.append(str(d))
+                    self._write(f"damaged run {d.path.name}: {d.reason}; moved to {where} and "
+                                "computed again")
+                    done = False
+                if done:  # stored meanwhile by another process
+                    claim.release()
+                    s.by_other += 1
+                    bar.update(1)
+                    continue
+                claims[k] = claim
+                ex.submit(k, t)
+            if claims:
+                k, outcome = ex.wait_one()
+                if isinstance(outcome, WorkerDied):
+                    row, arrays = base_row(by_key[k], k), None
+                    row.update(status="error", message=outcome.message)
+                else:
+                    row, arrays = outcome
+                    if row.get("env_code_version") != own_version:
+                        raise SweepError(
+                            f"a worker computed run {k} with hybmss code version "
+                            f"{row.get('env_code_version')}, this process has {own_version}: install "
+                            "the same hybmss on every worker (README)")
+                if row.get("status") == OUT_OF_MEMORY:
+                    stored = unstored[k] = row
+                else:
+                    stored = store.save(k, row, arrays)
+                claims.pop(k).release()
+                s.computed += 1
+                bar.set_postfix_str(str(stored.get("label", ""))[:40], refresh=False)
+                bar.update(1)
+            elif waiting:
+                holders = sorted({store.holder(k) for k, _ in waiting} - {""})
+                bar.set_postfix_str(f"waiting for {len(waiting)} runs claimed by "
+                                    f"{', '.join(holders) or 'another process'}"[:60], refresh=True)
+                time.sleep(0.5)
+                pending.extend(waiting)
+                waiting.clear()
+
+
+def run_tasks(tasks: list[Task], store: Store, jobs: int | None = None, progress: bool = True,
+              desc: str = "runs", runner: Runner | None = None, expected=expected_not_at_rest) -> list[dict]:
+    """Run the tasks not yet stored; return the rows of all tasks (in task order).  ``runner``
+    (a :class:`Runner`) chooses the executor; without one, the local process pool of ``jobs``
+    workers."""
+    if runner is None:
+        runner = Runner(jobs=jobs, progress=progress)
+    return runner.run(tasks, store, desc=desc, expected=expected)
+
+
+def task_dict(task: Task) -> dict:
+    return {"study": task.study, "scene": asdict(task.scene), "solver": asdict(task.solver)}
