@@ -15,14 +15,37 @@ from __future__ import annotations
 import time
 
 from hybmss import models
-from hybmss.scene import plates_cross, unsupported
+from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, plates_cross, unsupported
 
 from studies.sweep import sizing
-from studies.cli.commands import SOLVER_DEFAULTS, InputError, _settings, guard, scene_spec, show, stored_scene
+from studies.cli.common import SCENES, SOLVER_DEFAULTS, InputError, guard, mesh_flags, scene_spec, show, stored_scene
+from studies.cli.options import ELEMENTS, Options, add_model_options, add_no_guard, add_scene_options, positive_int
+
+HELP = "one model's lowest natural frequencies beside the FEM reference's: errors per mode and MAC"
 
 K_MAX = 100
 """Most modes one call computes."""
 MASSES = ("consistent", "lumped")
+
+
+def add_options(parser, opts: Options) -> None:
+    """The options of ``hybmss modes``."""
+    opts.add(parser, "scene", nargs="?", choices=SCENES, default=None, help="experiment (or --scene-json)")
+    opts.add(parser, "--scene-json", default=None, metavar="FILE",
+             help="the body and supports of a stored Scene (Scene.to_dict JSON) instead of an experiment")
+    add_scene_options(parser, opts)
+    add_model_options(parser, opts)
+    opts.add(parser, "-k", "--modes", dest="k", type=positive_int, default=6,
+             help=f"number of modes (integer in [1, {K_MAX}]; default 6)")
+    g = parser.add_argument_group("FEM reference")
+    opts.add(g, "--element", "--fem", choices=ELEMENTS, default="auto",
+             help=f"hex1, hex2, mixed (Hex2 x Hex1 u-p, pressure condensed) or auto (mixed for nu >= "
+                  f"{NEARLY_INCOMPRESSIBLE_NU:g}, else hex2; default)")
+    opts.add(g, "--refine", type=positive_int, default=None,
+             help=f"split each cell into r^3 elements (integer >= 1; default {SOLVER_DEFAULTS['refine']})")
+    opts.add(g, "--mass", choices=MASSES, default="consistent",
+             help="the FEM's mass matrix: consistent (default) or lumped (row sums)")
+    add_no_guard(parser, opts)
 
 
 def _scene(args):
@@ -67,7 +90,7 @@ def modes(args):
     element = _check(args, scene)
     refine = SOLVER_DEFAULTS["refine"] if args.refine is None else args.refine
     shape, nu = scene.body.shape, scene.material.nu
-    guard(sizing.fem(shape, element, refine, "linear", nu), _settings(spec, shape, refine),
+    guard(sizing.fem(shape, element, refine, "linear", nu), mesh_flags(spec, shape, refine),
           lambda sh: sizing.fem(sh, element, refine, "linear", nu), args)
     from fem_reference.modal import at_particles
     from fem_reference.modal import modes as fem_modes

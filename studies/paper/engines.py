@@ -164,17 +164,6 @@ def step_ratios(names, mesh=MESH, nu: float = TIMED_NU, steps: int | None = None
     return rows
 
 
-def stored_rows(store: Store, ts: list[Task]) -> list[dict]:
-    """The stored rows of the tasks ``ts`` that are in ``store`` (of this code version), none computed."""
-    keys = set(store.keys())
-    out = []
-    for t in ts:
-        k = t.key()
-        if k in keys:
-            out.append(store.row(k))
-    return out
-
-
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *, runner=None,
         timing: bool = True, names=None) -> dict:
     """Study driver (``EXTRA_STUDIES``): writes ``engines_closing`` and ``engines_timing``

@@ -305,7 +305,7 @@ def spec_of(row: dict) -> SceneSpec:
 def bending_curves(df: pd.DataFrame, store: Store) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The centre line of every bending run, ``(key, method, mesh, E, z, u_y)`` with z from the
     clamp ([G20] Fig. 5), and the Euler–Bernoulli deflection of each (mesh, E) on 101 points."""
-    from studies.sweep.runner import neutral_axis
+    from studies.sweep.solving import neutral_axis
 
     sub = _ok(df[df["experiment"] == "bending"])
     curves, theory = [], []

@@ -68,11 +68,6 @@ _NAME = re.compile(r"^[a-z0-9_-]+$")
 _SCENE_FIELDS = {f.name: f for f in SceneSpec.parameters()}
 
 
-def is_experiment(doc: dict) -> bool:
-    """Whether the parsed study file ``doc`` describes one of the publication's experiments."""
-    return isinstance(doc.get("body"), dict) and "experiment" in doc["body"]
-
-
 # ----------------------------------------------------------------------------------- checks
 def _fail(path, key, value, allowed):
     raise StudyError(key, value, allowed, path)

@@ -29,10 +29,11 @@ import numpy as np
 
 from hybmss.scene import nearly_incompressible
 
-from studies.sweep.scenes import BEAM_LENGTH, SceneSpec
+from studies.sweep.scenes import SceneSpec
 from studies.sweep.executors import EXECUTORS, SweepError, WorkerDied, local_executor
 from studies.sweep.rest_bound import skip_reason, skipped_row
 from studies.sweep.outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
+from studies.sweep.solving import measure, solve_scene
 from studies.sweep.store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
 SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
@@ -116,85 +117,11 @@ class Task:
 def solve(task: Task):
     """Run one task; returns the :class:`hybmss.result.Result`.  A scene holder with a ``solve``
     of its own (a study's :class:`studies.study.tasks.StudyScene`: repeats, an adaptive
-    reference) runs it; otherwise :func:`solve_scene`."""
+    reference) runs it; otherwise :func:`studies.sweep.solving.solve_scene`."""
     own = getattr(task.scene, "solve", None)
     if own is not None:
         return own(task.solver)
     return solve_scene(task.scene.build(), task.solver)
-
-
-def solve_scene(scene, s: SolverSpec):
-    """Solve the :class:`hybmss.scene.Scene` ``scene`` with solver ``s``."""
-    if s.kind == "static":
-        from hybmss.solve import solve_static
-
-        return solve_static(scene)
-    if s.kind == "implicit":
-        from hybmss.solve import ImplicitOptions, simulate_implicit
-
-        return simulate_implicit(scene, ImplicitOptions(dt=s.dt, steps=s.steps, ramp_time=s.ramp_time))
-    if s.kind == "explicit":
-        from hybmss.explicit import simulate_explicit
-
-        spec = scene.model.spec  # an engine computes in its own precision (Newton: float32)
-        precision = spec.precisions[0] if s.kernel == "engine" else "f64"
-        return simulate_explicit(scene, dt=s.dt, steps=s.steps, kernel=s.kernel, ramp_time=s.ramp_time,
-                                 precision=precision)
-    from fem_reference.solve import solve as fem_solve
-
-    return fem_solve(scene, element=s.element, law=s.law, refine=s.refine)
-
-
-def measure(spec: SceneSpec, result) -> dict:
-    """Scalar outputs of one result (SPEC §8): volume change, plate reaction, tip deflection.
-    The solver's iteration count is ``solver_iterations``: ``iterations`` is a model parameter's
-    name (xpbd-nh's), and a row keeps the scene's fields under their own names."""
-    row = {
-        "volume_change": float(result.volume_change),
-        "max_displacement": float(result.max_displacement),
-        "converged": bool(result.converged),
-        "solver_iterations": int(result.iterations),
-        "wall_time_s": float(result.wall_time_s),
-    }
-    plate = "bottom" if spec.experiment == "bending" else "top"
-    if plate in result.reactions:
-        r = result.reactions[plate]
-        row.update({f"force_{c}": float(v) for c, v in zip("xyz", r.force)})
-        row.update({f"torque_{c}": float(v) for c, v in zip("xyz", r.torque)})
-    if spec.experiment == "bending":
-        row["tip_deflection"] = tip_deflection(result.X, result.u)
-        row["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
-    for k in ("inverted_cells", "kappa", "dt_crit", "load_steps", "volume_avg_edges", "volume_lnJ",
-              "newton_iterations", "steps", "stable", "saddle_escapes", "min_eigenvalue"):
-        if k in result.info:
-            v = result.info[k]
-            row[k] = v if isinstance(v, bool) else (
-                float(v) if isinstance(v, (int, float, np.floating, np.integer)) else v)
-    return row
-
-
-def centre_line(X: np.ndarray) -> np.ndarray:
-    """Indices of the particles on the beam's centre line (x = w/2, y = h/2), sorted by z; for an
-    odd number of cells across, the two nearest lines are averaged by the caller."""
-    cx, cy = (X[:, 0].min() + X[:, 0].max()) / 2, (X[:, 1].min() + X[:, 1].max()) / 2
-    d = np.hypot(X[:, 0] - cx, X[:, 1] - cy)
-    sel = np.flatnonzero(d <= d.min() + 1e-9)
-    return sel[np.argsort(X[sel, 2], kind="stable")]
-
-
-def neutral_axis(X: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(z, mean vertical displacement u_y) along the beam's centre line."""
-    sel = centre_line(X)
-    z = np.round(X[sel, 2], 12)
-    zs = np.unique(z)
-    uy = np.array([u[sel][z == v, 1].mean() for v in zs])
-    return zs, uy
-
-
-def tip_deflection(X: np.ndarray, u: np.ndarray) -> float:
-    """Signed vertical displacement of the free end's centre (m)."""
-    z, uy = neutral_axis(X, u)
-    return float(uy[np.argmax(z)])
 
 
 def base_row(task: Task, key: str | None = None) -> dict:
@@ -472,25 +399,7 @@ class Runner:
 
         store.check_writable()
         keys = [t.key() for t in tasks]
-        unique: dict[str, Task] = {}
-        state: set[str] = set()  # runs some task needs whether or not they answer: never skipped
-        for t, k in zip(tasks, keys):  # two studies may share a run
-            unique.setdefault(k, t)
-            if not t.answer_only:
-                state.add(k)
-        new = set(unique) - self._seen
-        s = Summary(runs=len(new), orphans=len(store.remove_orphans()))
-        todo = []
-        for k, t in unique.items():
-            if store.has(k):
-                s.stored += k not in self._seen
-            elif k not in state and (why := skip_reason(t)):  # cannot answer: stored as not at rest, never computed
-                store.save(k, skipped_row(t, base_row(t, k), why))
-                s.skipped += 1
-            else:
-                todo.append((k, t))
-        self._seen.update(unique)
-        todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)  # longest first: a short tail
+        unique, new, s, todo = self._plan(tasks, keys, store)
         bar = tqdm(total=len(unique), initial=s.stored, desc=desc, disable=not self.progress, unit="run",
                    dynamic_ncols=True, file=sys.stderr)
         own = self._dask is None and self.executor == "dask" and bool(todo)
@@ -504,25 +413,7 @@ class Runner:
                 ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo))
                 self._sweep(ex, todo, store, s, bar, claims, unstored)
         except KeyboardInterrupt:
-            main = threading.current_thread() is threading.main_thread()
-            previous = signal.signal(signal.SIGINT, exit_now) if main else None
-            try:
-                if ex is not None:
-                    ex.abandon()
-                    if ex is self._dask:
-                        self._dask = None
-            finally:
-                for c in claims.values():
-                    c.release()
-                if ex is not None and self.executor != "dask":
-                    # a worker killed while writing leaves its temporary file: the workers are
-                    # dead and their claims released, so it is an orphan now, not at the next run
-                    store.remove_orphans()
-                bar.close()
-                self.summary.add(s)
-                if main:
-                    signal.signal(signal.SIGINT, previous)
-            raise Interrupted(self.summary) from None
+            self._interrupted(ex, claims, store, bar, s)
         except BaseException:
             for c in claims.values():
                 c.release()
@@ -544,6 +435,56 @@ class Runner:
             s.count(unique[k], rows[k], expected, computed=k in computed)
         self.summary.add(s)
         return [rows[k] for k in keys]
+
+    def _plan(self, tasks: list[Task], keys: list[str], store: Store):
+        """The sweep's distinct runs by key (two studies may share a run), the keys new to this
+        runner, the sweep's :class:`Summary` so far (runs found stored, runs skipped: they cannot
+        answer, :func:`studies.sweep.rest_bound.skip_reason`, and are stored as not at rest) and the
+        runs to compute, longest first (a short tail)."""
+        unique: dict[str, Task] = {}
+        state: set[str] = set()  # runs some task needs whether or not they answer: never skipped
+        for t, k in zip(tasks, keys):
+            unique.setdefault(k, t)
+            if not t.answer_only:
+                state.add(k)
+        new = set(unique) - self._seen
+        s = Summary(runs=len(new), orphans=len(store.remove_orphans()))
+        todo = []
+        for k, t in unique.items():
+            if store.has(k):
+                s.stored += k not in self._seen
+            elif k not in state and (why := skip_reason(t)):
+                store.save(k, skipped_row(t, base_row(t, k), why))
+                s.skipped += 1
+            else:
+                todo.append((k, t))
+        self._seen.update(unique)
+        todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)
+        return unique, new, s, todo
+
+    def _interrupted(self, ex, claims: dict, store: Store, bar, s: Summary) -> None:
+        """SIGINT during a sweep: the running runs abandoned, their claims released, the sweep's
+        counts added to :attr:`summary`; raises :class:`Interrupted` (a second SIGINT meanwhile
+        exits at once)."""
+        main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, exit_now) if main else None
+        try:
+            if ex is not None:
+                ex.abandon()
+                if ex is self._dask:
+                    self._dask = None
+        finally:
+            for c in claims.values():
+                c.release()
+            if ex is not None and self.executor != "dask":
+                # a worker killed while writing leaves its temporary file: the workers are
+                # dead and their claims released, so it is an orphan now, not at the next run
+                store.remove_orphans()
+            bar.close()
+            self.summary.add(s)
+            if main:
+                signal.signal(signal.SIGINT, previous)
+        raise Interrupted(self.summary) from None
 
     def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict,
                unstored: dict) -> None:
@@ -610,7 +551,3 @@ def run_tasks(tasks: list[Task], store: Store, jobs: int | None = None, progress
     if runner is None:
         runner = Runner(jobs=jobs, progress=progress)
     return runner.run(tasks, store, desc=desc, expected=expected)
-
-
-def task_dict(task: Task) -> dict:
-    return {"study": task.study, "scene": asdict(task.scene), "solver": asdict(task.solver)}

@@ -11,7 +11,7 @@ import pytest
 
 from studies.cli import parser as cli
 
-from studies.cli import commands
+from studies.cli import common, info, options
 
 from studies.sweep import sizing
 from studies.sweep.compare import default_law
@@ -25,24 +25,24 @@ def parse(*argv):
 
 VALUES = {"mesh": ("3x4x5", (3, 4, 5)), "model": ("hybmss-cf", "hybmss-cf"), "volume_energy": ("squared", "squared"),
           "e_form": (None, True), "sequential": (None, True), "integrator": ("RK4", "RK4")}
-MSS_ONLY = {"model"} | set(commands.model_parameters())
+MSS_ONLY = {"model"} | set(common.model_parameters())
 
 
-@pytest.mark.parametrize("field", [f.name for f in SceneSpec.parameters()] + list(commands.model_parameters()))
+@pytest.mark.parametrize("field", [f.name for f in SceneSpec.parameters()] + list(common.model_parameters()))
 def test_every_scene_and_model_parameter_is_one_option_of_fem_and_compare(field):
     text, value = VALUES.get(field, ("-0.125", -0.125))
-    flag = cli.flag(field)
+    flag = common.flag(field)
     extra = [] if text is None else [text]
     for argv in (["compare", "torsion", flag, *extra], ["fem", flag, *extra]):
         args = parse(*argv)
         assert getattr(args, field) == value  # a negative value is read as the option's value
-        others = {k: v for k, v in commands.given_scene_options(args).items()}
+        others = {k: v for k, v in common.given_scene_options(args).items()}
         assert others == {field: value}  # the others are not given: the experiment's defaults apply
 
 
 def test_defaults_come_from_the_scene_specification():
     args = parse("compare", "bending")
-    spec = commands.scene_spec(args, "bending", ("static", "fem"))
+    spec = common.scene_spec(args, "bending", ("static", "fem"))
     assert spec == SceneSpec.default("bending")
     assert (spec.E, spec.gravity, spec.mesh) == (DEFAULTS["bending"]["E"], 10.0, DEFAULTS["bending"]["mesh"])
 
@@ -67,7 +67,7 @@ def test_box_counts_match_the_lattice(shape):
     from hybmss.lattice import Lattice
     from hybmss.scene import Body
 
-    assert commands.box_counts(shape) == Lattice.from_body(Body.box(*shape, 0.5)).counts()
+    assert info.box_counts(shape) == Lattice.from_body(Body.box(*shape, 0.5)).counts()
 
 
 @pytest.mark.parametrize("element,nu", [("hex1", 0.25), ("hex2", 0.25), ("auto", 0.3), ("mixed", 0.3)])
@@ -91,7 +91,7 @@ def test_size_guard_refuses_what_does_not_fit_and_only_that():
 def test_fem_choices_are_the_fem_reference_s():
     from fem_reference.solve import ELEMENT_CHOICES, LAW_CHOICES
 
-    assert set(cli.ELEMENTS) == set(ELEMENT_CHOICES) and set(cli.LAWS) == set(LAW_CHOICES)
+    assert set(options.ELEMENTS) == set(ELEMENT_CHOICES) and set(options.LAWS) == set(LAW_CHOICES)
 
 
 def test_the_publications_scenes_pass_the_checks():
@@ -131,7 +131,7 @@ def test_help_ranges_are_the_solvers(capsys):
 def test_model_options_come_from_the_registry():
     from hybmss import models
 
-    assert cli.model_choices() == tuple(models.names())
+    assert common.model_choices() == tuple(models.names())
     for m in models.all_models():
         for name in m.parameter_names():
-            assert name in commands.model_parameters() and m.name in commands.model_parameters()[name][1]
+            assert name in common.model_parameters() and m.name in common.model_parameters()[name][1]

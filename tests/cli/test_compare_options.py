@@ -11,7 +11,7 @@ import pytest
 from hybmss.experiments import SceneSpec, uniaxial_scene
 from hybmss.scene import Body, Material, Model, Motion, Plate, Scene
 from studies.cli import parser as cli
-from studies.cli import commands
+from studies.cli import common, compare
 
 
 def parse(*argv):
@@ -33,12 +33,12 @@ def _refused(proc, fragment):
 
 
 # ------------------------------------------------------------------------------ --no-<flag>
-BOOLEANS = [name for name, (f, _) in commands.model_parameters().items() if isinstance(f.default, bool)]
+BOOLEANS = [name for name, (f, _) in common.model_parameters().items() if isinstance(f.default, bool)]
 
 
 @pytest.mark.parametrize("name", BOOLEANS)
 def test_every_boolean_model_parameter_has_a_no_flag(name):
-    flag = cli.flag(name)
+    flag = common.flag(name)
     no = "--no-" + flag[2:]
     for command in (["compare", "compression"], ["fem"], ["moduli"]):
         assert getattr(parse(*command, flag), name) is True
@@ -49,8 +49,8 @@ def test_every_boolean_model_parameter_has_a_no_flag(name):
 
 def test_no_flag_reaches_the_scene_and_is_refused_by_a_model_without_it(cli_in_process, tmp_path):
     assert BOOLEANS, "the models declare boolean parameters (e_form, sequential)"
-    on = commands.scene_spec(parse("compare", "compression", "--e-form"), "compression", ("static", "fem"))
-    off = commands.scene_spec(parse("compare", "compression", "--no-e-form"), "compression", ("static", "fem"))
+    on = common.scene_spec(parse("compare", "compression", "--e-form"), "compression", ("static", "fem"))
+    off = common.scene_spec(parse("compare", "compression", "--no-e-form"), "compression", ("static", "fem"))
     assert on.build().model.e_form is True and off.build().model.e_form is False
     p = cli_in_process("compare", "compression", "--model", "baudet2009", "--no-e-form", cwd=tmp_path)
     _refused(p, "--e-form = False is not allowed")
@@ -160,11 +160,11 @@ def test_relative_errors_of_known_numbers():
                                     "volume_change_avg_edges": dv, "volume_change_det_F": dvF}
     u_fem = np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 1.0]])
     u_mss = np.array([[0.0, 0.0, 2.2], [0.0, 0.0, 1.0]])
-    e = commands.relative_errors(side([0, 3, 4], -0.011), side([0, 0, 4], -0.010, -0.020), u_mss, u_fem)
+    e = compare.relative_errors(side([0, 3, 4], -0.011), side([0, 0, 4], -0.010, -0.020), u_mss, u_fem)
     assert e["force"]["top"] == pytest.approx(0.75)
     assert e["volume_change_avg_edges"] == pytest.approx(-0.1) and e["volume_change_vs_det_F"] == pytest.approx(0.45)
     assert e["displacement_max"] == pytest.approx(0.1) and e["displacement_l2"] == pytest.approx(0.2 / np.sqrt(5))
-    e = commands.relative_errors(side([0, 0, 1], 0.0), side([0, 0, 0], 0.0, 0.0), u_mss, u_fem)
+    e = compare.relative_errors(side([0, 0, 1], 0.0), side([0, 0, 0], 0.0, 0.0), u_mss, u_fem)
     assert e["force"]["top"] is None and e["volume_change_avg_edges"] is None
 
 

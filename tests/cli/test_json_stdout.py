@@ -13,16 +13,16 @@ ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = textwrap.dedent("""
     import os, sys
     from studies.cli import parser as cli
-    from studies.cli import commands
+    from studies.cli import info as info_command
 
-    info = commands.info
+    info = info_command.info
 
     def noisy(args):
         print("a progress line")                         # this process
         os.write(1, b"a worker's line on descriptor 1\\n")  # a child process writes to the descriptor
         return info(args)
 
-    commands.info = noisy
+    info_command.info = noisy
     sys.exit(cli.main(["info", "--mesh", "2x2x2", *sys.argv[1:]]))
 """)
 

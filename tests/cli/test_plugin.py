@@ -82,7 +82,7 @@ def test_plugin_in_compare_and_in_a_report(plugin, tmp_path):
     study = (
         "import sys, functools\n"
         "from hybmss.experiments import SceneSpec\n"
-        "from studies import roles\n"
+        "from studies.sweep import roles\n"
         "from studies.sweep.runner import SolverSpec, Task, run_tasks\n"
         "from studies.sweep.store import Store\n"
         "import studies.paper.tables as t\n"

@@ -140,7 +140,7 @@ def test_run_guard_refuses_a_sweep_that_does_not_fit_before_any_work(cli_in_proc
     written; the full reproduction on 2 workers fits and is not refused as too long (its 3,638 runs
     took 87 min: over a single command's hour, within a sweep's limit)."""
     from studies.sweep import sizing
-    from studies.cli.commands import sweep_estimate
+    from studies.cli.run import sweep_estimate
 
     out = tmp_path / "res"
     r = cli_in_process("run", "--all", "--jobs", "10000", "--out", out, "--no-progress")
@@ -158,7 +158,7 @@ def test_run_guard_counts_only_runs_not_stored_and_no_guard_insists(cli_in_proce
     are not counted (a stored study leaves nothing to estimate), and --no-guard runs it anyway."""
     import studies.paper.reproduce as reproduce
     from studies.sweep import sizing
-    from studies.cli.commands import sweep_estimate
+    from studies.cli.run import sweep_estimate
 
     out = tmp_path / "res"
     store = Store(out)

@@ -99,7 +99,7 @@ def test_a_budget_no_model_meets_and_a_model_without_error(tmp_path, cli_in_proc
     assert "press: u_rel_l2 <= 1e-09: no model meets it" in proc.stdout
     assert "press: hybmss meets no budget (smallest error" in proc.stdout
 
-    from studies.cli.commands import _budget_line
+    from studies.cli.study import _budget_line
 
     row = {"answer": "meets no budget", "error": None, "load_case": "press", "method": "hybmss"}
     assert _budget_line(row) == "  press: hybmss meets no budget (no error measured)"

@@ -41,12 +41,12 @@ LOADS = {"compression": ["--deformation", "0.1"], "tension": ["--deformation", "
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if e != "uniaxial"])
 def test_fem_and_compare_build_the_same_scene(experiment):
     from studies.cli import parser as cli
-    from studies.cli import commands
+    from studies.cli import common as cli_common
 
     parser, opts = cli.build_parser()
 
     def spec(*argv, solvers):
-        return commands.scene_spec(parser.parse_args(opts.join_values(list(argv))), experiment, solvers)
+        return cli_common.scene_spec(parser.parse_args(opts.join_values(list(argv))), experiment, solvers)
 
     common = ["--mesh", "2x2x4", "--E", "2e4", "--nu", "0.3"] + LOADS[experiment]
     fem = spec("fem", "--scene", experiment, *common, solvers=("fem",)).build()
