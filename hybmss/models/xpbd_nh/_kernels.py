@@ -27,7 +27,7 @@ tetrahedron one to the last bit (a test), 3.4–3.9× faster (10³ cube, 8×8×4
 leaves out the products with the zero entries of the corner tetrahedra's ``D_m⁻¹``
 (:data:`SWEEP_PATTERNS`, :func:`_tet_lanes`), 14 % more.
 
-The readable twin is :func:`hybmss.models.xpbd_nh.numpy_substep` (same order, plain Python).
+The readable twin is :func:`hybmss.models.xpbd_nh.constraints.numpy_substep` (same order, plain Python).
 """
 
 from __future__ import annotations
@@ -235,14 +235,14 @@ SLOTS = 48
 SWEEP_TETS = ((0, 3, 6, 5), (1, 0, 5, 3), (2, 3, 6, 0), (4, 5, 0, 6), (7, 6, 3, 5),
              (1, 2, 4, 7), (0, 1, 2, 4), (3, 2, 1, 7), (5, 4, 7, 1), (6, 7, 4, 2))
 """Local corners of a cell's ten tetrahedra in sweep order, positively oriented: the literal
-twin of :func:`hybmss.models.xpbd_nh.cell_tetrahedra` (a test keeps them equal)."""
+twin of :func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra` (a test keeps them equal)."""
 
 SWEEP_PATTERNS = (0, 2, 2, 2, 2, 0, 1, 1, 1, 1)
 """Which entries of each tetrahedron's ``D_m⁻¹`` (sweep order) are non-zero: 0 all (the central
 tetrahedra, on face diagonals); 1 the diagonal (corner tetrahedra with their edges along x, y, z);
 2 ``d00, d12, d21`` (edges along x, z, y).  :func:`_cell_lanes` calls the projection of each
 pattern (:func:`_tet_lanes`); a test derives the patterns from
-:func:`hybmss.models.xpbd_nh.cell_tetrahedra`."""
+:func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra`."""
 
 
 @njit(inline="always")
@@ -569,7 +569,7 @@ def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, ov
           pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, k0, nk, iterations, coupled,
           check_every, limit2, rest_after, rest_disp, xprev, y, lamb, bnodes, bcount, B):
     """``nk`` iterations, from iteration ``k0``, of the relaxation to the rest state of the substep
-    ``h`` (:func:`hybmss.models.xpbd_nh.relax_static`), float64 positions ``W[:3n]``::
+    ``h`` (:func:`hybmss.models.xpbd_nh.relax.relax_static`), float64 positions ``W[:3n]``::
 
         y = x + β (x − x_prev);  z = y + gdisp  (gdisp = damp h² g on free components)
         prescribed components of z at the load s((k + 1) H);  p = project_h(z)
