@@ -193,22 +193,32 @@ def _loop1(S: _Src, ind: int, lay: Layout, xr: str):
     """Partial sums of the bases ``a`` (one block), from the position rows ``xr`` (XA or XB)."""
     cfg = lay.cfg
     f32 = cfg.precision == "f32"
-    B = lay.base
-    X = [B(f"{xr}{d}") for d in range(3)]
-    s0, s1 = lay.s0, lay.s1
+    X = [lay.base(f"{xr}{d}") for d in range(3)]
 
     def pos(d, o):  # position (f64) or displacement (f32) component d of node a + o
         return f"W[{X[d] + o} + a]"
 
     contrib = {o: [[] for _ in range(3)] for o in lay.roff}
+    _springs(S, ind, lay, pos, contrib)
+    if cfg.has_volume:
+        _volume(S, ind, lay, pos, contrib)
+    for o in lay.roff:
+        for d in range(3):
+            terms = contrib[o][d]
+            expr = _tree(terms) if terms else _lit(0.0, f32)
+            S(ind, f"W[{lay.base(f'R_{o}_{d}')} + a] = {expr}")
+
+
+def _springs(S: _Src, ind: int, lay: Layout, pos, contrib: dict):
+    """The tensions ``t_j = k (1 − l0/l) d`` of the springs from base ``a`` (f32: ``k g/(l (l + l0))``
+    with ``g = l² − l0²``), added to the partial sums ``contrib`` of offsets 0 (+) and o (−)."""
+    cfg = lay.cfg
+    f32 = cfg.precision == "f32"
     for j, (gi, gj, gk) in enumerate(cfg.offsets):
-        o = gi * s0 + gj * s1 + gk
+        o = gi * lay.s0 + gj * lay.s1 + gk
         D = (gi * cfg.le, gj * cfg.le, gk * cfg.le)
         for d in range(3):
-            if f32:
-                S(ind, f"e{d} = {pos(d, o)} - {pos(d, 0)}")
-            else:
-                S(ind, f"e{d} = {pos(d, o)} - {pos(d, 0)}")
+            S(ind, f"e{d} = {pos(d, o)} - {pos(d, 0)}")
         if f32:
             # l² − l0² = 2 D·e + |e|² (no cancellation), l = |D + e|
             dot = " + ".join(f"{_lit(2.0 * D[d], True)} * e{d}" for d in range(3) if D[d] != 0.0)
@@ -217,66 +227,69 @@ def _loop1(S: _Src, ind: int, lay: Layout, xr: str):
                 if D[d] != 0.0:
                     S(ind, f"e{d} = e{d} + {_lit(D[d], True)}")
             S(ind, f"l = np.sqrt(l0s_{j} + g)")  # |D + e|² = l0² + g
-            S(ind, f"ck = W[{B(f'K{j}')} + a] * g / (l * (l + l0_{j}))")
+            S(ind, f"ck = W[{lay.base(f'K{j}')} + a] * g / (l * (l + l0_{j}))")
         else:
             S(ind, "l = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)")
-            S(ind, f"ck = W[{B(f'K{j}')} + a] * (1.0 - l0_{j} / l)")
+            S(ind, f"ck = W[{lay.base(f'K{j}')} + a] * (1.0 - l0_{j} / l)")
         for d in range(3):
             S(ind, f"t{j}_{d} = ck * e{d}")
             contrib[0][d].append(f"t{j}_{d}")
             contrib[o][d].append(f"-t{j}_{d}")
-    if cfg.has_volume:
-        le = cfg.le
-        # averaged edge vectors A[d] (axis d, components) = ¼ Σ of the 4 parallel edges
+
+
+def _volume(S: _Src, ind: int, lay: Layout, pos, contrib: dict):
+    """The volume gradients ``G_c`` of the cell whose lowest corner is ``a``, from its averaged
+    edge vectors and their cofactors, added to the partial sums ``contrib`` of its corners'
+    offsets (sign and slot per corner: :data:`CORNER_SIGN`, :data:`CORNER_SLOT`)."""
+    cfg = lay.cfg
+    f32 = cfg.precision == "f32"
+    s0, s1 = lay.s0, lay.s1
+    le = cfg.le
+    # averaged edge vectors A[d] (axis d, components) = ¼ Σ of the 4 parallel edges
+    for ax in range(3):
+        od = (s0, s1, 1)[ax]
+        e1 = (s0, s1, 1)[(ax + 1) % 3]
+        e2 = (s0, s1, 1)[(ax + 2) % 3]
+        for c in range(3):
+            terms = [f"({pos(c, b + od)} - {pos(c, b)})" for b in (0, e1, e2, e1 + e2)]
+            S(ind, f"m{ax}{c} = {_lit(0.25, f32)} * (({terms[0]} + {terms[1]}) + ({terms[2]} + {terms[3]}))")
+    # m = Δ (f32: increments of the rest edges le·I) or the edge vectors themselves (f64)
+    if f32:
+        # det(le I + Δ) − le³ = le² tr Δ + le M₂ + det Δ
+        S(ind, "tr = m00 + m11 + m22")
+        S(ind, "M2 = (m00 * m11 - m01 * m10) + (m00 * m22 - m02 * m20) + (m11 * m22 - m12 * m21)")
+        S(ind, "dd = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)")
+        S(ind, f"dV = {_lit(le * le, True)} * tr + {_lit(le, True)} * M2 + dd")
         for ax in range(3):
-            od = (s0, s1, 1)[ax]
-            e1 = (s0, s1, 1)[(ax + 1) % 3]
-            e2 = (s0, s1, 1)[(ax + 2) % 3]
-            for c in range(3):
-                terms = [f"({pos(c, b + od)} - {pos(c, b)})" for b in (0, e1, e2, e1 + e2)]
-                S(ind, f"m{ax}{c} = {_lit(0.25, f32)} * (({terms[0]} + {terms[1]}) + ({terms[2]} + {terms[3]}))")
-        # m = Δ (f32: increments of the rest edges le·I) or the edge vectors themselves (f64)
-        if f32:
-            # det(le I + Δ) − le³ = le² tr Δ + le M₂ + det Δ
-            S(ind, "tr = m00 + m11 + m22")
-            S(ind, "M2 = (m00 * m11 - m01 * m10) + (m00 * m22 - m02 * m20) + (m11 * m22 - m12 * m21)")
-            S(ind, "dd = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)")
-            S(ind, f"dV = {_lit(le * le, True)} * tr + {_lit(le, True)} * M2 + dd")
-            for ax in range(3):
-                S(ind, f"m{ax}{ax} = m{ax}{ax} + {_lit(le, True)}")
-        # b×c, c×a, a×b (rows of the cofactor matrix)
-        for r in range(3):
-            u, w = (r + 1) % 3, (r + 2) % 3
-            for c in range(3):
-                c1, c2 = (c + 1) % 3, (c + 2) % 3
-                S(ind, f"k{r}{c} = m{u}{c1} * m{w}{c2} - m{u}{c2} * m{w}{c1}")
-        kap = f"W[{B('KAP')} + a]"
-        if f32:
-            if cfg.squared:
-                S(ind, f"wp = {_lit(0.25, True)} * {kap} * (dV * (dV + V0 + V0)) / (V0 * V0 + V0 * V0) * (V0 + dV) / V0")
-            else:
-                S(ind, f"wp = {_lit(0.25, True)} * {kap} * dV / V0")
+            S(ind, f"m{ax}{ax} = m{ax}{ax} + {_lit(le, True)}")
+    # b×c, c×a, a×b (rows of the cofactor matrix)
+    for r in range(3):
+        u, w = (r + 1) % 3, (r + 2) % 3
+        for c in range(3):
+            c1, c2 = (c + 1) % 3, (c + 2) % 3
+            S(ind, f"k{r}{c} = m{u}{c1} * m{w}{c2} - m{u}{c2} * m{w}{c1}")
+    kap = f"W[{lay.base('KAP')} + a]"
+    if f32:
+        if cfg.squared:
+            S(ind, f"wp = {_lit(0.25, True)} * {kap} * (dV * (dV + V0 + V0)) / (V0 * V0 + V0 * V0) * (V0 + dV) / V0")
         else:
-            S(ind, "vv = m00 * k00 + m01 * k01 + m02 * k02")
-            if cfg.squared:
-                S(ind, f"wp = 0.25 * {kap} * ((vv * vv - V0 * V0) / (2.0 * V0 * V0)) * vv / V0")
-            else:
-                S(ind, f"wp = 0.25 * {kap} * (vv - V0) / V0")
-        for g, (sb, sc) in enumerate(SLOT_SIGNS):
-            for c in range(3):
-                ob = "+" if sb > 0 else "-"
-                oc = "+" if sc > 0 else "-"
-                S(ind, f"G{g}_{c} = wp * ((k0{c} {ob} k1{c}) {oc} k2{c})")
-        for cn in range(8):
-            o = (cn & 1) * s0 + ((cn >> 1) & 1) * s1 + ((cn >> 2) & 1)
-            sg = "" if CORNER_SIGN[cn] > 0 else "-"
-            for d in range(3):
-                contrib[o][d].append(f"{sg}G{CORNER_SLOT[cn]}_{d}")
-    for o in lay.roff:
+            S(ind, f"wp = {_lit(0.25, True)} * {kap} * dV / V0")
+    else:
+        S(ind, "vv = m00 * k00 + m01 * k01 + m02 * k02")
+        if cfg.squared:
+            S(ind, f"wp = 0.25 * {kap} * ((vv * vv - V0 * V0) / (2.0 * V0 * V0)) * vv / V0")
+        else:
+            S(ind, f"wp = 0.25 * {kap} * (vv - V0) / V0")
+    for g, (sb, sc) in enumerate(SLOT_SIGNS):
+        for c in range(3):
+            ob = "+" if sb > 0 else "-"
+            oc = "+" if sc > 0 else "-"
+            S(ind, f"G{g}_{c} = wp * ((k0{c} {ob} k1{c}) {oc} k2{c})")
+    for cn in range(8):
+        o = (cn & 1) * s0 + ((cn >> 1) & 1) * s1 + ((cn >> 2) & 1)
+        sg = "" if CORNER_SIGN[cn] > 0 else "-"
         for d in range(3):
-            terms = contrib[o][d]
-            expr = _tree(terms) if terms else _lit(0.0, f32)
-            S(ind, f"W[{B(f'R_{o}_{d}')} + a] = {expr}")
+            contrib[o][d].append(f"{sg}G{CORNER_SLOT[cn]}_{d}")
 
 
 def _tree(terms: list[str]) -> str:
@@ -364,6 +377,31 @@ def _b(v) -> str:
     return f"np.bool_({v})"
 
 
+def _parallel_step(S: _Src, lay: Layout, buffers: tuple):
+    """``step_0``, ``step_1`` (one step over a thread's blocks, reading one buffer of ``buffers``
+    and writing the other) and ``step(W, prm, parity)``: one step of all the threads in a Numba
+    parallel region, each on its blocks of :func:`thread_ranges`."""
+    for parity, (xr, xw) in enumerate(buffers):
+        S(0, "")
+        S(0, "@njit(**_OPTS)")
+        S(0, f"def step_{parity}(W, prm, lo, hi, halo):")
+        _constants(S, 1, lay.cfg)
+        _step(S, 1, lay, xr, xw, "lo", "hi", "halo")
+    S(0, "")
+    S(0, "@njit(parallel=True, **_OPTS)")
+    S(0, "def step(W, prm, parity):")
+    S(1, f"for t in prange({lay.cfg.threads}):")
+    S(2, "fp = flush_subnormals()")
+    for t, (lo, hi, halo) in enumerate(thread_ranges(lay)):
+        S(2, f"{'if' if t == 0 else 'elif'} t == {t}:")
+        S(3, f"lo, hi, halo = {lo}, {hi}, {halo}")
+    S(2, "if parity == 0:")
+    S(3, "step_0(W, prm, lo, hi, halo)")
+    S(2, "else:")
+    S(3, "step_1(W, prm, lo, hi, halo)")
+    S(2, "restore_fp_mode(fp)")
+
+
 def source(cfg: Config) -> str:
     """Python source of the kernel module for ``cfg``: ``run`` (a span of steps with the plates
     and the divergence checks), with several threads ``thread`` (one thread's part of ``run``,
@@ -395,25 +433,7 @@ def source(cfg: Config) -> str:
     # the block, which loop 2 has not reached yet); several threads alternate two buffers
     buffers = (("XA", "XA"),) if T == 1 else (("XA", "XB"), ("XB", "XA"))
     if T > 1:
-        for parity, (xr, xw) in enumerate(buffers):
-            S(0, "")
-            S(0, "@njit(**_OPTS)")
-            S(0, f"def step_{parity}(W, prm, lo, hi, halo):")
-            _constants(S, 1, cfg)
-            _step(S, 1, lay, xr, xw, "lo", "hi", "halo")
-        S(0, "")
-        S(0, "@njit(parallel=True, **_OPTS)")
-        S(0, "def step(W, prm, parity):")
-        S(1, f"for t in prange({T}):")
-        S(2, "fp = flush_subnormals()")
-        for t, (lo, hi, halo) in enumerate(thread_ranges(lay)):
-            S(2, f"{'if' if t == 0 else 'elif'} t == {t}:")
-            S(3, f"lo, hi, halo = {lo}, {hi}, {halo}")
-        S(2, "if parity == 0:")
-        S(3, "step_0(W, prm, lo, hi, halo)")
-        S(2, "else:")
-        S(3, "step_1(W, prm, lo, hi, halo)")
-        S(2, "restore_fp_mode(fp)")
+        _parallel_step(S, lay, buffers)
     S(0, "")
     B = lay.base
     S(0, "@njit(**_OPTS)")

@@ -1,8 +1,9 @@
 """XPBD with the stable Neo-Hookean constraints on the voxel grid: ``xpbd-nh`` (SPEC §10).
 
-The folder holds the whole model: this module (elements, constraints, the explicit stepper
-:class:`XpbdStepper`, the static relaxation, NumPy twins) and its Numba kernels
-(:mod:`hybmss.models.xpbd_nh._kernels`).
+The folder holds the whole model: this module (the explicit stepper :class:`XpbdStepper`, the
+static answer :func:`solve_static`, the registry's model), the elements, constraints and NumPy
+twin (:mod:`hybmss.models.xpbd_nh.constraints`), the static relaxation
+(:mod:`hybmss.models.xpbd_nh.relax`) and the Numba kernels (:mod:`hybmss.models.xpbd_nh._kernels`).
 
 What a real-time physics user runs instead of a mass-spring system (Macklin, Müller, Chentanez
 2016; Macklin & Müller 2021), built on the MSS's grid: nodes are the lattice particles, masses the
@@ -73,213 +74,28 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...explicit import (BLOWUP_FACTOR, RAMP_LAW, REST_RTOL, divergence_error, find_bad, initial_state,
-                         plate_arrays, plate_reactions, ramp, rest_report, simulate_explicit as _simulate_explicit)
-from ...lattice import CORNERS
+from ...explicit import REST_RTOL, find_bad, plate_arrays, ramp, rest_report, simulate_explicit as _simulate_explicit
 from ...result import Result
 from ...scene import Material
 from ...solve.errors import StaticSolveError
-from ...stepper import Chunks, ParticleStepper, interruptible, timed, with_dead_loads
+from ...stepper import ParticleStepper, with_dead_loads
 from ...system import System, build
-from ...terms import DeadLoad
 from ..base import ModelBase, Style, check
 from ..corot_hex8 import CorotHex8, frequency_range, omega_max
 from . import _kernels as _kernels_xpbd
+from .constraints import (CELL_TETS, KERNELS, SPLIT_A, SPLIT_B, XpbdNH, cell_batches, cell_tetrahedra,
+                          external_acceleration, inverse_masses, numpy_substep, xpbd_lame)
+from .relax import RELAX_CHECK_FRAMES, RELAX_H_OMEGA, RELAX_ROUNDING, relax_static, rounding_floor
 
-KERNELS = ("numba", "numpy")
-
-
-def _split(central: tuple[int, ...]) -> list[tuple[int, ...]]:
-    """A 5-tet split of the cube: the central tetrahedron on ``central`` and, at each other
-    corner, the tetrahedron with its three edge neighbours."""
-    tets = [tuple(central)]
-    for c in range(8):
-        if c in central:
-            continue
-        tets.append((c,) + tuple(c ^ (1 << d) for d in range(3)))
-    return tets
-
-
-SPLIT_A = _split((0, 3, 5, 6))
-SPLIT_B = _split((1, 2, 4, 7))
-CELL_TETS = np.array(SPLIT_A + SPLIT_B, dtype=np.int64)
-"""(10, 4) local corners of a cell's tetrahedra: the two complementary 5-tet splits."""
-
-
-def cell_tetrahedra(le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(local corners (10, 4) positively oriented, D_m⁻¹ (10, 3, 3), weighted volumes (10,))``
-    of one cell of edge ``le``: each split carries half the cell."""
-    P = CORNERS * float(le)
-    tets = CELL_TETS.copy()
-    Dinv, V = [], []
-    for t in tets:
-        D = (P[t[1:]] - P[t[0]]).T
-        if np.linalg.det(D) < 0:
-            t[[2, 3]] = t[[3, 2]]
-            D = (P[t[1:]] - P[t[0]]).T
-        Dinv.append(np.linalg.inv(D))
-        V.append(0.5 * np.linalg.det(D) / 6.0)
-    return tets, np.array(Dinv), np.array(V)
-
-
-def cell_batches(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The cells of a body in batches of :data:`hybmss.models.xpbd_nh._kernels.LANES` that share no node,
-    ordered so that any two cells sharing a node keep their order in ``cells`` (``bnodes``
-    (nb, 8, LANES) corner nodes, pad lanes repeating the batch's first cell; ``bcount`` (nb,)
-    cells per batch): the sweep of :func:`hybmss.models.xpbd_nh._kernels.project_cells` is then the
-    cell-by-cell sweep, bit for bit."""
-    cells = np.ascontiguousarray(cells, dtype=np.int64)
-    lanes = _kernels_xpbd.LANES
-    levels = _kernels_xpbd.cell_levels(cells)
-    order = np.argsort(levels, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(levels[order]) != 0, True])
-    groups = []
-    for a, b in zip(starts[:-1], starts[1:]):
-        groups += [order[i:min(i + lanes, b)] for i in range(a, b, lanes)]
-    bnodes = np.empty((len(groups), 8, lanes), dtype=np.int64)
-    bcount = np.empty(len(groups), dtype=np.int64)
-    for k, g in enumerate(groups):
-        idx = np.r_[g, np.full(lanes - len(g), g[0])]
-        bnodes[k] = cells[idx].T
-        bcount[k] = len(g)
-    return bnodes, bcount
-
-
-def xpbd_lame(material: Material) -> tuple[float, float, float]:
-    """``(μ, λ, γ)`` of the constraints for a material of Lamé (λ₀, μ₀): μ = μ₀, λ = λ₀ + μ₀,
-    γ = 1 + μ/λ (module docstring, "Lamé trap")."""
-    mu = float(material.G)
-    lam = float(material.lam) + mu
-    return mu, lam, 1.0 + mu / lam
-
-
-class XpbdNH:
-    """The constraints of a body.  As a :class:`hybmss.terms.ForceTerm` it is the energy the
-    constraints store, ``Σ_t V_t (μ/2 (tr FᵀF − 3) + λ/2 (J − γ)² − λ/2 (1 − γ)²)`` (zero at rest),
-    with its exact forces; reactions and moduli are read from these forces at the rest state.
-    No stiffness: the model is explicit only."""
-
-    name = "xpbd-nh"
-    conservative = True
-    scaled = False
-
-    def __init__(self, lattice, material: Material):
-        self.le = float(lattice.body.le)
-        self.X = np.asarray(lattice.X, dtype=float)
-        local, Dinv, V = cell_tetrahedra(self.le)
-        cells = np.asarray(lattice.cells, dtype=np.int64)
-        m = len(cells)
-        self.tets = np.ascontiguousarray(cells[:, local].reshape(-1, 4))
-        self.Dminv = np.ascontiguousarray(np.tile(Dinv, (m, 1, 1)))
-        self.Vt = np.ascontiguousarray(np.tile(V, m))
-        self.mu, self.lam, self.gamma = xpbd_lame(material)
-        self.cells = cells
-        self._batches = None
-
-    def batches(self) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`cell_batches` of the body's cells (computed once)."""
-        if self._batches is None:
-            self._batches = cell_batches(self.cells)
-        return self._batches
-
-    def deformation_gradients(self, x: np.ndarray) -> np.ndarray:
-        xt = np.asarray(x)[self.tets]
-        Ds = np.swapaxes(xt[:, 1:] - xt[:, :1], 1, 2)
-        return Ds @ self.Dminv
-
-    def energy(self, x: np.ndarray) -> float:
-        F = self.deformation_gradients(x)
-        J = np.linalg.det(F)
-        psi = (0.5 * self.mu * (np.einsum("tij,tij->t", F, F) - 3.0) + 0.5 * self.lam * (J - self.gamma) ** 2
-               - 0.5 * self.lam * (1.0 - self.gamma) ** 2)
-        return float(np.dot(self.Vt, psi))
-
-    def forces(self, x: np.ndarray) -> np.ndarray:
-        """``−∇E`` (n, 3): per tetrahedron ``P = μ F + λ (J − γ) cof F``, node forces
-        ``−V P D_m⁻ᵀ`` (node 0: minus their sum)."""
-        F = self.deformation_gradients(x)
-        J = np.linalg.det(F)
-        cof = J[:, None, None] * np.swapaxes(np.linalg.inv(F), 1, 2)
-        P = self.mu * F + (self.lam * (J - self.gamma))[:, None, None] * cof
-        H = -self.Vt[:, None, None] * (P @ np.swapaxes(self.Dminv, 1, 2))  # column j: node j+1
-        fe = np.concatenate([-H.sum(axis=2)[:, None, :], np.swapaxes(H, 1, 2)], axis=1)  # (T, 4, 3)
-        f = np.zeros_like(np.asarray(x, dtype=float))
-        np.add.at(f, self.tets.ravel(), fe.reshape(-1, 3))
-        return f
-
-    def stiffness(self, x: np.ndarray):
-        raise NotImplementedError("xpbd-nh is explicit only: it has no static tangent")
-
-
-# ------------------------------------------------------------------------------ NumPy twin
-def _constraint(F: np.ndarray, kind: int, gamma: float) -> tuple[float, np.ndarray]:
-    """C and ∂C/∂F of the deviatoric (0) or hydrostatic (1) constraint."""
-    if kind == 0:
-        C = math.sqrt(float(np.sum(F * F)))
-        return C, F / C
-    cof = np.empty((3, 3))
-    for a in range(3):
-        a1, a2 = (a + 1) % 3, (a + 2) % 3
-        for b in range(3):
-            b1, b2 = (b + 1) % 3, (b + 2) % 3
-            cof[a, b] = F[a1, b1] * F[a2, b2] - F[a1, b2] * F[a2, b1]
-    return float(np.sum(F[0] * cof[0])) - gamma, cof
-
-
-def _tet_constraint(term: XpbdNH, x: np.ndarray, t: int, kind: int) -> tuple[float, np.ndarray]:
-    """C and its node gradients (4, 3) of constraint ``kind`` of tetrahedron ``t``."""
-    xt = x[term.tets[t]]
-    F = (xt[1:] - xt[0]).T @ term.Dminv[t]
-    C, dC = _constraint(F, kind, term.gamma)
-    G = dC @ term.Dminv[t].T  # column j: gradient at node j+1
-    return C, np.vstack([-G.sum(axis=1), G.T])
-
-
-def numpy_substep(term: XpbdNH, x, v, winv, h, damp, iterations, accel, set_plates, coupled=True):
-    """One substep of the readable twin on (n, 3) arrays, in place (module docstring).
-    ``accel``: (n, 3) external acceleration of the particles (:func:`external_acceleration`) or
-    None.  ``set_plates(x)`` moves the prescribed components to their targets at t + h."""
-    if accel is not None:
-        v += h * accel
-    v *= damp
-    x_prev = x.copy()
-    x += h * v
-    set_plates(x)
-    lamb = np.zeros((len(term.tets), 2))
-    for _ in range(iterations):
-        for t, nodes in enumerate(term.tets):
-            w = winv[nodes]
-            alpha = 1.0 / (np.array([term.mu, term.lam]) * term.Vt[t] * h * h)
-            if coupled:  # both constraints of the tetrahedron in one 2×2 solve
-                CD, gD = _tet_constraint(term, x, t, 0)
-                CH, gH = _tet_constraint(term, x, t, 1)
-                A = np.array([[alpha[0] + np.sum(w * gD * gD), np.sum(w * gD * gH)],
-                              [np.sum(w * gH * gD), alpha[1] + np.sum(w * gH * gH)]])
-                b = np.array([-CD, -CH]) - alpha * lamb[t]
-                det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-                d = np.array([A[1, 1] * b[0] - A[0, 1] * b[1], A[0, 0] * b[1] - A[0, 1] * b[0]]) / det
-                x[nodes] += w * (gD * d[0] + gH * d[1])
-                lamb[t] += d
-            else:  # C_D, then C_H at the updated positions
-                for kind in (0, 1):
-                    C, g = _tet_constraint(term, x, t, kind)
-                    d = (-C - alpha[kind] * lamb[t, kind]) / (float(np.sum(w * g * g)) + alpha[kind])
-                    x[nodes] += w * g * d
-                    lamb[t, kind] += d
-    v[:] = (x - x_prev) / h
-
-
-# ------------------------------------------------------------------------------ runs
-def inverse_masses(system: System) -> np.ndarray:
-    """(n, 3) 1/m per component, 0 on prescribed components."""
-    w = np.repeat((1.0 / system.mass)[:, None], 3, axis=1)
-    w[system.fixed] = 0.0
-    return w
+__all__ = ["AUTO_SUBSTEPS_STATIC", "CELL_TETS", "H_OMEGA", "KERNELS", "MODEL", "RELAX_CHECK_FRAMES", "RELAX_H_OMEGA",
+           "RELAX_ROUNDING", "REST_TOL", "SPLIT_A", "SPLIT_B", "XpbdNH", "XpbdNHModel", "XpbdParameters",
+           "XpbdStepper", "auto_substeps", "cell_batches", "cell_tetrahedra", "external_acceleration", "frequencies",
+           "highest_frequency", "inverse_masses", "massless_static", "numpy_substep", "relax_static", "rest_scale",
+           "rounding_floor", "simulate_explicit", "solve_scene", "solve_static", "xpbd_lame", "xpbd_term"]
 
 
 def frequencies(system: System, material: Material | None = None) -> tuple[float, float]:
@@ -412,163 +228,6 @@ def rest_scale(system: System) -> float:
     return min(1.0, d / le) if d > 0.0 else 1.0
 
 
-RELAX_CHECK_FRAMES = 20.0
-"""The relaxation's rest criterion spans this many frames ``dt = 1/ω_max`` of pseudo-time (the
-dynamic run's: 10).  Right after the ramp its pseudo-time motion can be quiet over 10 frames while
-the state is still far from rest: on the 4×1×1 [B09] cantilever under gravity it stopped 2e-3 from
-the converged tip; over 20 frames 8e-5 (the dynamic run: 5e-5), for 3 % more iterations on 16×4×4."""
-
-RELAX_H_OMEGA = 0.5
-"""``H ω_max`` of the relaxation's pseudo-time step H (:func:`relax_static`): 5× the substep of the
-rest-state run at 10 substeps per frame (``over = (H/h)² = 25``).  Measured on five scenes (6³ cube:
-torsion 45° at ν = 0.499, compression 20 % at ν = 0.25 and 0.499, shear 20 % at ν = 0; 4×4×24 beam
-under gravity): the rest state at 0.5 is the run's own within 3.6e-7 of the largest displacement;
-at 1.0 the shear did not come to rest and the ν = 0.499 compression came to rest in another state
-(48 % away), at 1.2 every one diverged: the damped linearization's limit ``H ω < 2`` is reached
-near ``H ω_max ≈ 1`` because XPBD's tetrahedra are stiffer than the Hex8 cells that give ω_max.
-0.5 keeps a factor 2 from it."""
-
-
-RELAX_ROUNDING = 64.0
-"""The relaxation's motion test never asks for less motion than this many roundings of its update
-(:func:`rounding_floor`)."""
-
-
-def rounding_floor(system: System, over: float) -> float:
-    """The motion (m) that rounding alone leaves in :func:`relax_static`'s update
-    ``y + over (P_h(y) − y)``: positions of magnitude |x| carry ``eps |x|``, which the factor
-    ``over = (H/h)²`` multiplies; :data:`RELAX_ROUNDING` of it, for positions up to the body's
-    farthest point plus its size."""
-    extent = float(np.abs(system.X).max()) + max(system.scene.body.size)
-    return RELAX_ROUNDING * over * float(np.finfo(float).eps) * extent
-
-
-def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: float, ramp_time: float,
-                 max_time: float, check_time: float, rest_tol: float, iterations: int = 1, coupled: bool = True,
-                 kernel: str = "numba", damping_h: float | None = None) -> Result:
-    """The rest state of the XPBD substep ``h`` (damping ``damping_h``, default ``damping``),
-    reached by a damped iteration in pseudo-time steps ``H ≥ h``::
-
-        y = x + β (x − x_prev),  β = 1/(1 + c H)
-        x_new = y + (H/h)² (P_h(y + d_h h² g) − y)       (prescribed components: P_h's values)
-
-    with ``P_h`` the constraint projection of one XPBD substep (``iterations`` sweeps, multipliers
-    reset, plates at the load of the pseudo-time ``(k + 1) H`` on the ramp ``ramp_time``) and
-    ``d_h = 1/(1 + c_h h)`` the XPBD substep's damping factor.  A fixed point satisfies
-    ``P_h(x + d_h h² g) = x``: exactly the rest state of the XPBD run with substep h and damping
-    c_h (one substep maps (x, v = 0) to itself), for any ``H``; with ``H = h`` and ``c = c_h`` the
-    iteration *is* that run (``v = (x − x_prev)/h``).  For soft constraints (``h ω ≪ 1``, the
-    accuracy rule) ``P_h(z) − z ≈ −h² W ∇E``, so the iteration is the damped dynamics in steps H:
-    the rest state is reached in ``h/H`` of the substeps.  Stops at rest (no node moved more than
-    ``rest_tol · le`` over ``check_time`` of pseudo-time after the ramp) or at ``max_time``."""
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
-    if not (0.0 < h <= H):
-        raise ValueError(f"0 < h <= H required, got h={h}, H={H}")
-    c_h = float(damping) if damping_h is None else float(damping_h)
-    over = (H / h) ** 2
-    beta = 1.0 / (1.0 + float(damping) * H)
-    d_h = 1.0 / (1.0 + c_h * h)
-    n_max = int(math.ceil(max_time / H))
-    check = max(1, int(round(check_time / H)))
-    rest_after = int(math.ceil(ramp_time / H))
-    rest_disp = rest_tol * system.scene.body.le  # 0: no rest test (a fixed count of iterations)
-    if rest_disp > 0.0:
-        rest_disp = max(rest_disp, rounding_floor(system, over))
-    limit = BLOWUP_FACTOR * max(system.scene.body.size)
-    limit2 = limit * limit
-    x, _ = initial_state(system, None, None, ramp_time)
-    winv = inverse_masses(system)
-    gdisp = np.zeros((system.n, 3))
-    accel = external_acceleration(system)
-    if accel is not None:
-        gdisp[:] = d_h * h * h * accel
-    gdisp[winv == 0.0] = 0.0
-    c0, t0 = time.process_time(), time.perf_counter()
-    if kernel == "numba":
-        n = system.n
-        W = np.zeros(6 * n)
-        xg = W[:3 * n].reshape(3, n)
-        xg[:] = x.T
-        xprev, y = xg.copy(), np.empty((3, n))
-        plates = plate_arrays(system)
-        args = (np.ascontiguousarray(system.X.T), np.ascontiguousarray(winv.T), term.tets, term.Dminv, term.Vt,
-                term.mu, term.lam, term.gamma, np.ascontiguousarray(gdisp.T), accel is not None, h, over,
-                beta, H, float(ramp_time), *plates.args())
-        lamb = np.empty((len(term.tets), 2))
-        bnodes, bcount = term.batches()
-        B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
-        chunks = Chunks(check)
-        done, bad, rest = 0, -1, False
-        with interruptible():  # calls of whole check intervals (~0.1 s): a signal stops it between them
-            while done < n_max and bad < 0 and not rest:
-                interruptible.check()
-                n_call = chunks.next(n_max - done)
-                (k, bad, rest), w, _ = timed(
-                    _kernels_xpbd.relax, W, *args, np.int64(done), np.int64(n_call), np.int64(iterations),
-                    bool(coupled), np.int64(check), float(limit2), np.int64(rest_after), float(rest_disp), xprev, y,
-                    lamb, bnodes, bcount, B)
-                chunks.took(n_call, w)
-                done, bad, rest = done + int(k), int(bad), bool(rest)
-        x, x_prev = np.ascontiguousarray(xg.T), np.ascontiguousarray(xprev.T)
-    else:
-        fixed = system.fixed
-        free = winv != 0.0
-        x_prev, x_check = x.copy(), x.copy()
-        done, bad, rest = n_max, -1, False
-        for k in range(n_max):
-            y = x + beta * (x - x_prev)
-            x_prev = x
-            target = system.prescribed(ramp((k + 1) * H, ramp_time))
-            p = y + gdisp
-            p[fixed] = target[fixed]
-            v = np.zeros_like(p)
-            numpy_substep(term, p, v, winv, h, 1.0, iterations, None, lambda xx: None, coupled)
-            x = np.where(free, y + over * (p - y), p)
-            if (k + 1) % check == 0 or k == n_max - 1:
-                bad = find_bad(x, system.X, limit2)
-                if bad >= 0:
-                    done = k + 1
-                    break
-                if k + 1 >= rest_after and (k + 1) % check == 0:
-                    if np.abs(x - x_check).max() <= rest_disp:
-                        done, rest = k + 1, True
-                        break
-                x_check = x.copy()
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    if bad >= 0:
-        raise divergence_error(system, x, bad, done, H, limit, None, check)
-    v = (x - x_prev) / H
-    info = {"kernel": kernel, "threads": 1, "precision": "f64", "cpu_time_s": cpu, "h": h, "H": H,
-            "over_relaxation": over, "beta": beta, "steps": done, "iterations": iterations, "coupled": bool(coupled),
-            "t_end": done * H, "damping": float(damping), "damping_h": c_h, "ramp_time": float(ramp_time),
-            "load_factor": ramp(done * H, ramp_time), "model": term.name, "until_rest": True, "rest": rest,
-            "t_rest": done * H if rest else None, "rest_tol": rest_tol, "rest_disp": rest_disp, "check_time": check * H,
-            "tet_split": "two complementary 5-tet splits at half weight"}
-    return _rest_result(system, f"{term.name}-rest", x, v, term.forces(x), {"strain": term.energy(x)}, done, wall,
-                        info)
-
-
-def _rest_result(system: System, solver: str, x: np.ndarray, v: np.ndarray, f_int: np.ndarray, energy: dict,
-                 steps: int, wall: float, info: dict) -> Result:
-    """Result of the relaxation ending at ``x, v`` with internal forces ``f_int`` (no gravity);
-    reactions as in :func:`hybmss.explicit.simulate_explicit`: ``−(f_int + m g)`` summed over
-    each plate's particles, prescribed components only.  ``converged``: True (the caller sets it
-    from ``info['rest']``)."""
-    lat = system.lattice
-    vols = lat.cell_volumes(x)
-    reactions = plate_reactions(system, x, f_int)
-    energy = dict(energy)
-    energy["kinetic"] = float(0.5 * np.sum(system.mass[:, None] * v * v))
-    info = dict(info)
-    info.setdefault("ramp_law", RAMP_LAW)
-    info["inverted_cells"] = int(np.count_nonzero(vols <= 0.0))
-    info["max_speed"] = float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0
-    return Result(solver=solver, scene_digest=system.scene.digest(), X=system.X.copy(), u=x - system.X,
-                  volume=float(vols.sum()), volume0=float(lat.cell_volumes(system.X).sum()),
-                  reactions=reactions, energy=energy, iterations=int(steps), wall_time_s=float(wall),
-                  converged=True, cell_volumes=vols, info=info)
-
 
 def solve_static(system: System, term: XpbdNH, dt: float | None = None, substeps: int | None = None,
                  iterations: int = 1, coupled: bool = True, rest_tol: float | None = None, damping: float | None = None,
@@ -665,22 +324,6 @@ G_eff to −6.2e-5, against 3e-6 at lower ν."""
 def auto_substeps(system: System, dt: float) -> int:
     """Substeps per frame ``dt`` that make ``h ω_max ≤`` :data:`H_OMEGA` (at least 1)."""
     return max(1, int(math.ceil(dt * highest_frequency(system) / H_OMEGA - 1e-9)))
-
-
-def external_acceleration(system: System) -> np.ndarray | None:
-    """(n, 3) acceleration of the particles by their external loads: gravity and the surface
-    loads (``Scene.loads``, constant nodal forces over the particle masses, applied whole as the
-    mass-spring explicit run applies them); ``None`` without any.  A substep damps it with the
-    velocity (``v ← (v + h a)/(1 + c h)``), so a rest state feels ``a/(1 + c h)``."""
-    loads = [t.f for t in system.terms if isinstance(t, DeadLoad) and np.any(t.f)]
-    if system.gravity is None and not loads:
-        return None
-    a = np.zeros((system.n, 3))
-    if system.gravity is not None:
-        a[:] = system.gravity[None, :]
-    for f in loads:
-        a += f / system.mass[:, None]
-    return a
 
 
 def massless_static(system: System) -> System:

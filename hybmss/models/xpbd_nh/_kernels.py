@@ -27,7 +27,7 @@ tetrahedron one to the last bit (a test), 3.4–3.9× faster (10³ cube, 8×8×4
 leaves out the products with the zero entries of the corner tetrahedra's ``D_m⁻¹``
 (:data:`SWEEP_PATTERNS`, :func:`_tet_lanes`), 14 % more.
 
-The readable twin is :func:`hybmss.models.xpbd_nh.numpy_substep` (same order, plain Python).
+The readable twin is :func:`hybmss.models.xpbd_nh.constraints.numpy_substep` (same order, plain Python).
 """
 
 from __future__ import annotations
@@ -235,14 +235,14 @@ SLOTS = 48
 SWEEP_TETS = ((0, 3, 6, 5), (1, 0, 5, 3), (2, 3, 6, 0), (4, 5, 0, 6), (7, 6, 3, 5),
              (1, 2, 4, 7), (0, 1, 2, 4), (3, 2, 1, 7), (5, 4, 7, 1), (6, 7, 4, 2))
 """Local corners of a cell's ten tetrahedra in sweep order, positively oriented: the literal
-twin of :func:`hybmss.models.xpbd_nh.cell_tetrahedra` (a test keeps them equal)."""
+twin of :func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra` (a test keeps them equal)."""
 
 SWEEP_PATTERNS = (0, 2, 2, 2, 2, 0, 1, 1, 1, 1)
 """Which entries of each tetrahedron's ``D_m⁻¹`` (sweep order) are non-zero: 0 all (the central
 tetrahedra, on face diagonals); 1 the diagonal (corner tetrahedra with their edges along x, y, z);
 2 ``d00, d12, d21`` (edges along x, z, y).  :func:`_cell_lanes` calls the projection of each
 pattern (:func:`_tet_lanes`); a test derives the patterns from
-:func:`hybmss.models.xpbd_nh.cell_tetrahedra`."""
+:func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra`."""
 
 
 @njit(inline="always")
@@ -273,22 +273,66 @@ def _dot(k: int, pattern: int):
     return njit(inline="always")(dot)
 
 
-def _tet_lanes(pattern: int):
-    """The lane projection of a tetrahedron whose ``D_m⁻¹`` has the zero pattern ``pattern``
-    (:data:`SWEEP_PATTERNS`): its products with ``D_m⁻¹`` (for F and the gradients) skip the zero
-    entries (:func:`_dot`), so that the eight corner tetrahedra of a cell make 3 of every 9 (the
-    8×8×48 beam's sweep: 0.70 → 0.60 ms on Zen 3, the same bits).  One function per pattern,
-    made here, since a branch on the pattern inside one function made Numba's compilation 25×
-    longer."""
-    dot0, dot1, dot2 = (_dot(k, pattern) for k in range(3))
+@njit(inline="always")
+def _entries(Dm, t):
+    """The nine entries of ``Dm[t]`` by rows."""
+    return (Dm[t, 0, 0], Dm[t, 0, 1], Dm[t, 0, 2], Dm[t, 1, 0], Dm[t, 1, 1], Dm[t, 1, 2],
+            Dm[t, 2, 0], Dm[t, 2, 1], Dm[t, 2, 2])
+
+
+@njit(inline="always")
+def _squares(F00, F01, F02, F10, F11, F12, F20, F21, F22):
+    """``tr(FᵀF)``, summed entry after entry from 0 in the order of rows."""
+    s2 = 0.0
+    s2 += F00 * F00
+    s2 += F01 * F01
+    s2 += F02 * F02
+    s2 += F10 * F10
+    s2 += F11 * F11
+    s2 += F12 * F12
+    s2 += F20 * F20
+    s2 += F21 * F21
+    s2 += F22 * F22
+    return s2
+
+
+@njit(inline="always")
+def _move_corner(B, p, l, wx, wy, wz, gx, gy, gz, hx, hy, hz, d1, d2):
+    """A corner's position rows ``p``, ``p + L``, ``p + 2L`` of lane ``l`` moved by
+    ``W (∇C_D d1 + ∇C_H d2)``."""
+    L = LANES
+    B[p + l] += wx * (gx * d1 + hx * d2)
+    B[p + L + l] += wy * (gy * d1 + hy * d2)
+    B[p + 2 * L + l] += wz * (gz * d1 + hz * d2)
+
+
+def _row_lanes(dot0, dot1, dot2):
+    """Row a of ``F = D_s D_m⁻¹`` of lane ``l`` from the rows ``p0..p3`` of component a of the
+    tetrahedron's corners (products with ``D_m⁻¹`` by ``dot*`` of :func:`_dot`)."""
+
+    @njit(inline="always")
+    def row(B, p0, p1, p2, p3, l, d00, d01, d02, d10, d11, d12, d20, d21, d22):
+        x0 = B[p0 + l]
+        e1 = B[p1 + l] - x0
+        e2 = B[p2 + l] - x0
+        e3 = B[p3 + l] - x0
+        return (dot0(e1, e2, e3, d00, d10, d20), dot1(e1, e2, e3, d01, d11, d21),
+                dot2(e1, e2, e3, d02, d12, d22))
+
+    return row
+
+
+def _component_lanes(dot0, dot1, dot2):
+    """One component a of a tetrahedron's constraint gradients (products with ``D_m⁻¹`` by
+    ``dot*`` of :func:`_dot`)."""
 
     @njit(inline="always")
     def component(f0, f1, f2, p0, p1, p2, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
                   w0, w1, w2, w3, a11, a12, a22):
-        """One component a of a tetrahedron's constraint gradients, as in :func:`project_all`: C_D's
-        (``g``) and C_H's (``h``) at corners 1..3 from row a of F (``f*``) and of cof F (``p*``),
-        corner 0 minus their sum; and the Gram sums ``a11, a12, a22`` advanced by the corners'
-        ``w g g``, ``w g h``, ``w h h`` (``w*`` their inverse masses), corner after corner."""
+        """As in :func:`project_all`: C_D's (``g``) and C_H's (``h``) gradients at corners 1..3
+        from row a of F (``f*``) and of cof F (``p*``), corner 0 minus their sum; and the Gram
+        sums ``a11, a12, a22`` advanced by the corners' ``w g g``, ``w g h``, ``w h h`` (``w*``
+        their inverse masses), corner after corner."""
         g1 = dot0(f0, f1, f2, d00, d01, d02) * ic
         h1 = dot0(p0, p1, p2, d00, d01, d02)
         g2 = dot1(f0, f1, f2, d10, d11, d12) * ic
@@ -303,6 +347,19 @@ def _tet_lanes(pattern: int):
         a11, a12, a22 = _gram_add(a11, a12, a22, w3, g3, h3)
         return g0, g1, g2, g3, h0, h1, h2, h3, a11, a12, a22
 
+    return component
+
+
+def _tet_lanes(pattern: int):
+    """The lane projection of a tetrahedron whose ``D_m⁻¹`` has the zero pattern ``pattern``
+    (:data:`SWEEP_PATTERNS`): its products with ``D_m⁻¹`` (for F and the gradients) skip the zero
+    entries (:func:`_dot`), so that the eight corner tetrahedra of a cell make 3 of every 9 (the
+    8×8×48 beam's sweep: 0.70 → 0.60 ms on Zen 3, the same bits).  One function per pattern,
+    made here, since a branch on the pattern inside one function made Numba's compilation 25×
+    longer; its parts are inlined (Numba's ``inline="always"``, before LLVM sees the code)."""
+    dot0, dot1, dot2 = (_dot(k, pattern) for k in range(3))
+    row = _row_lanes(dot0, dot1, dot2)
+    component = _component_lanes(dot0, dot1, dot2)
 
     @njit(inline="always")
     def tet(B, c0, c1, c2, c3, Dm, t, aD, aH, gamma, one):
@@ -312,73 +369,29 @@ def _tet_lanes(pattern: int):
         on displacements (``F = I + D_u D_m⁻¹``), 0 on positions (adding 0 to F's diagonal, ≈ 1,
         leaves it unchanged: one loop serves both states)."""
         L = LANES
-        d00 = Dm[t, 0, 0]
-        d01 = Dm[t, 0, 1]
-        d02 = Dm[t, 0, 2]
-        d10 = Dm[t, 1, 0]
-        d11 = Dm[t, 1, 1]
-        d12 = Dm[t, 1, 2]
-        d20 = Dm[t, 2, 0]
-        d21 = Dm[t, 2, 1]
-        d22 = Dm[t, 2, 2]
-        p0 = 3 * c0 * L
-        p1 = 3 * c1 * L
-        p2 = 3 * c2 * L
-        p3 = 3 * c3 * L
-        q0 = p0 + 24 * L
-        q1 = p1 + 24 * L
-        q2 = p2 + 24 * L
-        q3 = p3 + 24 * L
+        d00, d01, d02, d10, d11, d12, d20, d21, d22 = _entries(Dm, t)
+        p0, p1, p2, p3 = 3 * c0 * L, 3 * c1 * L, 3 * c2 * L, 3 * c3 * L
+        q0, q1, q2, q3 = p0 + 24 * L, p1 + 24 * L, p2 + 24 * L, p3 + 24 * L
         for l in range(L):
             # F = D_s D_m⁻¹, row a from the edges of component a
-            x0 = B[p0 + l]
-            e1 = B[p1 + l] - x0
-            e2 = B[p2 + l] - x0
-            e3 = B[p3 + l] - x0
-            F00 = dot0(e1, e2, e3, d00, d10, d20)
-            F01 = dot1(e1, e2, e3, d01, d11, d21)
-            F02 = dot2(e1, e2, e3, d02, d12, d22)
-            x0 = B[p0 + L + l]
-            e1 = B[p1 + L + l] - x0
-            e2 = B[p2 + L + l] - x0
-            e3 = B[p3 + L + l] - x0
-            F10 = dot0(e1, e2, e3, d00, d10, d20)
-            F11 = dot1(e1, e2, e3, d01, d11, d21)
-            F12 = dot2(e1, e2, e3, d02, d12, d22)
-            x0 = B[p0 + 2 * L + l]
-            e1 = B[p1 + 2 * L + l] - x0
-            e2 = B[p2 + 2 * L + l] - x0
-            e3 = B[p3 + 2 * L + l] - x0
-            F20 = dot0(e1, e2, e3, d00, d10, d20)
-            F21 = dot1(e1, e2, e3, d01, d11, d21)
-            F22 = dot2(e1, e2, e3, d02, d12, d22)
+            F00, F01, F02 = row(B, p0, p1, p2, p3, l, d00, d01, d02, d10, d11, d12, d20, d21, d22)
+            F10, F11, F12 = row(B, p0 + L, p1 + L, p2 + L, p3 + L, l, d00, d01, d02, d10, d11, d12, d20, d21, d22)
+            F20, F21, F22 = row(B, p0 + 2 * L, p1 + 2 * L, p2 + 2 * L, p3 + 2 * L, l,
+                                d00, d01, d02, d10, d11, d12, d20, d21, d22)
             F00 += one
             F11 += one
             F22 += one
-            s2 = 0.0
-            s2 += F00 * F00
-            s2 += F01 * F01
-            s2 += F02 * F02
-            s2 += F10 * F10
-            s2 += F11 * F11
-            s2 += F12 * F12
-            s2 += F20 * F20
-            s2 += F21 * F21
-            s2 += F22 * F22
-            CD = math.sqrt(s2)
+            CD = math.sqrt(_squares(F00, F01, F02, F10, F11, F12, F20, F21, F22))
             ic = 1.0 / CD
             P00, P01, P02, P10, P11, P12, P20, P21, P22 = cofactor3(F00, F01, F02, F10, F11, F12, F20, F21, F22)
             CH = F00 * P00 + F01 * P01 + F02 * P02 - gamma
-            a11 = aD
-            a12 = 0.0
-            a22 = aH
             # per component: gradients of C_D (g*) and C_H (h*) at the corners, their Gram sums
             w0x, w1x, w2x, w3x = B[q0 + l], B[q1 + l], B[q2 + l], B[q3 + l]
             w0y, w1y, w2y, w3y = B[q0 + L + l], B[q1 + L + l], B[q2 + L + l], B[q3 + L + l]
             w0z, w1z, w2z, w3z = B[q0 + 2 * L + l], B[q1 + 2 * L + l], B[q2 + 2 * L + l], B[q3 + 2 * L + l]
             g0x, g1x, g2x, g3x, h0x, h1x, h2x, h3x, a11, a12, a22 = component(
                 F00, F01, F02, P00, P01, P02, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
-                w0x, w1x, w2x, w3x, a11, a12, a22)
+                w0x, w1x, w2x, w3x, aD, 0.0, aH)
             g0y, g1y, g2y, g3y, h0y, h1y, h2y, h3y, a11, a12, a22 = component(
                 F10, F11, F12, P10, P11, P12, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
                 w0y, w1y, w2y, w3y, a11, a12, a22)
@@ -391,18 +404,10 @@ def _tet_lanes(pattern: int):
             idet = 1.0 / (a11 * a22 - a12 * a12)
             d1 = (a22 * b1 - a12 * b2) * idet
             d2 = (a11 * b2 - a12 * b1) * idet
-            B[p0 + l] += w0x * (g0x * d1 + h0x * d2)
-            B[p0 + L + l] += w0y * (g0y * d1 + h0y * d2)
-            B[p0 + 2 * L + l] += w0z * (g0z * d1 + h0z * d2)
-            B[p1 + l] += w1x * (g1x * d1 + h1x * d2)
-            B[p1 + L + l] += w1y * (g1y * d1 + h1y * d2)
-            B[p1 + 2 * L + l] += w1z * (g1z * d1 + h1z * d2)
-            B[p2 + l] += w2x * (g2x * d1 + h2x * d2)
-            B[p2 + L + l] += w2y * (g2y * d1 + h2y * d2)
-            B[p2 + 2 * L + l] += w2z * (g2z * d1 + h2z * d2)
-            B[p3 + l] += w3x * (g3x * d1 + h3x * d2)
-            B[p3 + L + l] += w3y * (g3y * d1 + h3y * d2)
-            B[p3 + 2 * L + l] += w3z * (g3z * d1 + h3z * d2)
+            _move_corner(B, p0, l, w0x, w0y, w0z, g0x, g0y, g0z, h0x, h0y, h0z, d1, d2)
+            _move_corner(B, p1, l, w1x, w1y, w1z, g1x, g1y, g1z, h1x, h1y, h1z, d1, d2)
+            _move_corner(B, p2, l, w2x, w2y, w2z, g2x, g2y, g2z, h2x, h2y, h2z, d1, d2)
+            _move_corner(B, p3, l, w3x, w3y, w3z, g3x, g3y, g3z, h3x, h3y, h3z, d1, d2)
 
     return tet
 
@@ -569,7 +574,7 @@ def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, ov
           pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, k0, nk, iterations, coupled,
           check_every, limit2, rest_after, rest_disp, xprev, y, lamb, bnodes, bcount, B):
     """``nk`` iterations, from iteration ``k0``, of the relaxation to the rest state of the substep
-    ``h`` (:func:`hybmss.models.xpbd_nh.relax_static`), float64 positions ``W[:3n]``::
+    ``h`` (:func:`hybmss.models.xpbd_nh.relax.relax_static`), float64 positions ``W[:3n]``::
 
         y = x + β (x − x_prev);  z = y + gdisp  (gdisp = damp h² g on free components)
         prescribed components of z at the load s((k + 1) H);  p = project_h(z)
