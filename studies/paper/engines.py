@@ -26,7 +26,7 @@ import time
 import pandas as pd
 
 from hybmss import models
-from hybmss.experiments import SceneSpec
+from hybmss.experiments import SceneSpec, experiment
 
 from studies.sweep import roles
 from studies.sweep.runner import SolverSpec, Task, run_tasks
@@ -39,7 +39,8 @@ MESH = (10, 10, 10)
 QUICK_MESH = (2, 2, 2)
 CONTEXT = roles.ENGINE_CONTEXT
 """Models shown beside the engines for context (:data:`studies.sweep.roles.ENGINE_CONTEXT`)."""
-FORCE = {"compression": "force_z", "shear": "force_x"}
+FORCE = {e: experiment(e).answer for e in EXPERIMENTS}
+"""The plate force of each experiment's row (the registry's answer quantity)."""
 STATIC = SolverSpec("static")
 FEM = SolverSpec("fem", element="auto", law="linear")
 TIMED_NU = 0.25

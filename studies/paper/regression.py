@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybmss.experiments import SceneSpec
+from hybmss.experiments import SceneSpec, experiment
 
 from studies.sweep import roles
 from studies.sweep.compare import diff_metrics
@@ -46,13 +46,8 @@ def cases() -> list[SceneSpec]:
 
 
 def _reaction(row) -> float:
-    if row["experiment"] == "torsion":
-        return row["torque_z"]
-    if row["experiment"] == "shear":
-        return row["force_x"]
-    if row["experiment"] == "bending":
-        return row["tip_deflection"]
-    return row["force_z"]
+    """The experiment's answer quantity (:attr:`hybmss.experiments.Experiment.answer`)."""
+    return row[experiment(row["experiment"]).answer]
 
 
 def measure(store: Store | None = None, jobs: int | None = 1, progress: bool = False) -> pd.DataFrame:

@@ -39,7 +39,7 @@ import math
 import re
 
 from hybmss import models
-from hybmss.experiments import DEFAULTS, EXPERIMENTS, ParameterError, Range, SceneSpec
+from hybmss.experiments import DEFAULTS, EXPERIMENTS, REGISTRY, ParameterError, Range, SceneSpec
 
 from studies.sweep import roles
 from studies.sweep.runner import SolverSpec, Task
@@ -57,9 +57,9 @@ REFERENCE_KEYS = ("element", "law", "refine", "large_laws", "large_above", "law_
 TOP_KEYS = ("study", "body", "material", "load", "model", "reference")
 STUDY_KEYS = ("name", "title")
 
-LOAD_MEASURE = {"compression": "deformation", "tension": "deformation", "shear": "deformation",
-                "uniaxial": "deformation", "torsion": "angle_deg", "bending": "gravity"}
-"""The load parameter whose magnitude says whether an experiment's load is large."""
+LOAD_MEASURE = {name: e.load for name, e in REGISTRY.items()}
+"""The load parameter whose magnitude says whether an experiment's load is large (the registry's
+:attr:`hybmss.experiments.Experiment.load`)."""
 
 AT_THRESHOLD = 1e-12
 """A load within this of ``large_above`` (or ``law_up_to``) counts as at it, not above."""
