@@ -28,7 +28,13 @@ too, so that its row is compared with the FEM of its own mesh.  Its runs and the
 follow the configuration's references (one mesh after the other, in the order the models first
 give them); a run or reference that two configurations share (the full tension study's two beams
 map to one coarse beam) is listed once, at its first place.  In the quick mode such a model runs
-the :func:`quick_case` only, and not at all when its part says ``quick=False``.
+the :func:`quick_case` only, and not at all when its part says ``quick=False``; an entry with
+``meshes = "file"`` keeps its models on the file's meshes.
+
+The drivers' files (``docs/study-format.md``, "What the drivers' study files add") also give a
+list of experiments, ``[material.quick]``, ``[[model]] engines = true`` (every registered engine
+model), no ``[reference]`` (no FEM runs) and ``[[table]]`` hooks (:data:`TABLE_HOOKS`,
+:func:`file_tables`).
 """
 
 from __future__ import annotations
