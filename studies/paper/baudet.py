@@ -244,7 +244,7 @@ def volume_hook(h):
     return volume_table(pairs, rows)
 
 
-def volume_table(pairs: list[tuple[dict, "Task"]], rows: list[dict], progress: bool = False):
+def volume_table(pairs: list[tuple[dict, object]], rows: list[dict], progress: bool = False):
     """Relative volume change ``e`` (%) of the b09 models in [G20]'s compression (cube) and
     tension (beam) scenes, static, next to [G20]'s LS-Dyna values: where baudet2009's corrections,
     linear in the forces, stop standing in for a volume term at large strain and ν → ½.  ``pairs``:
