@@ -20,6 +20,11 @@ Geometry and loading:
 - ``uniaxial``: homogeneous uniaxial stress (sliding plates, free sides), strain d = 1e-4, for
   effective moduli (:func:`uniaxial_scene`; :func:`shear_scene` is its simple-shear companion).
 
+Each experiment is declared once in :data:`REGISTRY` (an :class:`Experiment`): its load
+parameter (``deformation``, ``angle_deg``, ``gravity``), its answer quantity (the stored run's
+column its tables compare: ``force_z``, ``force_x``, ``torque_z``, ``tip_deflection``) and its
+scene builder; the parameters' ranges, the study files' ``[load]`` keys and the tables read it.
+
 ρ = 1000 kg/m³ everywhere unless said (the publication gives none for the cube).  ``le``
 (cell edge) follows from the body's size and the mesh unless given.
 """
@@ -30,14 +35,13 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass
+from typing import Callable
 from functools import cached_property
 
 import numpy as np
 
 from . import models
 from .scene import NU_OPEN_RANGE, NU_RANGE, Body, Material, Model, Motion, Plate, Region, Scene
-
-EXPERIMENTS = ("compression", "tension", "shear", "torsion", "bending", "uniaxial")
 
 CUBE_SIDE = 5.0
 BEAM_WIDTH = 0.4
@@ -72,6 +76,105 @@ def shear_scene(model: Model, material: Material, gamma: float = 1e-4, n: int = 
     motion = Motion("affine", gradient=grad)
     plates = tuple(Plate(f, Region(f), motion) for f in ("x-", "x+", "y-", "y+", "z-", "z+"))
     return Scene(Body.box(n, n, n, le), material, model, plates, name="simple-shear")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One experiment, declared once: ``load``, the :class:`SceneSpec` field that sets how hard it
+    is loaded (its magnitude says whether the load is large); ``answer``, the column of a stored
+    run (:func:`studies.sweep.runner.result_row`) that the experiment's tables compare, with its
+    ``answer_label`` and ``answer_unit``; ``plate``, the support whose reaction is read; ``beam``,
+    whether its body is the beam (else the cube); ``build``, its scene builder
+    ``build(spec, model, material, le) -> Scene``."""
+
+    name: str
+    load: str
+    answer: str
+    answer_label: str
+    answer_unit: str
+    plate: str
+    beam: bool
+    build: Callable[["SceneSpec", Model, Material, float], Scene]
+
+    def load_text(self, spec: "SceneSpec") -> str:
+        """The load of ``spec`` as a table's label writes it (``d=5%``, ``θ=1°``, ``E=1e+07``)."""
+        if self.load == "angle_deg":
+            return f"θ={spec.angle_deg:g}°"
+        if self.load == "gravity":
+            return f"E={spec.E:g}"
+        return f"d={100 * spec.deformation:g}%"
+
+
+def _clamped_base() -> Plate:
+    return Plate("bottom", Region("z-"), Motion("clamped"))
+
+
+def _top_moved(spec: "SceneSpec", model: Model, mat: Material, le: float, along: int, sign: float) -> Scene:
+    nx, ny, nz = spec.mesh
+    move = [0.0, 0.0, 0.0]
+    move[along] = sign * (spec.deformation * (nz * le))
+    plates = (_clamped_base(), Plate("top", Region("z+"), Motion("translate", tuple(move))))
+    return Scene(Body.box(nx, ny, nz, le), mat, model, plates, damping=spec.damping, name=spec.label)
+
+
+def _compression(spec, model, mat, le) -> Scene:
+    """The top plate moved down by d·H."""
+    return _top_moved(spec, model, mat, le, 2, -1.0)
+
+
+def _tension(spec, model, mat, le) -> Scene:
+    """The end z = L pulled by d·L."""
+    return _top_moved(spec, model, mat, le, 2, 1.0)
+
+
+def _shear(spec, model, mat, le) -> Scene:
+    """The top plate moved along x by d·H."""
+    return _top_moved(spec, model, mat, le, 0, 1.0)
+
+
+def _torsion(spec, model, mat, le) -> Scene:
+    """The top plate turned by ``angle_deg`` about the vertical axis through its centre."""
+    nx, ny, nz = spec.mesh
+    center = (nx * le / 2.0, ny * le / 2.0, nz * le)
+    top = Plate("top", Region("z+"), Motion("rotate", angle=math.radians(spec.angle_deg), axis=(0.0, 0.0, 1.0),
+                                            center=center))
+    return Scene(Body.box(nx, ny, nz, le), mat, model, (_clamped_base(), top), damping=spec.damping, name=spec.label)
+
+
+def _bending(spec, model, mat, le) -> Scene:
+    """The end z = 0 clamped, gravity along −y."""
+    nx, ny, nz = spec.mesh
+    return Scene(Body.box(nx, ny, nz, le), mat, model, (_clamped_base(),), gravity=(0.0, -spec.gravity, 0.0),
+                 damping=spec.damping, name=spec.label)
+
+
+def _uniaxial(spec, model, mat, le) -> Scene:
+    return dataclasses.replace(uniaxial_scene(model, mat, spec.deformation, spec.mesh[0], le), name=spec.label)
+
+
+REGISTRY: dict[str, Experiment] = {e.name: e for e in (
+    Experiment("compression", "deformation", "force_z", "plate force F_z", "N", "top", False, _compression),
+    Experiment("tension", "deformation", "force_z", "plate force F_z", "N", "top", True, _tension),
+    Experiment("shear", "deformation", "force_x", "plate force F_x", "N", "top", False, _shear),
+    Experiment("torsion", "angle_deg", "torque_z", "plate torque T_z", "N m", "top", False, _torsion),
+    Experiment("bending", "gravity", "tip_deflection", "tip deflection", "m", "bottom", True, _bending),
+    Experiment("uniaxial", "deformation", "force_z", "plate force F_z", "N", "top", False, _uniaxial),
+)}
+"""Every experiment a :class:`SceneSpec` names, in the order of the publication's tables."""
+
+EXPERIMENTS = tuple(REGISTRY)
+
+
+def experiment(name: str) -> Experiment:
+    """The registered experiment ``name`` (``ValueError`` naming the registered ones)."""
+    _check_experiment(name)
+    return REGISTRY[name]
+
+
+def loaded_by(load: str) -> tuple[str, ...]:
+    """The experiments whose load parameter is the :class:`SceneSpec` field ``load``."""
+    return tuple(e.name for e in REGISTRY.values() if e.load == load)
+
 
 
 def _check_experiment(experiment: str) -> None:
@@ -157,12 +260,12 @@ class SceneSpec:
     params: tuple[tuple[str, object], ...] = ()
     deformation: float = param(0.05, "plate displacement / height d (0.05 = 5 %)", "", {
         "compression": Range(0.0, 1.0, hi_open=True), "tension": Range(0.0), "shear": FINITE,
-        "uniaxial": Range(-0.1, 0.1)}, experiments=("compression", "tension", "shear", "uniaxial"),
+        "uniaxial": Range(-0.1, 0.1)}, experiments=loaded_by("deformation"),
         flags=("-d",))
     angle_deg: float = param(0.0, "torsion angle of the top plate", "degrees",
-                             Range(-180.0, 180.0, lo_open=True, hi_open=True), experiments=("torsion",),
+                             Range(-180.0, 180.0, lo_open=True, hi_open=True), experiments=loaded_by("angle_deg"),
                              flags=("--angle",))
-    gravity: float = param(0.0, "gravity along -y", "m/s^2", FINITE, experiments=("bending",))
+    gravity: float = param(0.0, "gravity along -y", "m/s^2", FINITE, experiments=loaded_by("gravity"))
     damping: float = param(0.0, "mass-proportional damping c of the dynamic solvers", "1/s", Range(0.0),
                            solvers=("explicit", "implicit"))
     le: float | None = param(None, "cell edge (default: the body's size / mesh)", "m", Range(0.0, lo_open=True))
@@ -264,7 +367,7 @@ class SceneSpec:
     # ---------------------------------------------------------------- geometry
     @property
     def is_beam(self) -> bool:
-        return self.experiment in ("tension", "bending")
+        return REGISTRY[self.experiment].beam
 
     @property
     def cell_edge(self) -> float:
@@ -279,8 +382,7 @@ class SceneSpec:
     @property
     def label(self) -> str:
         mesh = "x".join(map(str, self.mesh))
-        load = f"θ={self.angle_deg:g}°" if self.experiment == "torsion" else (
-            f"E={self.E:g}" if self.experiment == "bending" else f"d={100 * self.deformation:g}%")
+        load = REGISTRY[self.experiment].load_text(self)
         model = self.scene_model
         return f"{self.experiment} {mesh} {model.spec.tag(model.params)} ν={self.nu:g} {load}"
 
@@ -302,31 +404,8 @@ class SceneSpec:
 
     @cached_property
     def _scene(self) -> Scene:
-        le = self.cell_edge
-        nx, ny, nz = self.mesh
         model = self.scene_model
-        mat = Material(self.E, self.nu, self.rho)
-        if self.experiment == "uniaxial":
-            return dataclasses.replace(uniaxial_scene(model, mat, self.deformation, nx, le), name=self.label)
-        H = nz * le
-        bottom = Plate("bottom", Region("z-"), Motion("clamped"))
-        g = (0.0, 0.0, 0.0)
-        ex = self.experiment
-        if ex == "compression":
-            plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, -self.deformation * H))))
-        elif ex == "tension":
-            plates = (bottom, Plate("top", Region("z+"), Motion("translate", (0.0, 0.0, self.deformation * H))))
-        elif ex == "shear":
-            plates = (bottom, Plate("top", Region("z+"), Motion("translate", (self.deformation * H, 0.0, 0.0))))
-        elif ex == "torsion":
-            center = (nx * le / 2.0, ny * le / 2.0, H)
-            plates = (bottom, Plate("top", Region("z+"), Motion(
-                "rotate", angle=math.radians(self.angle_deg), axis=(0.0, 0.0, 1.0), center=center)))
-        else:  # bending
-            plates = (bottom,)
-            g = (0.0, -self.gravity, 0.0)
-        return Scene(Body.box(nx, ny, nz, le), mat, model, plates, gravity=g, damping=self.damping,
-                     name=self.label)
+        return REGISTRY[self.experiment].build(self, model, Material(self.E, self.nu, self.rho), self.cell_edge)
 
     # ---------------------------------------------------------------- theory
     def beam_section(self) -> tuple[float, float, float]:

@@ -205,39 +205,50 @@ def moduli_table(quick: bool = False, progress: bool = False):
     return pd.DataFrame(rows)
 
 
-def volume_tasks(quick: bool = False) -> list[tuple[dict, "Task"]]:
-    """(row fields, static run) of :func:`volume_table`: [G20]'s compression (cube) and tension
-    (beam) scenes at the (ν, d) of its Tables 2 and 3, every model of the b09 role.  They are the
-    compression and tension studies' own static runs (the same keys), so the reproduction's pool
-    computes them once."""
-    from studies.paper.values import load as load_paper
-    from studies.paper.reproduce import STATIC, beams, cube
-    from studies.sweep.runner import Task
-    from studies.sweep.scenes import SceneSpec
-
-    out = []
-    for experiment, mesh, paper_name in (("compression", cube(quick), "g20_table2_compression"),
-                                         ("tension", beams(quick)[0], "g20_table3_tension")):
-        for _, p in load_paper(paper_name).iterrows():
-            spec = SceneSpec.default(experiment, mesh=mesh, nu=float(p["nu"]), deformation=float(p["deformation"]))
-            meta = {"experiment": experiment, "mesh": "x".join(map(str, mesh)), "nu": float(p["nu"]),
-                    "d_pct": 100 * float(p["deformation"]), "paper_fem_e_pct": float(p["fem_lsdyna"])}
-            for model in MODELS:
-                out.append(({**meta, "model": model}, Task(spec.replace(model=model), STATIC, experiment)))
-    return out
+STUDY = "b09"
+"""The driver study of :data:`studies.paper.reproduce.DRIVER_FILES` whose files
+(``studies/data/studies/b09-volume-*.toml``) declare the volume table's runs."""
+PAPER_TABLES = (("compression", "g20_table2_compression"), ("tension", "g20_table3_tension"))
+"""The publication's table of volume changes of each experiment of the volume table."""
 
 
 def tasks(quick: bool = False) -> list:
-    """The pooled runs of :func:`run` (``make reproduce-paper`` computes them in the sweep's one
-    pool, so that :func:`run` finds them stored)."""
-    return [t for _, t in volume_tasks(quick)]
+    """The pooled runs of :func:`run`, the volume table's (its study files': the compression and
+    tension studies' own static runs, the same keys, so the reproduction's pool computes them
+    once)."""
+    from studies.paper.reproduce import DRIVER_STUDIES
+
+    return DRIVER_STUDIES[STUDY](quick)
 
 
-def volume_table(pairs: list[tuple[dict, "Task"]], rows: list[dict], progress: bool = False):
+def volume_hook(h):
+    """Table hook ``b09-volume`` (:class:`studies.paper.reproduce.HookInput`): :func:`volume_table`
+    at the (ν, d) of each row of [G20]'s Tables 2 and 3, on the files' mesh of its experiment; a
+    run the files do not give is a row ``not run``."""
+    from studies.paper.values import load as load_paper
+
+    found = {(t.scene.experiment, float(t.scene.nu), float(t.scene.deformation), t.scene.model): r
+             for t, r in zip(h.tasks, h.rows) if t.solver.kind == "static"}
+    pairs, rows = [], []
+    for experiment, paper_name in PAPER_TABLES:
+        mesh = next((c.mesh for c in h.configurations if c.experiment == experiment), None)
+        if mesh is None:
+            continue
+        for _, p in load_paper(paper_name).iterrows():
+            meta = {"experiment": experiment, "mesh": "x".join(map(str, mesh)), "nu": float(p["nu"]),
+                    "d_pct": 100 * float(p["deformation"]), "paper_fem_e_pct": float(p["fem_lsdyna"])}
+            for model in MODELS:
+                row = found.get((experiment, float(p["nu"]), float(p["deformation"]), model))
+                pairs.append(({**meta, "model": model}, None))
+                rows.append(row if row is not None else {"status": "not run", "message": "not run"})
+    return volume_table(pairs, rows)
+
+
+def volume_table(pairs: list[tuple[dict, object]], rows: list[dict], progress: bool = False):
     """Relative volume change ``e`` (%) of the b09 models in [G20]'s compression (cube) and
     tension (beam) scenes, static, next to [G20]'s LS-Dyna values: where baudet2009's corrections,
     linear in the forces, stop standing in for a volume term at large strain and ν → ½.  ``pairs``:
-    :func:`volume_tasks`; ``rows``: their stored runs, in that order."""
+    (row fields, run) of :func:`volume_hook`; ``rows``: their stored runs, in that order."""
     import pandas as pd
 
     table: dict = {}
@@ -276,12 +287,14 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     processes at a time and kept in ``store``: :func:`studies.sweep.executors.map_stored`) and
     ``baudet_volume`` (from the stored runs of :func:`tasks`, computed by ``runner`` where
     missing) into ``store``."""
+    from studies.paper.reproduce import file_study_tables
     from studies.sweep.executors import map_stored
     from studies.sweep.runner import run_tasks
 
-    vol = volume_tasks(quick)
-    rows = run_tasks([t for _, t in vol], store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner)
-    store.write_table("baudet_volume", volume_table(vol, rows, progress))
+    vol = tasks(quick)
+    rows = run_tasks(vol, store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner)
+    for name, table in file_study_tables(STUDY, vol, rows, quick, store=store).items():
+        store.write_table(name, table)
     fn = partial(_table, progress=progress)
     for name, df in zip(TABLES, map_stored(store, "baudet_tables", fn, [(n, quick) for n in TABLES], jobs)):
         store.write_table(name, df)

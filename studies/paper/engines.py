@@ -26,46 +26,49 @@ import time
 import pandas as pd
 
 from hybmss import models
-from hybmss.experiments import SceneSpec
+from hybmss.experiments import SceneSpec, experiment
 
 from studies.sweep import roles
-from studies.sweep.runner import SolverSpec, Task, run_tasks
+from studies.sweep.runner import Task, run_tasks
 from studies.sweep.store import Store
+from studies.study.experiment import configurations, engine_models
 
-EXPERIMENTS = ("compression", "shear")
-NUS = (0.25, 0.45, 0.499)
-DEFORMATION = 0.05
+STUDY = "engines"
+"""The driver study of :data:`studies.paper.reproduce.DRIVER_FILES` whose file
+(``studies/data/studies/engines.toml``) declares the scenes, the models, the reference and the
+tables (``engines_closing``, ``engines_timing`` with its repeats)."""
 MESH = (10, 10, 10)
-QUICK_MESH = (2, 2, 2)
-CONTEXT = roles.ENGINE_CONTEXT
-"""Models shown beside the engines for context (:data:`studies.sweep.roles.ENGINE_CONTEXT`)."""
-FORCE = {"compression": "force_z", "shear": "force_x"}
-STATIC = SolverSpec("static")
-FEM = SolverSpec("fem", element="auto", law="linear")
+"""The cube of :func:`step_ratios` when none is given (``hybmss bench --model``)."""
 TIMED_NU = 0.25
 """ν of the step timings (every engine represents it)."""
+TARGET_S = {False: 0.5, True: 0.05}
+"""Wall time of each timed run of :func:`step_ratios` in the table, full and quick."""
 
 
-def engine_models() -> tuple[str, ...]:
-    """The registered models an engine steps (kernel ``engine``), in the registry's order."""
-    return tuple(n for n in models.names() if models.get(n).kernels == ("engine",))
+def _docs() -> list[dict]:
+    from studies.paper.reproduce import DRIVER_STUDIES, load_study_file
+
+    return [load_study_file(f) for f in DRIVER_STUDIES[STUDY].files]
 
 
 def specs(quick: bool = False) -> list[SceneSpec]:
-    mesh = QUICK_MESH if quick else MESH
-    nus = (0.25,) if quick else NUS
-    return [SceneSpec.default(e, mesh=mesh, nu=nu, deformation=DEFORMATION) for e in EXPERIMENTS for nu in nus]
+    """The scenes of the closing table, in the file's order (compression, then shear; by ν)."""
+    return [c for d in _docs() for c in configurations(d, quick)]
+
+
+def context_models(docs) -> tuple[str, ...]:
+    """The models the file names beside the engines (``[[model]] name``), in its order."""
+    return tuple(e["name"] for d in docs for e in d["model"] if "name" in e)
 
 
 def tasks(quick: bool = False, names=None) -> list[Task]:
-    """The closing table's runs: the static answer of each model of ``names`` (default: every
-    engine model and :data:`CONTEXT`) and the FEM, on each scene of :func:`specs`."""
-    names = engine_models() + CONTEXT if names is None else tuple(names)
-    out = []
-    for spec in specs(quick):
-        out += [Task(spec.replace(model=m), STATIC, "engines") for m in names if m in models.names()]
-        out.append(Task(spec, FEM, "engines"))
-    return out
+    """The closing table's runs (the file's): the static answer of each engine model and of the
+    context models, and the FEM, on each scene of :func:`specs`; ``names``: only these models
+    (and the FEM)."""
+    from studies.paper.reproduce import DRIVER_STUDIES
+
+    ts = DRIVER_STUDIES[STUDY](quick)
+    return ts if names is None else [t for t in ts if t.solver.kind == "fem" or t.scene.model in tuple(names)]
 
 
 def _rel(a, b) -> float | None:
@@ -74,17 +77,18 @@ def _rel(a, b) -> float | None:
     return abs(a - b) / abs(b)
 
 
-def closing_table(specs_, rows: list[dict]) -> pd.DataFrame:
-    """One row per (experiment, ν, model): force and volume change against the FEM of the scene."""
+def closing_table(specs_, rows: list[dict], context=roles.ENGINE_CONTEXT) -> pd.DataFrame:
+    """One row per (experiment, ν, model): force and volume change against the FEM of the scene,
+    for every engine model and the ``context`` models."""
     by = {}
     for r in rows:
         by[(r["experiment"], float(r["nu"]), r.get("model") if not str(r["solver"]).startswith("fem") else "fem")] = r
     out = []
     for spec in specs_:
         fem = by.get((spec.experiment, float(spec.nu), "fem"), {})
-        col = FORCE[spec.experiment]
+        col = experiment(spec.experiment).answer
         Ff, dVf = fem.get(col), fem.get("volume_change")
-        for m in engine_models() + CONTEXT:
+        for m in engine_models() + tuple(context):
             r = by.get((spec.experiment, float(spec.nu), m))
             if r is None:  # a run not (yet) in the store: said, not left out
                 r = {"status": "not run", "message": "not computed in this results folder"}
@@ -164,18 +168,29 @@ def step_ratios(names, mesh=MESH, nu: float = TIMED_NU, steps: int | None = None
     return rows
 
 
+def closing_hook(h) -> pd.DataFrame:
+    """Table hook ``engines-closing`` (:class:`studies.paper.reproduce.HookInput`)."""
+    return closing_table(h.configurations, list(h.rows), context_models(h.docs))
+
+
+def timing_hook(h) -> pd.DataFrame:
+    """Table hook ``engines-timing``: :func:`step_ratios` of the engines that represent the
+    timed scene, on the file's first mesh, best of the entry's ``repeats``."""
+    mesh = h.configurations[0].mesh
+    ok = [m for m in engine_models() if _represents(m, mesh)]
+    return pd.DataFrame(step_ratios(ok, mesh=mesh, repeats=h.repeats or 1, target_s=TARGET_S[bool(h.quick)]))
+
+
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *, runner=None,
         timing: bool = True, names=None) -> dict:
-    """Study driver (``EXTRA_STUDIES``): writes ``engines_closing`` and ``engines_timing``
-    (``names``: the models of :func:`tasks`)."""
+    """Study driver (``ON_REQUEST_STUDIES``): writes the tables of the engines study file,
+    ``engines_closing`` and (with ``timing``) ``engines_timing`` (``names``: the models of
+    :func:`tasks`)."""
+    from studies.paper.reproduce import file_study_tables
+
     ts = tasks(quick, names)
     rows = run_tasks(ts, store, jobs=jobs, progress=progress, desc="engines", runner=runner)
-    tables = {"engines_closing": closing_table(specs(quick), rows)}
-    if timing:
-        mesh = QUICK_MESH if quick else MESH
-        ok = [m for m in engine_models() if _represents(m, mesh)]
-        tables["engines_timing"] = pd.DataFrame(step_ratios(ok, mesh=mesh, repeats=1 if quick else 3,
-                                                            target_s=0.05 if quick else 0.5))
+    tables = file_study_tables(STUDY, ts, rows, quick, skip=() if timing else ("engines-timing",), store=store)
     for name, t in tables.items():
         store.write_table(name, t)
     return tables

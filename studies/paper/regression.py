@@ -14,6 +14,7 @@ which rewrites the CSV and prints the differences.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 from importlib import resources
@@ -22,74 +23,81 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybmss.experiments import SceneSpec
+from hybmss import models
+from hybmss.experiments import SceneSpec, experiment
 
-from studies.sweep import roles
 from studies.sweep.compare import diff_metrics
-from studies.sweep.runner import SolverSpec, Task, run_tasks
+from studies.sweep.runner import run_tasks
 from studies.sweep.store import Store, atomic_write_text
 
 METRICS = ("rel_l2", "volume_err_pp", "reaction_rel_err")
-NUS = (0.0, 0.25, 0.499)
+STUDY = "regression"
+"""The driver study of :data:`studies.paper.reproduce.DRIVER_FILES`: its files
+(``studies/data/studies/regression-*.toml``) declare the cases, the models (role ``regression``,
+their defaults), the reference and the table."""
 
 
 def cases() -> list[SceneSpec]:
-    """Coarse versions of the five experiments at 5 % (torsion 1°, bending E = 10 MPa)."""
-    out = []
-    for nu in NUS:
-        out.append(SceneSpec.default("compression", mesh=(4, 4, 4), nu=nu, deformation=0.05))
-        out.append(SceneSpec.default("tension", mesh=(2, 2, 12), nu=nu, deformation=0.05))
-        out.append(SceneSpec.default("shear", mesh=(4, 4, 4), nu=nu, deformation=0.05))
-        out.append(SceneSpec.default("torsion", mesh=(4, 4, 4), nu=nu, angle_deg=1.0))
-    out.append(SceneSpec.default("bending", mesh=(2, 2, 12), E=1e7, nu=0.25, gravity=10.0))
-    return out
+    """The cases of the study files, in their order: the 4³ cube compressed and sheared 5 % and
+    twisted 1°, the 2×2×12 beam pulled 5 % (each at ν = 0, 0.25, 0.499), the beam bending at
+    E = 10 MPa."""
+    from studies.paper.reproduce import DRIVER_STUDIES, load_study_file
+    from studies.study.experiment import configurations
+
+    return [c for f in DRIVER_STUDIES[STUDY].files for c in configurations(load_study_file(f), False)]
 
 
 def _reaction(row) -> float:
-    if row["experiment"] == "torsion":
-        return row["torque_z"]
-    if row["experiment"] == "shear":
-        return row["force_x"]
-    if row["experiment"] == "bending":
-        return row["tip_deflection"]
-    return row["force_z"]
+    """The experiment's answer quantity (:attr:`hybmss.experiments.Experiment.answer`)."""
+    return row[experiment(row["experiment"]).answer]
+
+
+def _case(spec: SceneSpec) -> SceneSpec:
+    """The configuration a run of ``spec`` belongs to (its model's parameters aside)."""
+    return dataclasses.replace(spec, model=models.default_name(), params=())
+
+
+def table_hook(h) -> pd.DataFrame:
+    """Table hook ``regression`` (:class:`studies.paper.reproduce.HookInput`): one row of error
+    metrics per (case, model), each static run against the FEM run of its configuration."""
+    rows = {t.key(): r for t, r in zip(h.tasks, h.rows)}
+    fem = {_case(t.scene): t for t in h.tasks if t.solver.kind == "fem"}
+    out = []
+    for t in h.tasks:
+        if t.solver.kind == "fem":
+            continue
+        spec, m, ft = t.scene, t.scene.model, fem[_case(t.scene)]
+        rm, rf = rows[t.key()], rows[ft.key()]
+        case = f"{spec.experiment} {'x'.join(map(str, spec.mesh))} nu={spec.nu:g}"
+        if rm["status"] != "ok" or rf["status"] != "ok":
+            out.append({"case": case, "model": m, "status": f"{rm['status']}/{rf['status']}",
+                        **{k: np.nan for k in METRICS}})
+            continue
+        a, b = h.store.arrays(t.key()), h.store.arrays(ft.key())
+        d = diff_metrics(a["X"], a["u"], b["u"])
+        ref = _reaction(rf)
+        out.append({
+            "case": case, "model": m, "status": "ok",
+            "rel_l2": d["rel_l2"],
+            "volume_err_pp": 100 * abs(rm["volume_change"] - rf["volume_change"]),
+            "reaction_rel_err": abs(_reaction(rm) - ref) / abs(ref) if ref else np.nan,
+        })
+    return pd.DataFrame(out)
 
 
 def measure(store: Store | None = None, jobs: int | None = 1, progress: bool = False) -> pd.DataFrame:
-    """Run the cases (MSS static for each variant, FEM Hex2/mixed linear) and return one row of
-    error metrics per (case, variant)."""
+    """Run the cases of the study files (each model's static run, the FEM) and return their
+    table (:func:`table_hook`): one row of error metrics per (case, model)."""
+    from studies.paper.reproduce import DRIVER_STUDIES, file_study_tables
+
     tmp = None
     if store is None:
         tmp = tempfile.TemporaryDirectory(prefix="hybmss-regression-")
         store = Store(tmp.name)
     try:
-        tasks, pairs = [], []
-        for spec in cases():
-            fem = Task(spec, SolverSpec("fem", element="auto", law="linear"), "regression")
-            tasks.append(fem)
-            for m in roles.in_role("regression"):
-                t = Task(spec.replace(model=m), SolverSpec("static"), "regression")
-                tasks.append(t)
-                pairs.append((spec, m, t, fem))
-        rows = {r["key"]: r for r in run_tasks(tasks, store, jobs=jobs, progress=progress, desc="regression")}
-        out = []
-        for spec, m, t, fem in pairs:
-            rm, rf = rows[t.key()], rows[fem.key()]
-            case = f"{spec.experiment} {'x'.join(map(str, spec.mesh))} nu={spec.nu:g}"
-            if rm["status"] != "ok" or rf["status"] != "ok":
-                out.append({"case": case, "model": m, "status": f"{rm['status']}/{rf['status']}",
-                            **{k: np.nan for k in METRICS}})
-                continue
-            a, b = store.arrays(t.key()), store.arrays(fem.key())
-            d = diff_metrics(a["X"], a["u"], b["u"])
-            ref = _reaction(rf)
-            out.append({
-                "case": case, "model": m, "status": "ok",
-                "rel_l2": d["rel_l2"],
-                "volume_err_pp": 100 * abs(rm["volume_change"] - rf["volume_change"]),
-                "reaction_rel_err": abs(_reaction(rm) - ref) / abs(ref) if ref else np.nan,
-            })
-        return pd.DataFrame(out)
+        tasks = DRIVER_STUDIES[STUDY](False)
+        rows = run_tasks(tasks, store, jobs=jobs, progress=progress, desc="regression")
+        return file_study_tables(STUDY, tasks, rows, False, store=store)["regression"]
     finally:
         if tmp is not None:
             tmp.cleanup()

@@ -17,12 +17,13 @@ cube's slowest mode; [G20] does not state its damping): the ``solver`` of the fi
 from __future__ import annotations
 
 import tomllib
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from studies.sweep.runner import SolverSpec, Task, run_tasks
 from studies.sweep.store import Store
-from studies.study.experiment import experiment_tasks, validate_experiment
+from studies.study.experiment import configurations, experiment_tasks, file_tables, validate_experiment
 
 STATIC = SolverSpec("static")
 
@@ -66,12 +67,70 @@ class FileStudy:
 
 STUDIES = {name: FileStudy(files) for name, files in STUDY_FILES.items()}
 
+DRIVER_FILES = {
+    "engines": ("engines",),
+    "regression": ("regression-cube", "regression-tension", "regression-bending"),
+    "b09": ("b09-volume-cube", "b09-volume-beam"),
+}
+"""The studies of the drivers (:data:`EXTRA_STUDIES`, :data:`ON_REQUEST_STUDIES`, the CI
+regression) whose runs are study files too, read on the same path as :data:`STUDY_FILES`; their
+tables are the files' ``[[table]]`` hooks (:data:`TABLE_HOOKS`)."""
+
+DRIVER_STUDIES = {name: FileStudy(files) for name, files in DRIVER_FILES.items()}
+
+TABLE_HOOKS = {
+    "engines-closing": "studies.paper.engines:closing_hook",
+    "engines-timing": "studies.paper.engines:timing_hook",
+    "regression": "studies.paper.regression:table_hook",
+    "b09-volume": "studies.paper.baudet:volume_hook",
+}
+"""The code of each table hook a study file may name (``[[table]] hook``,
+:data:`studies.study.experiment.TABLE_HOOKS`): "module:function", the function taking a
+:class:`HookInput` and returning the table (a ``pandas.DataFrame``)."""
+
+
+@dataclass(frozen=True)
+class HookInput:
+    """What a table hook reads: the study's parsed files (``docs``), their configurations in
+    order (``configurations``, :func:`studies.study.experiment.configurations`), its tasks and
+    their stored rows (in the same order), the mode, the ``[[table]]`` entry's ``repeats``, and the
+    store the rows came from (for their arrays)."""
+
+    docs: tuple
+    configurations: tuple
+    tasks: tuple
+    rows: tuple
+    quick: bool
+    repeats: int | None = None
+    store: Store | None = None
+
+
+def file_study_tables(name: str, tasks: list[Task], rows: list[dict], quick: bool, skip=(),
+                      store: Store | None = None) -> dict:
+    """The tables of the driver study ``name`` (:data:`DRIVER_FILES`): each ``[[table]]`` of its
+    files (once by name, in the files' order; not those whose hook is in ``skip``), computed by
+    its hook from the study's ``tasks`` and their ``rows``."""
+    import importlib
+
+    docs = tuple(load_study_file(f) for f in DRIVER_STUDIES[name].files)
+    configs = tuple(c for d in docs for c in configurations(d, quick))
+    out = {}
+    for doc in docs:
+        for t in file_tables(doc, quick):
+            if t["name"] in out or t["hook"] in skip:
+                continue
+            module, func = TABLE_HOOKS[t["hook"]].split(":")
+            hook = getattr(importlib.import_module(module), func)
+            out[t["name"]] = hook(HookInput(docs, configs, tuple(tasks), tuple(rows), quick, t["repeats"], store))
+    return out
+
 
 def check_study_files(names=None) -> None:
     """Read and validate the files of the named studies (every one by default) before any work:
     :class:`studies.study.StudyError` at the first key that is not allowed."""
-    for name in (list(STUDIES) if not names else [n for n in names if n in STUDIES]):
-        for f in STUDIES[name].files:
+    studies = {**STUDIES, **DRIVER_STUDIES}
+    for name in (list(studies) if not names else [n for n in names if n in studies]):
+        for f in studies[name].files:
             load_study_file(f)
 
 

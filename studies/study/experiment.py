@@ -28,7 +28,13 @@ too, so that its row is compared with the FEM of its own mesh.  Its runs and the
 follow the configuration's references (one mesh after the other, in the order the models first
 give them); a run or reference that two configurations share (the full tension study's two beams
 map to one coarse beam) is listed once, at its first place.  In the quick mode such a model runs
-the :func:`quick_case` only, and not at all when its part says ``quick=False``.
+the :func:`quick_case` only, and not at all when its part says ``quick=False``; an entry with
+``meshes = "file"`` keeps its models on the file's meshes.
+
+The drivers' files (``docs/study-format.md``, "What the drivers' study files add") also give a
+list of experiments, ``[material.quick]``, ``[[model]] engines = true`` (every registered engine
+model), no ``[reference]`` (no FEM runs) and ``[[table]]`` hooks (:data:`TABLE_HOOKS`,
+:func:`file_tables`).
 """
 
 from __future__ import annotations
@@ -39,7 +45,7 @@ import math
 import re
 
 from hybmss import models
-from hybmss.experiments import DEFAULTS, EXPERIMENTS, ParameterError, Range, SceneSpec
+from hybmss.experiments import DEFAULTS, EXPERIMENTS, REGISTRY, ParameterError, Range, SceneSpec
 
 from studies.sweep import roles
 from studies.sweep.runner import SolverSpec, Task
@@ -50,16 +56,24 @@ from studies.study.keys import close
 BODY_KEYS = ("experiment", "mesh", "quick")
 QUICK_KEYS = ("mesh",)
 MATERIAL_KEYS = ("E", "nu", "rho")
-MODEL_KEYS = ("role", "name", "params", "defaults_only", "skip_quick", "solver")
+MODEL_KEYS = ("role", "name", "engines", "params", "defaults_only", "skip_quick", "solver", "meshes")
+MESH_POLICIES = ("own", "file")
+"""``[[model]] meshes``: ``own``, a model whose study part gives it meshes of its own runs on them
+(the default); ``file``, every model runs on the file's meshes."""
 SOLVER_KEYS = {"static": ("kind",), "explicit": ("kind", "dt", "steps", "ramp_time", "damping", "kernel"),
                "implicit": ("kind", "dt", "steps", "ramp_time", "damping")}
 REFERENCE_KEYS = ("element", "law", "refine", "large_laws", "large_above", "law_up_to")
-TOP_KEYS = ("study", "body", "material", "load", "model", "reference")
+TOP_KEYS = ("study", "body", "material", "load", "model", "reference", "table")
+TABLE_KEYS = ("name", "hook", "repeats", "quick")
+TABLE_HOOKS = ("engines-closing", "engines-timing", "regression", "b09-volume")
+"""The table hooks a ``[[table]]`` may name: tables of the publication's drivers that a study file
+declares and whose code :data:`studies.paper.reproduce.TABLE_HOOKS` holds (a ``hybmss study``
+run of the file writes its own tables and leaves them out)."""
 STUDY_KEYS = ("name", "title")
 
-LOAD_MEASURE = {"compression": "deformation", "tension": "deformation", "shear": "deformation",
-                "uniaxial": "deformation", "torsion": "angle_deg", "bending": "gravity"}
-"""The load parameter whose magnitude says whether an experiment's load is large."""
+LOAD_MEASURE = {name: e.load for name, e in REGISTRY.items()}
+"""The load parameter whose magnitude says whether an experiment's load is large (the registry's
+:attr:`hybmss.experiments.Experiment.load`)."""
 
 AT_THRESHOLD = 1e-12
 """A load within this of ``large_above`` (or ``law_up_to``) counts as at it, not above."""
@@ -145,8 +159,9 @@ def _check_body(path, doc: dict) -> str:
     body = _table(path, doc, "body")
     _unknown(path, "body", body, BODY_KEYS)
     experiment = body.get("experiment")
-    if experiment not in EXPERIMENTS:
-        _fail(path, "body.experiment", experiment, f"one of {', '.join(EXPERIMENTS)}")
+    names = experiment if isinstance(experiment, list) else [experiment]
+    if not names or len(set(map(str, names))) < len(names) or any(n not in EXPERIMENTS for n in names):
+        _fail(path, "body.experiment", experiment, f"one of {', '.join(EXPERIMENTS)}, or a list of distinct ones")
     if "mesh" in body:
         _meshes(path, "body.mesh", body["mesh"], empty_ok=False)
     if "quick" in body:
@@ -159,10 +174,16 @@ def _check_body(path, doc: dict) -> str:
 
 def _check_material(path, doc: dict) -> None:
     material = _table(path, doc, "material", required=False)
-    _unknown(path, "material", material, MATERIAL_KEYS)
-    for k, v in material.items():
-        f = _SCENE_FIELDS[k]
-        _number_or_list(path, f"material.{k}", v, f.metadata["ranges"], f.metadata["unit"])
+    _unknown(path, "material", material, MATERIAL_KEYS + ("quick",))
+    quick = material.get("quick", {})
+    if not isinstance(quick, dict):
+        _fail(path, "material.quick", quick, "a table of material values that replace these under --quick")
+    _unknown(path, "material.quick", quick, MATERIAL_KEYS)
+    for where, table in (("material", material), ("material.quick", quick)):
+        for k, v in table.items():
+            if k in MATERIAL_KEYS:
+                f = _SCENE_FIELDS[k]
+                _number_or_list(path, f"{where}.{k}", v, f.metadata["ranges"], f.metadata["unit"])
 
 
 def _load_keys(experiment: str) -> tuple[str, ...]:
@@ -170,16 +191,28 @@ def _load_keys(experiment: str) -> tuple[str, ...]:
                  if f.metadata["experiments"] is not None and experiment in f.metadata["experiments"])
 
 
-def _check_load(path, doc: dict, experiment: str) -> None:
+def experiments_of(doc: dict) -> list[str]:
+    """The experiments of the file's ``[body] experiment`` (a name or a list of them)."""
+    e = doc["body"]["experiment"]
+    return list(e) if isinstance(e, list) else [e]
+
+
+def _check_load(path, doc: dict) -> None:
+    """Each ``[load]`` key is the load parameter of one of the file's experiments, in its range
+    for each of them that takes it."""
     load = _table(path, doc, "load", required=False)
-    allowed = _load_keys(experiment)
+    names = experiments_of(doc)
+    allowed = tuple(dict.fromkeys(k for e in names for k in _load_keys(e)))
     for k, v in load.items():
         if k not in allowed:
-            _fail(path, f"load.{k}", v, f"{experiment} takes {', '.join(allowed)}{close(k, allowed, 1)}")
+            _fail(path, f"load.{k}", v, f"{' and '.join(names)} take{'s' if len(names) == 1 else ''} "
+                  f"{', '.join(allowed)}{close(k, allowed, 1)}")
         f = _SCENE_FIELDS[k]
-        rng = f.metadata["ranges"]
-        rng = rng.get(experiment) if isinstance(rng, dict) else rng
-        _number_or_list(path, f"load.{k}", v, rng, f.metadata["unit"])
+        for e in names:
+            if k in _load_keys(e):
+                rng = f.metadata["ranges"]
+                rng = rng.get(e) if isinstance(rng, dict) else rng
+                _number_or_list(path, f"load.{k}", v, rng, f.metadata["unit"])
 
 
 def _check_solver(path, key: str, solver) -> str:
@@ -208,13 +241,20 @@ def _check_models(path, doc: dict) -> None:
     for i, e in enumerate(entries):
         key = f"model[{i}]"
         _unknown(path, key, e, MODEL_KEYS)
-        if ("role" in e) == ("name" in e):
-            _fail(path, key, {k: e[k] for k in ("role", "name") if k in e} or None,
-                  "exactly one of role (every model of a study role) or name (one registered model)")
+        if sum(k in e for k in ("role", "name", "engines")) != 1:
+            _fail(path, key, {k: e[k] for k in ("role", "name", "engines") if k in e} or None,
+                  "exactly one of role (every model of a study role), name (one registered model) or "
+                  "engines = true (every registered model an engine steps)")
         for flag in ("defaults_only", "skip_quick"):
             if flag in e:
                 _bool(path, f"{key}.{flag}", e[flag])
+        if "meshes" in e and e["meshes"] not in MESH_POLICIES:
+            _fail(path, f"{key}.meshes", e["meshes"], f"one of {', '.join(MESH_POLICIES)} (own: a model's own "
+                  "meshes where its study part gives it some; file: the file's meshes)")
         kind = _check_solver(path, f"{key}.solver", e.get("solver", "static"))
+        if "engines" in e:
+            _check_engines(path, key, e, kind)
+            continue
         if "role" in e:
             if e["role"] not in roles.STUDY_ROLES:
                 _fail(path, f"{key}.role", e["role"], f"one of {', '.join(roles.STUDY_ROLES)}")
@@ -249,9 +289,63 @@ def _check_models(path, doc: dict) -> None:
             _fail(path, f"{key}.params", params, f"{name}'s parameters ({' '.join(str(exc).split())})")
 
 
+def engine_models() -> tuple[str, ...]:
+    """The registered models an engine steps (kernel ``engine``), in the registry's order."""
+    return tuple(n for n in models.names() if models.get(n).kernels == ("engine",))
+
+
+def _check_engines(path, key: str, e: dict, kind: str) -> None:
+    if e["engines"] is not True:
+        _fail(path, f"{key}.engines", e["engines"], "true (every registered model an engine steps)")
+    for k in ("params", "defaults_only"):
+        if k in e:
+            _fail(path, f"{key}.{k}", e[k], "only with role or name (the engines run their defaults)")
+    lacking = [m for m in engine_models() if kind not in models.get(m).solvers]
+    if lacking:
+        _fail(path, f"{key}.solver", kind, f"a solver every engine model has ({lacking[0]} has "
+              f"{', '.join(models.get(lacking[0]).solvers)})")
+
+
+def _check_tables(path, doc: dict) -> None:
+    entries = doc.get("table", [])
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        _fail(path, "table", entries, "[[table]] tables, each {name, hook}")
+    names = set()
+    for i, e in enumerate(entries):
+        key = f"table[{i}]"
+        _unknown(path, key, e, TABLE_KEYS)
+        name = e.get("name")
+        if not isinstance(name, str) or not _NAME.match(name) or name in names:
+            _fail(path, f"{key}.name", name, "a name of [a-z0-9_-]+ that no other [[table]] has (it is required)")
+        names.add(name)
+        if e.get("hook") not in TABLE_HOOKS:
+            _fail(path, f"{key}.hook", e.get("hook"), f"one of {', '.join(TABLE_HOOKS)}"
+                  + close(str(e.get("hook")), TABLE_HOOKS, 1))
+        quick = e.get("quick", {})
+        if not isinstance(quick, dict):
+            _fail(path, f"{key}.quick", quick, "a table of values that replace these under --quick (repeats)")
+        _unknown(path, f"{key}.quick", quick, ("repeats",))
+        for where, table in ((key, e), (f"{key}.quick", quick)):
+            if "repeats" in table and not (_is_int(table["repeats"]) and 1 <= table["repeats"] <= 100):
+                _fail(path, f"{where}.repeats", table["repeats"], "an integer in [1, 100] (timed repeats: "
+                      "the best is kept)")
+
+
+def file_tables(doc: dict, quick: bool = False) -> list[dict]:
+    """The ``[[table]]`` entries of the validated file ``doc``: ``name``, ``hook`` and ``repeats``
+    (``None`` when not given), the ``quick`` values in place under ``quick``."""
+    out = []
+    for e in doc.get("table", []):
+        values = {**e, **(e.get("quick", {}) if quick else {})}
+        out.append({"name": e["name"], "hook": e["hook"], "repeats": values.get("repeats")})
+    return out
+
+
 def _check_reference(path, doc: dict) -> None:
     from fem_reference.solve import ELEMENT_CHOICES, LAW_CHOICES
 
+    if "reference" not in doc:  # a study of the models alone (their runs feed a table hook)
+        return
     ref = _table(path, doc, "reference")
     _unknown(path, "reference", ref, REFERENCE_KEYS)
     if "element" in ref and ref["element"] not in ELEMENT_CHOICES:
@@ -277,11 +371,10 @@ def _check_reference(path, doc: dict) -> None:
 def _check_configurations(path, doc: dict) -> None:
     """Every configuration, as the experiment builds it, passes the scene's own checks (e.g. a
     plate on each end needs two cell layers)."""
-    experiment = doc["body"]["experiment"]
     which = {"mesh": "body.mesh", **{k: f"material.{k}" for k in MATERIAL_KEYS},
-             **{k: f"load.{k}" for k in _load_keys(experiment)}}
+             **{k: f"load.{k}" for e in experiments_of(doc) for k in _load_keys(e)}}
     for quick in (False, True):
-        for spec in _configurations(doc, quick):
+        for spec in configurations(doc, quick):
             try:
                 spec.check()
             except ParameterError as exc:
@@ -303,29 +396,35 @@ def validate_experiment(doc: dict, path: str | None = None) -> None:
         _fail(path, "(file)", doc, "a TOML document")
     _unknown(path, "", doc, TOP_KEYS)
     _check_study(path, doc)
-    experiment = _check_body(path, doc)
+    _check_body(path, doc)
     _check_material(path, doc)
-    _check_load(path, doc, experiment)
+    _check_load(path, doc)
     _check_models(path, doc)
     _check_reference(path, doc)
+    _check_tables(path, doc)
     _check_configurations(path, doc)
 
 
 # ----------------------------------------------------------------------------------- runs
-def _configurations(doc: dict, quick: bool) -> list[SceneSpec]:
-    """The file's configurations: one scene per combination of mesh, material and load values."""
+def configurations(doc: dict, quick: bool) -> list[SceneSpec]:
+    """The file's configurations: one scene per combination of experiment, mesh, material and
+    load values (each experiment with its own load parameters)."""
     body = doc["body"]
-    experiment = body["experiment"]
-    meshes = body.get("mesh", [list(DEFAULTS[experiment]["mesh"])])
-    if quick and "mesh" in body.get("quick", {}):
-        meshes = body["quick"]["mesh"]
-    material, load = doc.get("material", {}), doc.get("load", {})
-    axes = [("mesh", [tuple(int(n) for n in m) for m in meshes])]
-    axes += [(k, [float(v) for v in _values(material[k])]) for k in MATERIAL_KEYS if k in material]
-    axes += [(k, [float(v) for v in _values(load[k])]) for k in _SCENE_FIELDS if k in load]
-    names = [k for k, _ in axes]
-    return [SceneSpec.default(experiment, **dict(zip(names, combo)))
-            for combo in itertools.product(*(vals for _, vals in axes))]
+    out = []
+    for experiment in experiments_of(doc):
+        meshes = body.get("mesh", [list(DEFAULTS[experiment]["mesh"])])
+        if quick and "mesh" in body.get("quick", {}):
+            meshes = body["quick"]["mesh"]
+        material, load = doc.get("material", {}), doc.get("load", {})
+        if quick:
+            material = {**material, **material.get("quick", {})}
+        axes = [("mesh", [tuple(int(n) for n in m) for m in meshes])]
+        axes += [(k, [float(v) for v in _values(material[k])]) for k in MATERIAL_KEYS if k in material]
+        axes += [(k, [float(v) for v in _values(load[k])]) for k in _load_keys(experiment) if k in load]
+        names = [k for k, _ in axes]
+        out += [SceneSpec.default(experiment, **dict(zip(names, combo)))
+                for combo in itertools.product(*(vals for _, vals in axes))]
+    return out
 
 
 def _solver(entry: dict):
@@ -345,6 +444,8 @@ def load_measure(spec: SceneSpec) -> float:
 
 def reference_solvers(ref: dict, spec: SceneSpec) -> list:
     """The FEM references of the configuration ``spec`` (module docstring)."""
+    if ref is None:
+        return []
     element, law, refine = ref.get("element", "auto"), ref.get("law", "linear"), ref.get("refine", 1)
     load = load_measure(spec)
     laws = [] if "law_up_to" in ref and load > ref["law_up_to"] + AT_THRESHOLD else [law]
@@ -362,8 +463,8 @@ def quick_case(configurations: list[SceneSpec]) -> SceneSpec | None:
     return min(configurations, key=lambda s: (abs(float(s.nu) - 0.25), load_measure(s)))
 
 
-def _own_mesh(model: str) -> bool:
-    return bool(roles.part(model).meshes)
+def _own_mesh(model: str, entry: dict) -> bool:
+    return entry.get("meshes", "own") == "own" and bool(roles.part(model).meshes)
 
 
 def experiment_tasks(doc: dict, quick: bool = False) -> list:
@@ -375,8 +476,8 @@ def experiment_tasks(doc: dict, quick: bool = False) -> list:
     study = doc["study"]["name"]
     order = {n: i for i, n in enumerate(models.names())}
     entries = [e for e in doc["model"] if not (quick and e.get("skip_quick", False))]
-    configurations = _configurations(doc, quick)
-    first = quick_case(configurations) if quick else None
+    configs = configurations(doc, quick)
+    first = quick_case(configs) if quick else None
     tasks, seen = [], set()
 
     def add(ts):
@@ -386,12 +487,15 @@ def experiment_tasks(doc: dict, quick: bool = False) -> list:
                 seen.add(k)
                 tasks.append(t)
 
-    for spec in configurations:
+    for spec in configs:
         runs = []  # (model's position, parameter set's position, entry's position, task)
         own = {}  # a mesh of a model's own -> its runs, as ``runs``
         for j, e in enumerate(entries):
             solver, damping = _solver(e)
-            if "role" in e:
+            if "engines" in e:
+                names = engine_models()
+                sets = {m: [{}] for m in names}
+            elif "role" in e:
                 names = roles.in_role(e["role"])
                 sets = {m: ([{}] if e.get("defaults_only", False) else list(models.get(m).study_variants(spec.nu)))
                         for m in names}
@@ -400,7 +504,7 @@ def experiment_tasks(doc: dict, quick: bool = False) -> list:
                 sets = {e["name"]: [dict(e.get("params", {}))]}
             for m in names:
                 base = spec
-                if _own_mesh(m):
+                if _own_mesh(m, e):
                     if quick and (not roles.part(m).quick or spec is not first):
                         continue
                     base = roles.mesh_for(m, spec)
@@ -413,8 +517,8 @@ def experiment_tasks(doc: dict, quick: bool = False) -> list:
                     into = runs if base.mesh == spec.mesh else own.setdefault(base, [])
                     into.append((order[m], at, j, Task(scene, solver, study)))
         add(r[3] for r in sorted(runs, key=lambda r: r[:3]))
-        add(Task(spec, fs, study) for fs in reference_solvers(doc["reference"], spec))
+        add(Task(spec, fs, study) for fs in reference_solvers(doc.get("reference"), spec))
         for base, mine in own.items():  # each mesh of a model's own, with the FEM on that mesh
             add(r[3] for r in sorted(mine, key=lambda r: r[:3]))
-            add(Task(base, fs, study) for fs in reference_solvers(doc["reference"], base))
+            add(Task(base, fs, study) for fs in reference_solvers(doc.get("reference"), base))
     return tasks

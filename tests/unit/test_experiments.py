@@ -89,3 +89,42 @@ def test_euler_bernoulli_from_the_spec_matches_the_closed_form():
     spec = SceneSpec.default("bending", mesh=(4, 4, 24), E=1e7, gravity=10.0)
     q, I, L = 1000.0 * 10.0 * 0.4 * 0.4, 0.4 * 0.4**3 / 12, 2.4
     assert spec.euler_bernoulli_tip() == pytest.approx(-q * L**4 / (8 * 1e7 * I), rel=1e-12)
+
+
+# ------------------------------------------------------------------------------- the registry
+LOAD_FIELDS = ("deformation", "angle_deg", "gravity")
+CHANGED = {"deformation": 0.07, "angle_deg": 3.0, "gravity": 7.0}
+
+
+@pytest.mark.parametrize("name", EXPERIMENTS)
+def test_each_experiment_is_loaded_by_its_declared_load_parameter_only(name):
+    """The registry's load parameter is the one field of the three that changes the scene (and
+    the one the specification's checks and a study file's ``[load]`` accept for it)."""
+    from hybmss.experiments import experiment
+
+    e = experiment(name)
+    base = SceneSpec.default(name, mesh=(2, 2, 4))
+    for f in LOAD_FIELDS:
+        changed = base.replace(**{f: CHANGED[f]}).build().digest() != base.build().digest()
+        assert changed == (f == e.load), (name, f)
+        assert SceneSpec.uses(f, name) == (f == e.load), (name, f)
+
+
+def test_the_registered_answer_of_compression_is_the_force_that_theory_gives():
+    """At ν = 0 a cube pressed between a clamped base and a clamped plate is in uniaxial stress:
+    the plate's reaction is E·A·d (the linear FEM's exactly, up to the solver's tolerance); the
+    registry's answer names the stored row's column that holds it."""
+    from hybmss.experiments import experiment
+    from studies.sweep.runner import SolverSpec, measure, solve_scene
+
+    spec = SceneSpec.default("compression", mesh=(2, 2, 2), E=1e4, nu=0.0, deformation=0.02)
+    row = measure(spec, solve_scene(spec.build(), SolverSpec("fem", element="hex2", law="linear")))
+    side = spec.cell_edge * 2
+    assert abs(row[experiment("compression").answer]) == pytest.approx(1e4 * side**2 * 0.02, rel=1e-8)
+
+
+def test_an_unknown_experiment_names_the_registered_ones():
+    from hybmss.experiments import experiment
+
+    with pytest.raises(ValueError, match="compression, tension, shear, torsion, bending"):
+        experiment("twist")
