@@ -31,8 +31,8 @@ rerun finds both stored.  Tables: ``dynamics`` (a row per body, ν and model) an
 ``dynamics_traces`` (the tracked component's history of the FEM and every model at
 :data:`TRACE_NU`, for the report's figure).
 
-Sizes (:data:`LEVELS`): the full level runs the 5³ cube and the 2×2×12 beam, the lattice models at
-every ν and the engines at ν = 0.25; ``quick`` the 3³ cube and the 2×2×12 beam at ν = 0.25 with
+Sizes (:data:`LEVELS`): the full level runs the 4³ cube and the 2×2×12 beam over two periods, the
+lattice models at every ν and the engines at ν = 0.25; ``quick`` the 3³ cube and the 2×2×12 beam at ν = 0.25 with
 two lattice models, over two periods (the cost budget of the reproduction: docs/dynamics.md).
 """
 
@@ -62,8 +62,14 @@ BODIES = {
     "beam": ("bending", 0.1),
 }
 LATTICE_MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009", "corot-hex8", "corot-hex8-sri", "xpbd-nh")
-ENGINES = ("mujoco-tet", "mujoco-trilinear", "mujoco-quadratic", "newton-semi", "newton-vbd", "pbd-xpbd-fem",
-           "newton-xpbd")
+ENGINES = ("mujoco-tet", "mujoco-trilinear", "newton-semi", "newton-vbd", "pbd-xpbd-fem")
+"""The engines that run a released state: mujoco-quadratic's nodes are not the lattice particles (no
+released state on its own nodes) and newton-xpbd cannot represent a shear modulus (both refuse in one
+line before any work)."""
+EXPECTED_DIVERGENCE = {"baudet2009": 0.45}
+"""Models whose released run at the user step (0.9 of the harness's stability limit) diverges from
+this ν on (measured: baudet2009 at ν = 0.45 and 0.499 on both bodies); their rows say so, and
+the runner counts them as runs without result as expected, not as failures."""
 
 
 @dataclass(frozen=True)
@@ -80,7 +86,7 @@ class Level:
 
 
 LEVELS = {
-    "full": Level({"cube": (5, 5, 5), "beam": (2, 2, 12)}, NUS, LATTICE_MODELS, ENGINES, (0.25,)),
+    "full": Level({"cube": (4, 4, 4), "beam": (2, 2, 12)}, NUS, LATTICE_MODELS, ENGINES, (0.25,), 2),
     "quick": Level({"cube": (3, 3, 3), "beam": (2, 2, 12)}, (0.25,), ("hybmss-cf", "corot-hex8"), (), (), 2),
 }
 FEM = SolverSpec("fem", element="hex2", law="linear")
@@ -221,6 +227,13 @@ def tasks(quick: bool = False) -> list[Task]:
     return fem_tasks(level(quick))
 
 
+def expected_divergence(task: Task, row: dict | None) -> bool:
+    """A released run of :data:`EXPECTED_DIVERGENCE` that diverged where it is known to."""
+    run = task.scene
+    nu = EXPECTED_DIVERGENCE.get(getattr(run, "model", None))
+    return nu is not None and run.nu >= nu and (row or {}).get("status") == "diverged"
+
+
 def model_names(lv: Level, nu: float) -> tuple[str, ...]:
     from hybmss import models
 
@@ -346,7 +359,8 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     refs = fem_tasks(lv)
     ref_rows = run_tasks(refs, store, jobs=jobs, progress=progress, desc="dynamics references", runner=runner)
     runs = model_tasks(lv, refs, ref_rows)
-    run_rows = run_tasks(runs, store, jobs=jobs, progress=progress, desc="dynamics", runner=runner)
+    run_rows = run_tasks(runs, store, jobs=jobs, progress=progress, desc="dynamics", runner=runner,
+                         expected=expected_divergence)
     out = tables(store, lv, refs, ref_rows, runs, run_rows)
     out["dynamics"]["load_average"] = f"{load0:.2f}-{os.getloadavg()[0]:.2f}"
     for name, t in out.items():
