@@ -167,7 +167,7 @@ def _family_sentence(fam: str, g: pd.DataFrame) -> str:
               f"shortens the period by {_span(-g['integrator_period_pct'], '.2g')} % of the "
               f"measured {_span(g['period_error_pct'], '+.3g')} %: the rest is the models' own stiffness")
     elif fam == "backward":
-        s += (f"ζ {_span(g['zeta'], '.2g')} against the {_span(g['integrator_zeta'], '.2g')} of backward Euler's "
+        s += (f"ζ {_span(g['zeta'], '.3g')} against the {_span(g['integrator_zeta'], '.3g')} of backward Euler's "
               f"(1 + z²)^−½ per step, which also lengthens the period by {_span(g['integrator_period_pct'], '.2g')} %; "
               f"measured {_span(g['period_error_pct'], '+.3g')} %")
     else:

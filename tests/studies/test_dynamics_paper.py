@@ -13,6 +13,7 @@ for a linear mode), so its ζ is backward Euler's at its ω h.
 
 from __future__ import annotations
 
+import html
 import math
 
 import numpy as np
@@ -149,5 +150,11 @@ def test_report_section_renders_from_stored_rows(tiny, tmp_path):
     assert tab.id == "table_dynamics_beam" and len(tab.rows) == len(LEVEL_MODELS)
     be = _row(tables, "mujoco-trilinear")
     assert "Backward Euler (mujoco-trilinear" in intro
-    assert f"ζ {be['zeta']:.2g} against the {be['integrator_zeta']:.2g}" in intro
+    assert f"ζ {be['zeta']:.3g} against the {be['integrator_zeta']:.3g}" in intro
+    se = _row(tables, "hybmss-cf")
     assert "Semi-implicit (symplectic) Euler (hybmss-cf" in intro
+    assert (f"shortens the period by {-se['integrator_period_pct']:.2g} % of the measured "
+            f"{se['period_error_pct']:+.3g} %") in intro
+    df = tables["dynamics"]
+    closest = df.loc[df["period_error_pct"].abs().idxmin()]
+    assert f"the closest first period is {closest['model']}'s" in html.unescape(intro)
