@@ -26,6 +26,7 @@ from . import palette
 from . import render as rendermod
 from . import engines as enginemod
 from . import modes as modesmod
+from . import dynamics as dynmod
 from . import findings, layout, summary, tables, vtu
 from .data import Results
 
@@ -49,7 +50,7 @@ HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability"
 OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", "headline", "claims", *OPTIONAL_TABLES, *enginemod.TABLES,
-                *modesmod.TABLES}
+                *modesmod.TABLES, *dynmod.TABLES}
 
 
 @dataclass
@@ -383,6 +384,10 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     mod = modesmod.section(results, fig_dir)  # natural frequencies (reports/modes.py)
     if mod is not None:
         sections.append(Section("modes", mod[0], mod[1], [(k, _fig(i) if k == "figure" else i) for k, i in mod[2]]))
+
+    dyn = dynmod.section(results, fig_dir)  # released transients (reports/dynamics.py)
+    if dyn is not None:
+        sections.append(Section("dynamics", dyn[0], dyn[1], [(k, _fig(i) if k == "figure" else i) for k, i in dyn[2]]))
 
     eng = enginemod.section(results)  # the engines' findings (reports/engines.py)
     if eng is not None:

@@ -156,6 +156,7 @@ EXTRA_STUDIES: dict[str, str] = {
     "pareto": "studies.paper.pareto:run",  # speed against error vs a converged FEM reference; error budgets
     "stability": "studies.paper.stability:run",  # dt_crit, extreme deformation, limit stretch, irregular input
     "modes": "studies.paper.modes_study:run",  # natural frequencies of the cube and beam against the FEM's
+    "dynamics": "studies.paper.dynamics_study:run",  # released transients of the cube and beam against the FEM's
 }
 """Studies with their own driver, run after the task lists above: name -> "module:function",
 where the function is ``run(store: Store, quick: bool, jobs: int | None, progress: bool, runner)``

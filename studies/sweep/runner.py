@@ -218,6 +218,7 @@ def _compute(task: Task, row: dict) -> tuple[dict, dict | None]:
         from hybmss.lattice import Lattice
 
         arrays = {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
+        arrays.update(res.info.pop("arrays", None) or {})  # a solver's own arrays (a released run's samples)
         if res.cell_volumes is not None:
             arrays["cell_volumes"] = res.cell_volumes
         row["info"] = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}

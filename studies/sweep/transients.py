@@ -42,11 +42,13 @@ def largest_static_point(fem: ReleasedFem) -> tuple[float, float, float]:
 
 
 def fem_transient(scene: Scene, point, periods: float = 5.0, period_tol: float = 1e-3, element: str = "hex2",
-                  law: str = "linear", refine: int = 1, t_end: float | None = None) -> Trajectory:
+                  law: str = "linear", refine: int = 1, t_end: float | None = None,
+                  fem: ReleasedFem | None = None) -> Trajectory:
     """The FEM reference transient (module docstring) over ``periods`` Rayleigh periods, or up to
     ``t_end`` (s) when given; ``info['dt_check']`` holds the steps, the two periods and the
-    estimated period error."""
-    fem = ReleasedFem(scene, element, law, refine)
+    estimated period error.  ``fem``: the scene's :class:`ReleasedFem` when already built (its
+    static state is then solved once)."""
+    fem = ReleasedFem(scene, element, law, refine) if fem is None else fem
     T_est = 2.0 * math.pi / fem.omega_rayleigh
     if t_end is None:
         t_end = float(periods) * T_est * 1.05  # the Rayleigh quotient bounds ω₁ from above
@@ -69,7 +71,9 @@ def fem_transient(scene: Scene, point, periods: float = 5.0, period_tol: float =
     return fine
 
 
-def _record_every(dt: float, substeps: int, period: float) -> int:
+def samples_every(dt: float, substeps: int, period: float) -> int:
+    """Steps between two recorded samples: one per frame of an engine, else about
+    :data:`SAMPLES_PER_PERIOD` per ``period``."""
     if substeps > 1:
         return substeps  # an engine: one sample per frame
     return max(1, int(period / dt / SAMPLES_PER_PERIOD))
@@ -85,7 +89,7 @@ def model_row(scene: Scene, model, ref: Trajectory, point, periods: int) -> dict
         model = released_model(model)
         dt, sub = user_step(with_model(scene, model))
         row.update(dt=dt, substeps=sub)
-        tr = released_transient(scene, model, dt, ref.t_end, point, record_every=_record_every(dt, sub, T))
+        tr = released_transient(scene, model, dt, ref.t_end, point, record_every=samples_every(dt, sub, T))
     except (ValueError, StaticSolveError, RuntimeError) as exc:
         row.update({"reason": f"{type(exc).__name__}: {exc}".splitlines()[0], "period_error": None,
                     "zeta": None, "phase_error_rad": None, "l2_error": None, "wall_per_simulated_s": None})
