@@ -45,17 +45,8 @@ from hybmss.scene.boundary import Motion
 from hybmss.tetbody import TetMeshError, contains, mesh_surface
 
 from studies.paper.tet_cylinder import H, _cylinder_stl
+from studies.study.tet import tet_engines
 
-
-
-def tet_engines() -> tuple[str, ...]:
-    """The registered engine models that run on a tetrahedral body (``tet_body_refused`` says
-    nothing: MuJoCo's box kinds and Newton's XPBD refuse one)."""
-    from hybmss import models
-    from hybmss.models._engine_model import EngineModel
-
-    return tuple(n for n in models.names() if isinstance(m := models.get(n), EngineModel)
-                 and not m.tet_body_refused())
 
 
 def lattice_models() -> tuple[str, ...]:
