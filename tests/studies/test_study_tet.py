@@ -116,3 +116,53 @@ def test_the_engine_and_the_mss_are_scored_as_tet_compare_scores_them(tmp_path):
         # the squeeze's reaction is along z: its norm's error is the z component's within the lateral forces
         assert row["force_top_rel"] == pytest.approx(direct["reaction"], rel=1e-2, abs=1e-4)
     assert voxel["outside"] > 0 and engine["outside"] == 0
+
+
+@pytest.mark.slow
+def test_gel_cylinder_example_scores_every_engine_on_its_own_tetrahedra(tmp_path, cli_in_process):
+    """The shipped example at --quick: every tetrahedral engine on the gmsh tetrahedra of the STL,
+    hybmss and corot-hex8 on voxels; each engine's field error is tet_compare's score of the same
+    nodes against tet_compare's reference on the same tetrahedra, and each engine's twist torque is
+    above the reference's (P1 is a conforming displacement method: too stiff, never too soft)."""
+    import json
+    from pathlib import Path
+
+    import pandas as pd
+
+    from hybmss import models
+    from hybmss.scene import Material
+    from studies.paper import tet_compare as tc
+    from studies.study import Study
+    from studies.study.tables import loaded_runs
+    from studies.sweep.tet_runs import TetEngineScene
+
+    example = Path(__file__).resolve().parents[2] / "studies" / "examples" / "gel-cylinder.toml"
+    out = tmp_path / "out"
+    proc = cli_in_process("study", example, "--quick", "--out", out, "--jobs", "1", "--json", "--no-progress",
+                          "--no-report")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["failed"] == 0
+    study = Study.from_toml(example, quick=True)
+    body = study.tet_bodies[0]
+    engines = {"mujoco-tet", "newton-semi", "newton-vbd", "pbd-xpbd-fem"} - set(models.unavailable())
+    mat = Material(1.0e4, 0.3, 1000.0)
+    z0, z1 = float(body.X[:, 2].min()), float(body.X[:, 2].max())
+    runs = loaded_runs(study, out)
+    # the file's 0.4 mm on gmsh's height z1 - z0 (its cap nodes within rounding of 0 and H)
+    for load, motion in tc.loads(z0, z1, 0.01 * H / (z1 - z0), 0.01).items():
+        rows = pd.read_csv(out / "tables" / f"gel-cylinder_errors_{load}.csv").set_index("model")
+        assert set(rows.index) == engines | {"hybmss", "corot-hex8"}
+        assert (rows.loc[list(engines), "mesh"] == "tets").all() and (rows.loc[list(engines), "nodes_outside"] == 0).all()
+        assert (rows.loc[["hybmss", "corot-hex8"], "nodes_outside"] > 0).all()
+        ref, prev, conv = tc.reference(body, mat, load, motion, levels=2)
+        for r in runs:
+            s = r["task"].scene
+            if not (isinstance(s, TetEngineScene) and s.load_case == load):
+                continue
+            reaction = r["row"]["info"]["reaction_top_fz" if load == "squeeze" else "reaction_top_tz"]
+            direct = tc.score(ref, prev, conv, r["arrays"]["X"], r["arrays"]["u"], reaction)
+            assert rows.loc[s.label, "u_rel_l2"] == pytest.approx(direct["field"], rel=1e-9)
+            assert direct["field"] > direct["ref_field"]  # the reference resolves the engine's error
+            if load == "twist":
+                assert abs(reaction) > abs(conv.values[-1]) and reaction * conv.values[-1] > 0
+                assert rows.loc[s.label, "torque_top_rel"] == pytest.approx(direct["reaction"], rel=1e-2)
