@@ -225,6 +225,16 @@ class TetProblem:
                              f"(beyond {outside_tol:g} in barycentric coordinates)")
         return cand[np.arange(len(points)), best]
 
+    def places(self, points: np.ndarray, outside_tol: float = 1e-6) -> np.ndarray:
+        """Which ``points`` (k, 3) :meth:`locate` finds an element for within ``outside_tol``
+        (barycentric; among the 16 tetrahedra of nearest centroid)."""
+        points = np.asarray(points, float)
+        p, t = self.mesh.p, self.mesh.t
+        v = p[:, t[:, self.locate(points, np.inf)]].transpose(2, 1, 0)  # (k, 4, 3)
+        M = np.stack([v[:, i] - v[:, 0] for i in (1, 2, 3)], axis=-1)
+        lam = np.linalg.solve(M, (points - v[:, 0])[..., None])[..., 0]
+        return np.minimum(1.0 - lam.sum(-1), lam.min(-1)) >= -outside_tol
+
     def probes(self, points: np.ndarray, outside_tol: float = 1e-6) -> sp.csr_matrix:
         """Matrix (k, n_scalar) evaluating a scalar field of :attr:`basis` at ``points`` (k, 3)."""
         cells = self.locate(points, outside_tol)

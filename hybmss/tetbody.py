@@ -109,6 +109,23 @@ def oriented(X, tets, h: float, tol: float = DEGENERATE_TOL) -> tuple[np.ndarray
     return tets.copy(), 0
 
 
+def contains(body: TetBody, points, k: int = 16) -> np.ndarray:
+    """Which ``points`` (p, 3) lie in the tetrahedra of ``body``: non-negative barycentric
+    coordinates in one of the ``k`` tetrahedra of nearest centroid."""
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, float)
+    P = body.X[body.tets]  # (m, 4, 3)
+    k = min(k, body.n_tets)
+    _, cand = cKDTree(P.mean(axis=1)).query(points, k)
+    cand = np.asarray(cand).reshape(len(points), k)
+    v0 = P[cand, 0]  # (p, k, 3)
+    M = np.stack([P[cand, i] - v0 for i in (1, 2, 3)], axis=-1)  # (p, k, 3, 3)
+    lam = np.linalg.solve(M, (points[:, None, :] - v0)[..., None])[..., 0]
+    bary = np.concatenate([1.0 - lam.sum(-1, keepdims=True), lam], axis=-1)
+    return bary.min(-1).max(-1) >= 0.0
+
+
 def make_body(X, tets, h: float, surface_volume: float | None = None, tol: float = DEGENERATE_TOL) -> TetBody:
     """A :class:`TetBody` after the orientation check (:func:`oriented`); unused nodes are dropped."""
     X = np.asarray(X, float)

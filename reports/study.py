@@ -67,6 +67,8 @@ def export_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
     from studies.study.metrics import match_nodes
 
     folder.mkdir(parents=True, exist_ok=True)
+    if study.tet_bodies:
+        return export_tet_vtu(study, runs, folder)
     refs = {_config(r["task"]): r for r in runs if r["task"].solver.kind == "fem"}
     mats = list(study.materials)
     paths = []
@@ -93,6 +95,41 @@ def export_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
 def _config(task) -> tuple:
     s = task.scene
     return (s.load_case, s.build().material, s.cell_size)
+
+
+def export_tet_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
+    """A tetrahedral study's runs, each on its own mesh (an engine's tetrahedra, a voxel model's
+    hexahedra, the reference's finest tetrahedra) with the reference sampled at its nodes (NaN
+    where a node is not scored: :mod:`studies.study.tet_scores`)."""
+    import pyvista as pv
+
+    from studies.study.tet_scores import _config as tet_config, reference_at_nodes, references
+
+    refs, fields, paths = references(runs), {}, []
+    mats = list(study.materials)
+    for r in runs:
+        ref = refs.get(tet_config(r["task"]))
+        if r["arrays"] is None or ref is None or ref["arrays"] is None:
+            continue
+        s, a = r["task"].scene, r["arrays"]
+        if "tets" in a:
+            cells = np.hstack([np.full((len(a["tets"]), 1), 4), a["tets"]]).ravel()
+            grid = pv.UnstructuredGrid(cells, np.full(len(a["tets"]), pv.CellType.TETRA, np.uint8), a["X"])
+        else:
+            grid = hex_grid(a["X"], np.zeros_like(a["u"]), a["cells"])  # the reference positions
+        grid.point_data["displacement"] = a["u"]
+        grid.field_data["model"] = [s.label]
+        if r is not ref:
+            u_f = reference_at_nodes(study, r, ref, fields)
+            grid.point_data["fem_displacement"] = u_f
+            grid.point_data["|error|"] = np.linalg.norm(a["u"] - u_f, axis=1)
+        material = s.material if hasattr(s, "material") else s.build().material
+        index = mats.index(material) if len(mats) > 1 else None
+        kind = "tets" if "tets" in a else "voxels"
+        path = folder / file_name(f"{s.label}-{kind}", s.cell_size, s.load_case, index)
+        grid.save(path)
+        paths.append(path)
+    return paths
 
 
 # ---------------------------------------------------------------------------- figures
@@ -198,7 +235,7 @@ def _case_section(study, case, tables: dict, runs: list[dict], folder: Path) -> 
     errors = tables[f"errors_{case.name}"]
     if errors.empty or not (errors["status"] == "ok").any():
         return None
-    picks = best_and_worst(errors)
+    picks = best_and_worst(errors) if not study.tet_bodies else None  # views: hexahedral meshes only
     views = render_views(case.name, picks, runs, folder / f"views-{case.name}.png") if picks else None
     return {"name": case.name, "errors": _html_table(errors.drop(columns=["message"], errors="ignore")),
             "cost": _html_table(tables[f"cost_{case.name}"]), "budget": _html_table(tables[f"budget_{case.name}"]),

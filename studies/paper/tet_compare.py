@@ -42,20 +42,11 @@ import numpy as np
 from fem_reference.tet import Support, as_mesh, tet_convergence
 from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, Material
 from hybmss.scene.boundary import Motion
-from hybmss.tetbody import TetMeshError, mesh_surface
+from hybmss.tetbody import TetMeshError, contains, mesh_surface
 
 from studies.paper.tet_cylinder import H, _cylinder_stl
+from studies.study.tet import tet_engines
 
-
-
-def tet_engines() -> tuple[str, ...]:
-    """The registered engine models that run on a tetrahedral body (``tet_body_refused`` says
-    nothing: MuJoCo's box kinds and Newton's XPBD refuse one)."""
-    from hybmss import models
-    from hybmss.models._engine_model import EngineModel
-
-    return tuple(n for n in models.names() if isinstance(m := models.get(n), EngineModel)
-                 and not m.tet_body_refused())
 
 
 def lattice_models() -> tuple[str, ...]:
@@ -92,31 +83,15 @@ def reference(body, mat: Material, load: str, motion: Motion, levels: int):
     return sols[-1], sols[-2], conv[load]
 
 
-def inside(body, points: np.ndarray, k: int = 16) -> np.ndarray:
-    """Which points lie in the tetrahedra of ``body``: non-negative barycentric coordinates in one
-    of the ``k`` tetrahedra of nearest centroid."""
-    from scipy.spatial import cKDTree
-
-    P = body.X[body.tets]  # (m, 4, 3)
-    k = min(k, body.n_tets)
-    _, cand = cKDTree(P.mean(axis=1)).query(points, k)
-    cand = np.asarray(cand).reshape(len(points), k)
-    v0 = P[cand, 0]  # (n, k, 3)
-    M = np.stack([P[cand, i] - v0 for i in (1, 2, 3)], axis=-1)  # (n, k, 3, 3)
-    lam = np.linalg.solve(M, (points[:, None, :] - v0)[..., None])[..., 0]
-    bary = np.concatenate([1.0 - lam.sum(-1, keepdims=True), lam], axis=-1)
-    return bary.min(-1).max(-1) >= 0.0
+def inside(body, points: np.ndarray) -> np.ndarray:
+    """Which points lie in the tetrahedra of ``body`` (:func:`hybmss.tetbody.contains`)."""
+    return contains(body, points)
 
 
 def placed(solution, points: np.ndarray) -> np.ndarray:
-    """Which points the reference ``solution`` finds an element for (within :data:`SAMPLE_TOL`
-    among the 16 tetrahedra of nearest centroid, :meth:`fem_reference.tet.TetProblem.locate`)."""
-    mesh = solution.problem.mesh
-    cells = solution.problem.locate(points, np.inf)
-    v = mesh.p[:, mesh.t[:, cells]].transpose(2, 1, 0)  # (n, 4, 3)
-    M = np.stack([v[:, i] - v[:, 0] for i in (1, 2, 3)], axis=-1)
-    lam = np.linalg.solve(M, (points - v[:, 0])[..., None])[..., 0]
-    return np.minimum(1.0 - lam.sum(-1), lam.min(-1)) >= -SAMPLE_TOL
+    """Which points the reference ``solution`` finds an element for within :data:`SAMPLE_TOL`
+    (:meth:`fem_reference.tet.TetProblem.places`)."""
+    return solution.problem.places(points, SAMPLE_TOL)
 
 
 def score(ref, prev, conv, X: np.ndarray, u: np.ndarray, R: float) -> dict:

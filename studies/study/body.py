@@ -23,7 +23,7 @@ from studies.study.checks import check_digits, check_extent, check_volume, check
 from studies.study.keys import Table, close
 
 SOURCES = ("box", "mesh", "pyvista", "mask", "experiment")
-BODY_KEYS = ("origin", "scale", "spacing", "labels", "cell_sizes", "quick")
+BODY_KEYS = ("origin", "scale", "spacing", "labels", "cell_sizes", "tet_sizes", "quick")
 """The keys of [body] other than its source."""
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".vtk", ".vtp")
 MASK_SUFFIXES = (".npy", ".vti")

@@ -26,7 +26,7 @@ from hybmss import models as registry
 from hybmss.lattice import Lattice
 from hybmss.scene import Load, Material, NU_OPEN_RANGE, Scene, plates_cross
 
-from studies.study import checks
+from studies.study import checks, tet
 from studies.study.body import BodySource, Voxels, body_checks, cell_sizes, folder_of, grid_shape, read_source, source_typo
 from studies.study.errors import StudyError
 from studies.study.outcome import read_expected
@@ -111,6 +111,8 @@ class Study:
     metrics: Metrics = Metrics()
     experiment: dict | None = field(default=None, compare=False)
     voxels: tuple[Voxels, ...] = field(default=(), compare=False, repr=False)
+    tet_sizes: tuple[float, ...] = ()  # [body] tet_sizes: conforming tetrahedra (studies.study.tet)
+    tet_bodies: tuple = field(default=(), compare=False, repr=False)
 
     @classmethod
     def from_toml(cls, path, quick: bool = False) -> "Study":
@@ -172,7 +174,7 @@ class Study:
 # ---------------------------------------------------------------------------- reading steps
 def _user_study(top: Table, body: Table, quick: bool) -> Study:
     head = _read_head(top)
-    source, voxel_sizes = _read_body(body, quick)
+    source, voxel_sizes, tet_sizes = _read_body(body, quick)
     has_labels = source.kind == "mask"
     materials = _read_materials(top.sub("material", required=True))
     cases = tuple(_read_load_case(t, has_labels) for t in top.items("load_case", required=True))
@@ -186,8 +188,12 @@ def _user_study(top: Table, body: Table, quick: bool) -> Study:
     top.done()
     checks.check_size(body, functools.partial(grid_shape, source), voxel_sizes, runs, reference, materials)
     voxels = _voxelize(body, source, voxel_sizes)
+    tet_bodies = tet.mesh_tets(body, source, tet_sizes) if tet_sizes else ()
     study = Study(**head, quick=quick, source=source, cell_sizes=tuple(voxel_sizes), materials=materials,
-                  load_cases=cases, models=runs, reference=reference, metrics=metrics, voxels=voxels)
+                  load_cases=cases, models=runs, reference=reference, metrics=metrics, voxels=voxels,
+                  tet_sizes=tet_sizes, tet_bodies=tet_bodies)
+    if tet_bodies:
+        tet.check_tet_study(study, top)
     _check_resolutions(study, top)
     _check_points(study, top)
     check_modes(study, top.file)
@@ -232,19 +238,22 @@ def _read_head(top: Table) -> dict:
             "repeats": repeats}
 
 
-def _read_body(t: Table, quick: bool) -> tuple[BodySource, list[float]]:
+def _read_body(t: Table, quick: bool) -> tuple[BodySource, list[float], tuple[float, ...]]:
     q = t.sub("quick")
     if q is not None:
         for k in q.data:
-            if k not in ("cell_sizes",):
-                raise q.error(k, q.data[k], f"only cell_sizes may change under --quick{close(k, ('cell_sizes',))}")
+            if k not in ("cell_sizes", "tet_sizes"):
+                raise q.error(k, q.data[k], f"only cell_sizes and tet_sizes may change under --quick"
+                              f"{close(k, ('cell_sizes', 'tet_sizes'))}")
         q.numbers("cell_sizes", required=True, lo=0.0, lo_open=True)  # checked with or without --quick
+        q.numbers("tet_sizes", lo=0.0, lo_open=True)
         if quick:
             t.data = {**t.data, **q.data}
     source, _ = read_source(t)
     sizes = cell_sizes(t, source)
+    tet_sizes = tet.read_tet_sizes(t, source)
     t.done()
-    return source, sizes
+    return source, sizes, tet_sizes
 
 
 def _read_materials(t: Table) -> tuple[Material, ...]:

@@ -138,7 +138,12 @@ COST_ONLY = COST_COLUMNS[3:-1]
 def study_tables(study, out) -> dict[str, pd.DataFrame]:
     """``errors_<case>``, ``cost_<case>``, ``budget_<case>`` per load case, and ``reference``."""
     runs = loaded_runs(study, out)
-    rows = pd.DataFrame(error_rows(study, runs))
+    if study.tet_bodies:  # one reference on the tetrahedra (studies.study.tet_scores)
+        from studies.study.tet_scores import tet_error_rows, tet_reference_rows
+
+        rows, refs = pd.DataFrame(tet_error_rows(study, runs, _cost)), pd.DataFrame(tet_reference_rows(runs))
+    else:
+        rows, refs = pd.DataFrame(error_rows(study, runs)), pd.DataFrame(reference_rows(runs))
     tables = {}
     for case in study.load_cases:
         sub = rows[rows["load_case"] == case.name]
@@ -147,5 +152,5 @@ def study_tables(study, out) -> dict[str, pd.DataFrame]:
         tables[f"errors_{case.name}"] = sub[[c for c in err_cols if c in sub]].reset_index(drop=True)
         tables[f"cost_{case.name}"] = sub[[c for c in COST_COLUMNS if c in sub]].reset_index(drop=True)
         tables[f"budget_{case.name}"] = budget_answer(sub, study.budgets)
-    tables["reference"] = pd.DataFrame(reference_rows(runs))
+    tables["reference"] = refs
     return tables

@@ -150,7 +150,13 @@ def reference_estimate(scene: Scene, results, refinements) -> float:
 
 # ---------------------------------------------------------------------------- the task list
 def study_tasks(study) -> list[Task]:
-    """Model runs first (load case, material, resolution, model), then the references."""
+    """Model runs first (load case, material, resolution, model), then the references; a
+    tetrahedral body's (``[body] tet_sizes``): :func:`studies.study.tet.tet_study_tasks`."""
+    if study.tet_bodies:
+        from studies.study.tet import tet_study_tasks
+
+        return tet_study_tasks(study, lambda run, case, mat: [_model_task(study, run, case, mat, vox)
+                                                              for vox in study.voxels])
     tasks, refs = [], {}
     for case in study.load_cases:
         for mat in study.materials:
@@ -164,6 +170,14 @@ def study_tasks(study) -> list[Task]:
                                       _solver(run), study.name))
                 refs[(case.name, mat, vox.le)] = _reference_task(study, case, mat, vox, plates, loads)
     return tasks + list(refs.values())
+
+
+def _model_task(study, run, case, mat: Material, vox) -> Task:
+    plates = tuple(s.plate(vox.labels) for s in case.supports)
+    loads = tuple(t.load(vox.labels) for t in case.tractions)
+    scene = Scene(vox.body, mat, Model(run.name, **dict(run.params)), plates, case.gravity, run.damping,
+                  f"{study.name} {case.name} {run.label}", loads)
+    return Task(StudyScene(scene, study.name, case.name, vox.le, run.label, study.repeats), _solver(run), study.name)
 
 
 def _solver(run) -> SolverSpec:

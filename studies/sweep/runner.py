@@ -104,7 +104,8 @@ class Task:
     answer_only: bool = False
 
     def key(self) -> str:
-        fields = {"scene": self.scene.build().digest(), "solver": self.solver.relevant(),
+        own = getattr(self.scene, "digest", None)  # a scene holder without a Scene (studies.sweep.tet_runs)
+        fields = {"scene": own() if own else self.scene.build().digest(), "solver": self.solver.relevant(),
                   "code": code_version(code_side(self.solver.kind))}
         extra = getattr(self.scene, "key_extra", None)
         if extra is not None:  # what else a scene holder changes in the answer (a study's reference)
@@ -217,7 +218,8 @@ def _compute(task: Task, row: dict) -> tuple[dict, dict | None]:
                        "sizes) are out of the range double precision resolves: rescale the units or the load")
         from hybmss.lattice import Lattice
 
-        arrays = {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
+        own = getattr(task.scene, "arrays", None)
+        arrays = own(res) if own else {"X": res.X, "u": res.u, "cells": Lattice.from_body(task.scene.build().body).cells}
         arrays.update(res.info.pop("arrays", None) or {})  # a solver's own arrays (a released run's samples)
         if res.cell_volumes is not None:
             arrays["cell_volumes"] = res.cell_volumes
@@ -235,8 +237,10 @@ def _compute(task: Task, row: dict) -> tuple[dict, dict | None]:
 def _expected_cost(task: Task) -> float:
     """A rough relative cost, only to order the runs (longest first): finite-strain FEM on large
     meshes, the other runs by their model's estimate (:func:`studies.sweep.roles.run_cost`)."""
-    cells = float(np.prod(task.scene.mesh))
     s = task.solver
+    if hasattr(task.scene, "expected_cost"):
+        return task.scene.expected_cost(s)
+    cells = float(np.prod(task.scene.mesh))
     if s.kind == "fem":
         per = {"linear": 3.0, "neo-hookean": 20.0, "svk": 20.0}.get(s.law, 10.0) * s.refine**3
         if nearly_incompressible(task.scene.nu):
