@@ -142,13 +142,27 @@ def code_version(side: str = "all") -> str:
     """Hash of the sources a solver side depends on (``"mss"``, ``"fem"``, or ``"all"``): a change
     to a solver changes the keys of exactly the runs it could affect."""
     h = hashlib.sha256()
-    root = Path(__file__).resolve().parent.parent
-    patterns = SOLVER_SOURCES[side] if side in SOLVER_SOURCES else sum(SOLVER_SOURCES.values(), ())
-    files = sorted({f for pat in patterns for f in root.glob(pat)})
-    for f in files:
-        h.update(f.relative_to(root).as_posix().encode())
+    for f in source_files(side):
+        h.update(f.relative_to(SOURCE_ROOT).as_posix().encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:16]
+
+
+SOURCE_ROOT = Path(__file__).resolve().parents[2]
+"""The folder that holds the packages ``hybmss`` and ``fem_reference`` (this module is
+``studies/sweep/store.py`` under it)."""
+
+
+def source_files(side: str = "all") -> list[Path]:
+    """The source files :func:`code_version` hashes for a side; a side whose patterns match no file
+    is an error (a hash of nothing would key every run the same whatever the solver's code)."""
+    patterns = SOLVER_SOURCES[side] if side in SOLVER_SOURCES else sum(SOLVER_SOURCES.values(), ())
+    files = sorted({f for pat in patterns for f in SOURCE_ROOT.glob(pat)})
+    missing = [pat for pat in patterns if not any(SOURCE_ROOT.glob(pat))]
+    if missing:
+        raise RuntimeError(f"the solver sources {', '.join(missing)} are not under {SOURCE_ROOT}: "
+                           "the code version cannot be computed; reinstall hybmss")
+    return files
 
 
 def code_side(solver_kind: str) -> str:

@@ -321,3 +321,20 @@ def test_a_row_keeps_its_scene_under_the_specifications_own_names(base):
     assert set(Results(root).scene_columns()) == {k for t in tiny_tasks() for k in t.scene.to_dict()}
     assert {"mesh", "nu", "deformation"} <= set(tabs["volume"].columns)
     assert {"experiment", "mesh", "nu", "E", "deformation", "angle_deg"} <= set(tabs["differences"].columns)
+
+
+def test_the_code_version_hashes_the_solvers_sources():
+    """Each side's version is a hash of its solver's files: the MSS side reads every module of
+    hybmss, the FEM side those of fem_reference and hybmss's scene, lattice and result, and no
+    side is the hash of nothing."""
+    import hashlib
+
+    from studies.sweep.store import SOURCE_ROOT, source_files
+
+    mss = {f.relative_to(SOURCE_ROOT).as_posix() for f in source_files("mss")}
+    fem = {f.relative_to(SOURCE_ROOT).as_posix() for f in source_files("fem")}
+    assert {"hybmss/lattice.py", "hybmss/explicit/loop.py", "hybmss/models/hybmss/stepper.py"} <= mss
+    assert {"fem_reference/solve.py", "hybmss/lattice.py", "hybmss/result.py"} <= fem
+    assert not any(f.startswith("fem_reference/") for f in mss)
+    nothing = hashlib.sha256().hexdigest()[:16]
+    assert nothing not in {code_version("mss"), code_version("fem"), code_version()}
