@@ -611,7 +611,7 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
     each ratio within ±50 %."""
     from reports.data import Results
     from reports.findings import performance_sentence
-    from reports.tables import performance_short
+    from reports.sections.studies import performance_short
     from studies.paper.claims import REPRODUCED, claims, headline
 
     r = Results(results)
