@@ -12,8 +12,8 @@ from __future__ import annotations
 import pandas as pd
 
 from studies.paper.claims import (E_FEM_PP, MIDDLE_LAYER_TOL, NOT, PAPER_PP, PARTLY, PROTOCOL_FAILURES, REL_PCT,
-                                  REPRODUCED, SUPPORTED, b09_frame, b09_models, b09_normalisation, b09_particles, e_threshold,
-                                  middle_layer_frame, thresholds)
+                                  REPRODUCED, SUPPORTED, e_threshold, thresholds)
+from studies.paper.comparisons import b09_frame, b09_models, b09_normalisation, b09_particles, middle_layer_frame
 from studies.paper.equilibria import NONUNIQUE_PCT, equilibria
 from studies.paper.values import paper_source, paper_table
 from studies.paper.verdict import TIE_COST, TIE_PP
@@ -34,7 +34,7 @@ def _b09_comparison(results: Results) -> pd.DataFrame:
 
 
 def _b09_normalisation(results: Results) -> pd.DataFrame:
-    """[B09]'s SD beside ours read two ways (:func:`studies.paper.claims.b09_normalisation`)."""
+    """[B09]'s SD beside ours read two ways (:func:`studies.paper.comparisons.b09_normalisation`)."""
     f = results.table("b09_comparison")
     return b09_normalisation(f) if f is not None else pd.DataFrame()
 
