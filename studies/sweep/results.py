@@ -24,10 +24,6 @@ VTK_HEX_ORDER = [0, 1, 3, 2, 4, 5, 7, 6]
 EXPERIMENT_ORDER = ("compression", "tension", "shear", "torsion", "bending")
 
 
-def is_fem(solver: str) -> bool:
-    return str(solver).startswith("fem")
-
-
 #: the columns that say what a run's method is, so that nothing reads a method's name back
 METHOD_COLUMNS = ("method", "variant", "model", "solver_kind", "solver_element", "solver_law", "solver_refine",
                   "is_fem", "e_form")
