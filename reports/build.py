@@ -8,7 +8,6 @@ and a rebuild from unchanged results takes a few seconds.
 
 from __future__ import annotations
 
-import base64
 import datetime as _dt
 import hashlib
 import json
@@ -17,49 +16,53 @@ import shutil
 import sys
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
-from studies.paper.claims import PROTOCOL_FAILURES
-
-from . import figures as figmod
-from . import palette
-from . import render as rendermod
 from . import engines as enginemod
-from . import modes as modesmod
+from . import figures as figmod
+from . import layout, palette, plots, study_figures, tables, vtu
 from . import dynamics as dynmod
-from . import findings, layout, summary, tables, vtu
-from .data import Results
+from . import modes as modesmod
+from . import render as rendermod
+from .data import DERIVED_TABLES, Results, thresholds
+from .sections import curves, failures, moduli, publication, runs, shapes, summary
+from .sections import studies as study_sections
+from .sections.base import Context, Section, from_parts
+from .sections.studies import STUDY_SECTIONS
 
 TEMPLATES = Path(__file__).parent / "templates"
-#: study sections: (id, title, figures, stored tables kept in the HTML only, collapsed)
-STUDY_SECTIONS = (
-    ("pareto", "Speed against error: which method for which error budget", ("study_budget", "study_budget_explicit", "study_pareto"),
-     ("budget", "pareto_front", "pareto_references", "pareto")),
-    ("performance", "Performance against the number of volumes (Figs 11, 12)", ("study_performance",),
-     ("performance_summary", "performance", "bandwidth")),
-    ("stability", "Stability: time step and extreme loads", ("study_stability_map", "study_dt_stability"),
-     ("dt_stability", "stability_extreme", "stability", "stability_irregular", "stability_engines")),
-    ("damping", "Damping: steps the explicit protocol needs", ("study_damping",), ("damping_steps",)),
-    ("limit", "Limit stretch", ("study_limit_stretch",), ("limit_stretch",)),
-    ("baudet", "[B09]'s experiments at [B09]'s parameters", ("study_b09",),
-     ("baudet_cantilever", "baudet_lshape", "baudet_moduli", "baudet_volume")),
-)
-#: study figures printed at a third of the page height, so that a section's figures and short table share a page
-HALF_FIGURES = {"study_performance", "study_stability_map", "study_dt_stability", "study_damping",
-                "study_limit_stretch", "study_b09"}
 OPTIONAL_TABLES = tuple(t for *_, names in STUDY_SECTIONS for t in names)
+#: the stored tables the sections show (any other is listed as stored, in "Other study tables");
+#: the tables derived for the report are shown by the sections that read them
 KNOWN_TABLES = {"runs", "table2_compression", "table3_tension", "table4_shear", "table5_torsion", "bending",
                 "differences", "eform_check", "moduli", "headline", "claims", *OPTIONAL_TABLES, *enginemod.TABLES,
-                *modesmod.TABLES, *dynmod.TABLES}
+                *modesmod.TABLES, *dynmod.TABLES, *(set(DERIVED_TABLES) - {"equilibria"})}
 
 
-@dataclass
-class Section:
-    id: str
-    title: str
-    intro: str = ""
-    items: list = field(default_factory=list)  # ("table", Table) | ("figure", dict)
-    screen_only: bool = False
+def _modes(ctx: Context) -> Section | None:
+    """Natural frequencies (:mod:`reports.modes`)."""
+    return from_parts("modes", modesmod.section(ctx.results, ctx.fig_dir))
+
+
+def _dynamics(ctx: Context) -> Section | None:
+    """Released transients (:mod:`reports.dynamics`)."""
+    return from_parts("dynamics", dynmod.section(ctx.results, ctx.fig_dir))
+
+
+def _engines(ctx: Context) -> Section | None:
+    """The engines' findings (:mod:`reports.engines`)."""
+    return from_parts("engines", enginemod.section(ctx.results))
+
+
+def _others(ctx: Context) -> Section | None:
+    return study_sections.others(ctx, KNOWN_TABLES)
+
+
+#: the report's sections, in order: each a function of the build's :class:`Context` that returns a
+#: :class:`Section`, a list of them, or None (a section the results do not give)
+SECTIONS = (summary.section, publication.section, shapes.section, curves.section, study_sections.sections, _others,
+            failures.section, moduli.section, _modes, _dynamics, _engines, runs.section)
 
 
 @dataclass
@@ -74,10 +77,6 @@ class BuildResult:
     warnings: list = field(default_factory=list)
     page_text: list = field(default_factory=list)  # text laid out on each PDF page
     page_anchors: list = field(default_factory=list)  # element ids on each PDF page
-
-
-def _b64(path: Path) -> str:
-    return "data:image/png;base64," + base64.b64encode(Path(path).read_bytes()).decode("ascii")
 
 
 def _fingerprint(results: Results, *modules) -> str:
@@ -95,7 +94,7 @@ def _fingerprint(results: Results, *modules) -> str:
 
 def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list) -> dict:
     """matplotlib figures, reused when neither the results nor the drawing code changed."""
-    key = _fingerprint(results, figmod, palette)
+    key = _fingerprint(results, figmod, study_figures, plots, palette)
     manifest = cache / f"figures-{key}.json"
     if manifest.exists():
         data = json.loads(manifest.read_text())
@@ -104,11 +103,11 @@ def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list
             for fid, f in data.items():
                 dst = fig_dir / Path(f["path"]).name
                 shutil.copyfile(cache / "figures" / dst.name, dst)
-                out[fid] = figmod.Figure(fid, f["title"], dst, f["caption"])
+                out[fid] = plots.Figure(fid, f["title"], dst, f["caption"])
             return out
     n_warn = len(warnings)
     figs = figmod.all_figures(results, fig_dir, warnings)
-    for name, plot in figmod.STUDY_PLOTS.items():
+    for name, plot in study_figures.STUDY_PLOTS.items():
         t = results.table(name)
         if t is not None:
             try:
@@ -126,11 +125,6 @@ def _cached_figures(results: Results, fig_dir: Path, cache: Path, warnings: list
     manifest.write_text(json.dumps({k: {"title": f.title, "path": f.path.name, "caption": f.caption}
                                     for k, f in figs.items()}))
     return figs
-
-
-def _fig(f, number: str = "") -> dict:
-    return {"id": f.id if hasattr(f, "id") else f.path.stem, "title": f.title if hasattr(f, "title") else "",
-            "src": _b64(f.path), "caption": f.caption, "number": number, "file": f"figures/{f.path.name}"}
 
 
 class _Exports:
@@ -198,77 +192,6 @@ def check_out(out_dir) -> None:
         raise PermissionError(f"--out {out_dir}: {probe} is not writable; allowed: a writable folder")
 
 
-def summary_section(results: Results, head, claims) -> Section:
-    """§1: the verdict first (where each method wins, in sentences and one table), the caveats of the
-    reproduction, then the claims of the publication and the headline comparison."""
-    v = summary.verdict(results)
-    subject = results.published_model("proposed")
-    paras = summary.verdict_sentences(v, subject) if not v.empty else []
-    notes = summary.caveats(results, claims, head)
-    intro = "".join(f"<p>{p}</p>" for p in paras)
-    if notes:
-        intro += "<p><b>Caveats.</b></p><ul class='caveats'>" + "".join(f"<li>{_escape(n)}</li>" for n in notes) + "</ul>"
-    s = Section("summary", "Summary: where each method wins", intro)
-    if not v.empty:
-        s.items.append(("table", summary.verdict_table(v, results.published_model("springs-only"))))
-    if not claims.empty:
-        s.items += [("table", t) for t in summary.claims_tables(claims)]
-    if not head.empty:
-        s.items.append(("table", summary.headline_table(head)))
-    return s
-
-
-def _escape(text: str) -> str:
-    import html
-
-    return html.escape(str(text), quote=False)
-
-
-def failures_section(results: Results) -> Section:
-    """Runs without a result, and explicit equilibria apart from the static ones (non-unique)."""
-    s = Section("failures", "Failures and non-unique equilibria",
-                " ".join(p for p in (tables.nonunique_sentence(results), PROTOCOL_FAILURES) if p))
-    t = tables.explicit_table(results)
-    if t is not None:
-        s.items.append(("table", t))
-    s.items.append(("table", tables.failures_table(results)))
-    return s
-
-
-def publication_tables_section(results: Results, figs: dict, claims) -> Section:
-    """Tables 2–6: each "[G20] beside ours" (at most :data:`reports.tables.MAX_COLUMNS` columns),
-    the models [G20] does not list in tables of their own, and their figures; opened by the claims
-    they decide."""
-    s = Section("tables", "Tables 2–6 of the publication, reproduced",
-                summary.claim_findings(claims, "Tables 2, 3", "(Table 4", "(Table 5", "FEM shear force",
-                                       "FEM torsion torque", "FEM volume change"))
-    for name, exp, number in (("table2_compression", "compression", 2), ("table3_tension", "tension", 3)):
-        t = tables.volume_table(results, name, exp, number)
-        if t is not None:
-            s.items.append(("table", t))
-        s.items += [("table", c) for c in tables.competitors_volume_tables(results, name, exp, number)]
-    if "fig_e" in figs:
-        s.items.append(("figure", _fig(figs["fig_e"])))
-    for name, exp, number, load, unit, q in (
-            ("table4_shear", "shear", 4, "deformation", "N", "reaction force F_x"),
-            ("table5_torsion", "torsion", 5, "angle_deg", "N·m", "reaction torque T_z")):
-        t = tables.reaction_table(results, name, exp, number, load, unit, q)
-        if t is not None:
-            s.items.append(("table", t))
-        t = tables.published_reaction_table(results, number)
-        if t is not None:
-            s.items.append(("table", t))
-        s.items += [("table", c) for c in tables.competitors_reaction_tables(results, name, exp, number, load, unit, q)]
-    for fid in ("fig_reactions", "fig_torsion_sweep"):
-        if fid in figs:
-            s.items.append(("figure", _fig(figs[fid])))
-    for t in (tables.meshes_table(results), tables.bending_table(results)):
-        if t is not None:
-            s.items.append(("table", t))
-    s.items += [("table", t) for t in tables.bending_others_tables(results)]
-    return s
-
-
 def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> BuildResult:
     t0 = time.perf_counter()
     check_out(out_dir)
@@ -302,105 +225,36 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
     for w in warnings:
         print(f"warning: {w}", file=sys.stderr, flush=True)
 
-    ov = summary.overview(results)
-    head = summary.headline(results)
-    claims = summary.claims(results)
-    sections: list[Section] = []
-
-    sections.append(summary_section(results, head, claims))
-
-    sections.append(publication_tables_section(results, figs, claims))
-
-    if renders:
-        s = Section("shapes", "Deformed shapes (Figs 3, 4, 7, 9): where the MSS departs from the FEM",
-                    rendermod.largest_differences_sentence(renders))
-        for r in renders:
-            n = rendermod.FIGURE_NUMBERS.get(r.experiment, "")
-            s.items.append(("figure", {"id": r.path.stem, "title": f"{r.experiment.capitalize()}, {r.load} (cf. Fig. {n})",
-                                       "src": _b64(r.path), "caption": r.caption, "number": str(n),
-                                       "file": f"figures/{r.path.name}"}))
-        sections.append(s)
-
-    s = Section("curves", "Cross sections, beam deflection and nodal differences (Figs 5, 8, 10)",
-                summary.claim_findings(claims, "middle-layer", "beam deflection", "closer to FEM than"))
-    for fid in ("fig8", "fig10"):
-        if fid in figs:
-            s.items.append(("figure", _fig(figs[fid])))
-    t = tables.middle_layer_table(results)
-    if t is not None:
-        s.items.append(("table", t))
-    for fid in ("fig5", "fig_diff"):
-        if fid in figs:
-            s.items.append(("figure", _fig(figs[fid])))
-    t = tables.differences_table(results)
-    if t is not None:
-        s.items.append(("table", t))
-    if s.items:
-        sections.append(s)
-
-    present = set(results.table_names())
-    for sid, title, fig_ids, names in STUDY_SECTIONS:
-        if not present & set(names):
-            continue
-        intro, short = _finding(sid, results)
-        s = Section(f"study_{sid}", title, intro)
-        for fid in fig_ids:
-            if fid in figs:
-                item = _fig(figs[fid])
-                if fid in HALF_FIGURES:
-                    item["css"] = "study"
-                s.items.append(("figure", item))
-        if short is not None:
-            s.items.append(("table", short))
-        if sid == "baudet":
-            t = tables.b09_published_table(results)
-            if t is not None:
-                s.items.append(("table", t))
-        for name in names:
-            t = tables.stored_table(results, name)
-            if t is not None:
-                s.items.append(("table", t))
-        sections.append(s)
-    others = [n for n in results.table_names() if n not in KNOWN_TABLES]
-    if others:
-        s = Section("study_other", "Other study tables",
-                    "Tables written by further studies, as stored (HTML only).", screen_only=True)
-        for name in others:
-            t = tables.stored_table(results, name)
-            if t is not None:
-                s.items.append(("table", t))
-        sections.append(s)
-
-    sections.append(failures_section(results))
-
-    s = Section("moduli", "Effective moduli and the E-form check",
-                summary.claim_findings(claims, "input Young's modulus", "limited to ν = 1/4", "E-form"))
-    for t in (tables.moduli_table(results), tables.eform_table(results)):
-        if t is not None:
-            s.items.append(("table", t))
-    if s.items:
-        sections.append(s)
-
-    mod = modesmod.section(results, fig_dir)  # natural frequencies (reports/modes.py)
-    if mod is not None:
-        sections.append(Section("modes", mod[0], mod[1], [(k, _fig(i) if k == "figure" else i) for k, i in mod[2]]))
-
-    dyn = dynmod.section(results, fig_dir)  # released transients (reports/dynamics.py)
-    if dyn is not None:
-        sections.append(Section("dynamics", dyn[0], dyn[1], [(k, _fig(i) if k == "figure" else i) for k, i in dyn[2]]))
-
-    eng = enginemod.section(results)  # the engines' findings (reports/engines.py)
-    if eng is not None:
-        sections.append(Section("engines", *eng))
-
-    t = tables.runs_table(results, vtu_files)
-    if t is not None:
-        sections.append(Section("runs", "All runs and VTU files",
-                                "Deformed states as VTU (open in ParaView, Warp By Vector on 'displacement'): "
-                                "<code>vtu/&lt;key&gt;.vtu</code> next to this page. This list is not printed.",
-                                [("table", t)], screen_only=True))
-
+    ctx = Context(results, figs, renders, vtu_files, summary.headline(results), summary.claims(results), fig_dir)
+    sections = sections_of(ctx)
     _copy_tables(results, out)
+    all_tables = _finish(sections)
+    generated = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    page = partial(_render_html, results, summary.overview(results), sections, len(vtu_files), warnings, generated)
+    index = out / "index.html"
+    index.write_text(page(), encoding="utf-8")
+    log("index.html")
+    pdf_path, pages, texts, anchors = None, 0, [], []
+    if pdf:
+        pdf_path = out / "report.pdf"
+        pages, texts, anchors = _write_pdf(page(printed=True), generated, out, cache, pdf_path)
+        log(f"report.pdf ({pages} pages)")
+    n_figs = sum(1 for sec in sections for kind, _ in sec.items if kind == "figure")
+    return BuildResult(index, pdf_path, pages, time.perf_counter() - t0, n_figs, all_tables, len(vtu_files),
+                       warnings, texts, anchors)
+
+
+def sections_of(ctx: Context) -> list[Section]:
+    """The sections of :data:`SECTIONS`, in order, that the results give."""
+    out: list[Section] = []
+    for make in SECTIONS:
+        made = make(ctx)
+        out += made if isinstance(made, list) else [made] if made is not None else []
+    return out
+
+
+def _finish(sections: list[Section]) -> dict:
+    """Cap the printed tables and number the figures of ``sections``; their tables by id."""
     for sec in sections:  # a printed table never runs over a page: its excess rows stay in the HTML
         for kind, item in sec.items:
             if kind == "table" and not item.screen_only:
@@ -411,45 +265,36 @@ def build(results_dir, out_dir, pdf: bool = True, verbose: bool = False) -> Buil
             if kind == "figure":
                 k += 1
                 item["label"] = f"Figure {k}"
-    all_tables = {item.id: item for sec in sections for kind, item in sec.items if kind == "table"}
-    generated = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    html = _render_html(results, ov, sections, len(vtu_files), warnings, generated)
-    index = out / "index.html"
-    index.write_text(html, encoding="utf-8")
-    log("index.html")
-    pdf_path, pages, texts, anchors = None, 0, [], []
-    if pdf:
-        pdf_path = out / "report.pdf"
-        # the printed page: the HTML without what print hides (screen-only sections, tables and
-        # rows), which weasyprint would otherwise parse and style (the full reproduction: ~5e5
-        # elements, most of the PDF's time); the PDF depends on it only, so that, the build time
-        # stamp aside, an unchanged page reuses it
-        printed = _render_html(results, ov, sections, len(vtu_files), warnings, generated, printed=True)
-        key = hashlib.sha256(printed.replace(generated, "").encode()).hexdigest()[:20]
-        cached_pdf, cached_meta = cache / f"report-{key}.pdf", cache / f"report-{key}.json"
-        if cached_pdf.exists() and cached_meta.exists():
-            meta = json.loads(cached_meta.read_text())
-            pages, texts, anchors = meta["pages"], meta["text"], meta["anchors"]
-            shutil.copyfile(cached_pdf, pdf_path)
-        else:
-            from weasyprint import HTML
+    return {item.id: item for sec in sections for kind, item in sec.items if kind == "table"}
 
-            doc = HTML(string=printed, base_url=str(out)).render()
-            layout.check_fits(doc)  # a table or figure wider than the page fails the build
-            pages = len(doc.pages)
-            texts = [_page_text(p) for p in doc.pages]
-            anchors = [sorted(p.anchors) for p in doc.pages]
-            tmp = out / ".report.pdf.tmp"
-            doc.write_pdf(tmp)
-            tmp.replace(pdf_path)
-            for old in cache.glob("report-*"):
-                old.unlink()
-            shutil.copyfile(pdf_path, cached_pdf)
-            cached_meta.write_text(json.dumps({"pages": pages, "text": texts, "anchors": anchors}))
-        log(f"report.pdf ({pages} pages)")
-    n_figs = sum(1 for sec in sections for kind, _ in sec.items if kind == "figure")
-    return BuildResult(index, pdf_path, pages, time.perf_counter() - t0, n_figs, all_tables, len(vtu_files),
-                       warnings, texts, anchors)
+
+def _write_pdf(printed: str, generated: str, out: Path, cache: Path, pdf_path: Path) -> tuple[int, list, list]:
+    """Write ``pdf_path`` from the printed page (the HTML without what print hides: screen-only
+    sections, tables and rows, which weasyprint would otherwise parse and style: the full
+    reproduction's ~5e5 elements, most of the PDF's time); the PDF depends on it only, so that,
+    the build time stamp aside, an unchanged page reuses the cached one.  (pages, text laid out on
+    each page, element ids on each page)."""
+    key = hashlib.sha256(printed.replace(generated, "").encode()).hexdigest()[:20]
+    cached_pdf, cached_meta = cache / f"report-{key}.pdf", cache / f"report-{key}.json"
+    if cached_pdf.exists() and cached_meta.exists():
+        meta = json.loads(cached_meta.read_text())
+        shutil.copyfile(cached_pdf, pdf_path)
+        return meta["pages"], meta["text"], meta["anchors"]
+    from weasyprint import HTML
+
+    doc = HTML(string=printed, base_url=str(out)).render()
+    layout.check_fits(doc)  # a table or figure wider than the page fails the build
+    pages = len(doc.pages)
+    texts = [_page_text(p) for p in doc.pages]
+    anchors = [sorted(p.anchors) for p in doc.pages]
+    tmp = out / ".report.pdf.tmp"
+    doc.write_pdf(tmp)
+    tmp.replace(pdf_path)
+    for old in cache.glob("report-*"):
+        old.unlink()
+    shutil.copyfile(pdf_path, cached_pdf)
+    cached_meta.write_text(json.dumps({"pages": pages, "text": texts, "anchors": anchors}))
+    return pages, texts, anchors
 
 
 def _copy_tables(results: Results, out: Path) -> None:
@@ -458,29 +303,6 @@ def _copy_tables(results: Results, out: Path) -> None:
     dst.mkdir(parents=True, exist_ok=True)
     for name in results.table_names():
         shutil.copyfile(results.tables_dir / f"{name}.csv", dst / f"{name}.csv")
-
-
-def _finding(sid: str, results: Results):
-    """(answer in one or two sentences, short table or None) of a study section."""
-    if sid == "pareto":
-        return (findings.budget_sentence(findings.budget_answers(results.table("budget")))
-                + figmod.no_result_note(figmod.no_result_count(results.table("pareto")))), None
-    if sid == "performance":
-        return (findings.performance_sentence(results.table("performance_summary")),
-                tables.performance_short(results))
-    if sid == "stability":
-        return findings.stability_sentence(results.table("stability_extreme"), results.table("dt_stability"),
-                                           results.published_model("proposed")), None
-    if sid == "damping":
-        return findings.damping_sentence(results.table("damping_steps")), tables.damping_short(results)
-    if sid == "limit":
-        return findings.limit_sentence(results.table("limit_stretch")), None
-    if sid == "baudet":
-        f = findings.b09_frame(results.table("baudet_cantilever"), results.table("baudet_lshape"),
-                               tables.paper_table("b09_errors"))
-        norm = tables.b09_normalisation(f) if not f.empty else f
-        return findings.b09_sentence(f) + " " + tables.b09_sd_sentence(norm), tables.b09_table(results)
-    return "", None
 
 
 def _page_text(page) -> str:
@@ -514,7 +336,7 @@ def _render_html(results: Results, ov: dict, sections: list, n_vtu: int, warning
         title="hybmss: reproduction of the hybrid 3D mass-spring system of Golec et al. [G20]",
         generated=generated,
         results_dir=str(results.root), ov=ov, sections=sections, css=css, n_vtu=n_vtu, warnings=warnings,
-        thresholds=summary.thresholds(), printed=printed)
+        thresholds=thresholds(), printed=printed)
 
 
 def _duration(s) -> str:

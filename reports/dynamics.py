@@ -23,7 +23,7 @@ from pathlib import Path
 import pandas as pd
 
 from . import palette
-from .figures import Figure, _save
+from .plots import Figure, save_figure
 from .findings import number_or_none
 from .tables import Table, frame_table, grade
 
@@ -107,7 +107,7 @@ def trajectory_figure(traces: pd.DataFrame, path: Path) -> Figure | None:
         fig.legend(handles, labels, ncol=min(len(labels), 5), frameon=False, loc="lower center",
                    bbox_to_anchor=(0.5, 1.0), fontsize=7)
         fig.tight_layout()
-        _save(plt, fig, path)
+        save_figure(plt, fig, path)
     return Figure("dynamics_trajectories", f"Released trajectories at ν = {nu:g}", path,
                   "The tracked point's displacement along the load after the release (its static deflection at "
                   "t = 0), each model with its own integrator at its user step against the FEM's transient "
@@ -142,7 +142,7 @@ def cost_figure(t: pd.DataFrame, path: Path) -> Figure | None:
                 labels.append(lab)
         ax.legend(handles, labels, fontsize=7, frameon=False, loc="center left", bbox_to_anchor=(1.0, 0.5))
         fig.tight_layout()
-        _save(plt, fig, path)
+        save_figure(plt, fig, path)
     return Figure("dynamics_cost", "First period error against cost", path,
                   "|100 (T/T_FEM − 1)| % of each released run against its wall time per simulated second (the "
                   "stepping alone, one machine, one run; squares: cube, circles: beam; every ν). Down and left is "

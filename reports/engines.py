@@ -15,8 +15,7 @@ import html
 
 import pandas as pd
 
-from studies.sweep import roles
-
+from .data import ENGINE_LAWS
 from .findings import number_or_none
 from .tables import Table, fmt, frame_table, grade
 
@@ -25,7 +24,7 @@ TABLES = ("engines_closing", "engines_timing", "engines_cost")
 
 def laws_table() -> Table:
     """What each engine model's parameters mean, from the engine's source (model docstrings)."""
-    rows = [[(m, ""), (eng, ""), (law, ""), (cannot, "")] for m, (eng, law, cannot) in roles.ENGINE_LAWS.items()]
+    rows = [[(m, ""), (eng, ""), (law, ""), (cannot, "")] for m, (eng, law, cannot) in ENGINE_LAWS.items()]
     return Table("table_engine_laws", "The engines' laws and what each cannot do",
                  "Each engine's own code runs (its package, imported only when used); the law and the (E, ν) "
                  "mapping are derived from its source and checked by the verification tests "
@@ -84,7 +83,7 @@ def moduli_rows(moduli: pd.DataFrame | None) -> Table | None:
     """The engines' rows of the stored ``moduli`` table."""
     if moduli is None or "model" not in moduli:
         return None
-    t = moduli[moduli["model"].isin(list(roles.ENGINE_LAWS))]
+    t = moduli[moduli["model"].isin(list(ENGINE_LAWS))]
     if t.empty:
         return None
 

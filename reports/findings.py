@@ -13,7 +13,7 @@ import re
 
 import pandas as pd
 
-from studies.paper.claims import b09_frame, b09_models  # noqa: F401 - the report's [B09] tables and figures read them here
+from .data import b09_models
 
 STATES = ("converged", "unstable", "diverged", "inverted", "missing")
 """Outcomes of a run in the stability map, in legend order."""
@@ -238,8 +238,8 @@ EXPERIMENT_NAMES = {"lshape": "L-shape", "cantilever": "cantilever"}
 """Reader-facing names of [B09]'s experiments."""
 
 
-def b09_sentence(df: pd.DataFrame) -> str:
-    if df.empty:
+def b09_sentence(df: pd.DataFrame | None) -> str:
+    if df is None or df.empty:
         return "No [B09] table is stored (study b09 not run)."
     own = b09_models(df)
     if not own:

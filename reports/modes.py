@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from . import palette
-from .figures import Figure, _nu_axis, _save
+from .plots import Figure, nu_axis, save_figure
 from .findings import number_or_none
 from .tables import Table, frame_table, grade
 
@@ -80,7 +80,7 @@ def figure(tables: dict, path: Path) -> Figure | None:
                         ax.plot(sub["nu"], sub[f"{kind}_error_pct"], marker=marks[n % len(marks)], ms=4,
                                 color=colors[n % len(colors)], label=m)
                 ax.axhline(0.0, color="0.5", lw=0.6)
-                _nu_axis(ax, t["nu"])
+                nu_axis(ax, t["nu"])
                 ax.set_title(f"{body} {t['mesh'].iloc[0]}: 1st {kind}", fontsize=9)
                 if j == 0:
                     ax.set_ylabel("f_model / f_FEM − 1 (%)")
@@ -90,7 +90,7 @@ def figure(tables: dict, path: Path) -> Figure | None:
         fig.legend(handles, labels, ncol=min(len(labels), 6), frameon=False, loc="lower center",
                    bbox_to_anchor=(0.5, 1.0))
         fig.tight_layout()
-        _save(plt, fig, path)
+        save_figure(plt, fig, path)
     return Figure("modes_error", "Frequency error against ν", path,
                   "Error of each model's first bending, torsion and axial frequency against the FEM's on the same "
                   "cells, per ν (axis log(½ − ν)); a missing point: no FEM mode of that kind among the k lowest, "

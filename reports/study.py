@@ -22,6 +22,8 @@ import numpy as np
 
 from . import palette
 from .render import _view, hex_grid
+from studies.study import Study, metrics as study_metrics, outcome as study_outcome, tables as study_tables
+
 from .study_modes import dynamics_html, modes_html
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -30,20 +32,17 @@ VIEW_SIZE = (360, 300)
 
 def build_study_report(study, out, pdf: bool = False) -> Path:
     """Write the report of ``study`` from the results folder ``out``; returns the HTML path."""
-    from studies.study.outcome import outcome_line, study_outcome
-    from studies.study.tables import loaded_runs
-
     out = Path(out)
     folder = out / "report"
     folder.mkdir(parents=True, exist_ok=True)
     tables = study.tables(out)
-    runs = loaded_runs(study, out)
+    runs = study_tables.loaded_runs(study, out)
     vtu = export_vtu(study, runs, out / "vtu")
     sections = [_case_section(study, case, tables, runs, folder) for case in study.load_cases]
     sections = [s for s in sections if s is not None]
     chart = error_cost_chart(study, tables, folder / "error-cost.png")
-    outcome = study_outcome(study, out)
-    outcome["line"] = outcome_line(outcome)
+    outcome = study_outcome.study_outcome(study, out)
+    outcome["line"] = study_outcome.outcome_line(outcome)
     page = _render(study, sections, chart, tables.get("reference"), len(vtu), outcome)
     path = folder / f"{study.name}.html"
     path.write_text(page)
@@ -64,8 +63,6 @@ def file_name(model: str, cell_size: float, case: str, material: int | None = No
 
 def export_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
     from hybmss.result import Result
-    from studies.study.metrics import match_nodes
-
     folder.mkdir(parents=True, exist_ok=True)
     if study.tet_bodies:
         return export_tet_vtu(study, runs, folder)
@@ -78,7 +75,7 @@ def export_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
             continue
         s = r["task"].scene
         a = r["arrays"]
-        u_f = ref["arrays"]["u"][match_nodes(a["X"], ref["arrays"]["X"], s.cell_size)]
+        u_f = ref["arrays"]["u"][study_metrics.match_nodes(a["X"], ref["arrays"]["X"], s.cell_size)]
         res = Result(r["row"].get("solver", ""), s.build().digest(), a["X"], a["u"], np.nan, np.nan, {}, {}, 0, 0.0)
         grid = res.to_pyvista(a["cells"])
         grid.field_data["model"] = [s.label]
@@ -177,8 +174,6 @@ def render_views(case: str, picks, runs: list[dict], path: Path) -> str | None:
     range), the FEM by |u|."""
     import pyvista as pv
 
-    from studies.study.metrics import match_nodes
-
     chosen = []
     for pick in picks:
         for r in runs:
@@ -196,7 +191,7 @@ def render_views(case: str, picks, runs: list[dict], path: Path) -> str | None:
     grids, errs = [], []
     for r in chosen:
         a = r["arrays"]
-        u_f = a_f["u"][match_nodes(a["X"], a_f["X"], r["task"].scene.cell_size)]
+        u_f = a_f["u"][study_metrics.match_nodes(a["X"], a_f["X"], r["task"].scene.cell_size)]
         g = hex_grid(a["X"], a["u"], a["cells"])
         g.point_data["|u - u_FEM| (m)"] = np.linalg.norm(a["u"] - u_f, axis=1)
         grids.append(g)
@@ -273,8 +268,6 @@ def _render(study, sections, chart, reference, n_vtu: int, outcome: dict | None 
 def main(argv=None) -> int:
     import argparse
     import sys
-
-    from studies.study import Study
 
     parser = argparse.ArgumentParser(prog="python -m reports.study", description="the report of a study file")
     parser.add_argument("file")

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from studies.paper.comparisons import b09_frame, b09_models, middle_layer_frame
 from studies.paper.equilibria import equilibria
 from studies.sweep.results import printed_match as printed
 from studies.paper.verdict import verdict
@@ -100,7 +101,6 @@ def e_threshold(d: float) -> float:
     return E_FEM_PP[0.05] if d <= 0.05 + 1e-12 else E_FEM_PP[0.20]
 
 
-
 # ------------------------------------------------------------------------------------ headline
 def hybrid_models(results: Results) -> list[str]:
     """[G20]'s hybrid models (springs for G, volume energy for ν): its proposed one and the one
@@ -149,40 +149,7 @@ def headline(results: Results) -> pd.DataFrame:
                 rec["status"] = m["status"] if m is not None else "missing"
                 rec["message"] = m["message"] if m is not None else ""
                 ok = m is not None and m["status"] == "ok"
-                if exp in ("compression", "tension"):
-                    rec["quantity"], rec["unit"] = "e", "%"
-                    rec["mss"] = 100 * abs(m["volume_change"]) if ok else np.nan
-                    rec["fem"] = 100 * abs(ref["volume_change"]) if ref is not None else np.nan
-                    rec["err"] = rec["mss"] - rec["fem"]
-                    rec["err_unit"] = "pp"
-                    if paper is not None:
-                        p = paper[printed(paper["nu"], nu) & printed(paper["deformation"], load["deformation"])]
-                        if len(p) and pcol in p:
-                            rec["paper_mss"] = float(p[pcol].iloc[0])
-                            rec["paper_fem"] = float(p["fem_lsdyna"].iloc[0])
-                            rec["paper_err"] = rec["paper_mss"] - rec["paper_fem"]
-                elif exp in ("shear", "torsion"):
-                    col = "force_x" if exp == "shear" else "torque_z"
-                    rec["quantity"], rec["unit"] = ("F_x", "N") if exp == "shear" else ("T_z", "N·m")
-                    rec["mss"] = float(m[col]) if ok else np.nan
-                    rec["fem"] = float(ref[col]) if ref is not None else np.nan
-                    rec["err"] = 100 * (rec["mss"] - rec["fem"]) / abs(rec["fem"]) if rec["fem"] else np.nan
-                    rec["err_unit"] = "%"
-                    if paper is not None:  # [G20] Tables 4, 5: ν = 1/4 only
-                        key = "angle_deg" if exp == "torsion" else "deformation"
-                        p = paper[printed(paper["nu"], nu) & printed(paper[key], load[key])]
-                        if len(p) and pcol in p:
-                            rec["paper_mss"] = float(p[pcol].iloc[0])
-                            rec["paper_fem"] = float(p["fem_lsdyna"].iloc[0])
-                            rec["paper_err"] = 100 * (rec["paper_mss"] - rec["paper_fem"]) / abs(rec["paper_fem"])
-                else:
-                    rec["quantity"], rec["unit"] = "tip deflection", "m"
-                    rec["mss"] = float(m["tip_deflection"]) if ok else np.nan
-                    rec["fem"] = float(ref["tip_deflection"]) if ref is not None else np.nan
-                    # deflections point down: compare magnitudes, negative when the model deflects less
-                    rec["err"] = 100 * (abs(rec["mss"]) - abs(rec["fem"])) / abs(rec["fem"]) if rec["fem"] else np.nan
-                    rec["err_unit"] = "%"
-                    rec["eb"] = float(m["euler_bernoulli_tip"]) if m is not None else np.nan
+                _headline_values(rec, exp, m, ok, ref, paper, pcol, nu, load)
                 rec["reference"] = ref["solver"] if ref is not None else ""
                 if diffs is not None and m is not None and "mss_key" in diffs:
                     d = diffs[diffs["mss_key"] == m["key"]]
@@ -192,13 +159,68 @@ def headline(results: Results) -> pd.DataFrame:
     return pd.DataFrame(recs)
 
 
+def _headline_values(rec: dict, exp: str, m, ok: bool, ref, paper, pcol, nu: float, load: dict) -> None:
+    """Fill ``rec`` with the compared quantity of ``exp``: the model's (its run ``m``, ``ok`` if it
+    reached a result), the FEM reference's, their difference and the publication's."""
+    if exp in ("compression", "tension"):
+        rec["quantity"], rec["unit"] = "e", "%"
+        rec["mss"] = 100 * abs(m["volume_change"]) if ok else np.nan
+        rec["fem"] = 100 * abs(ref["volume_change"]) if ref is not None else np.nan
+        rec["err"] = rec["mss"] - rec["fem"]
+        rec["err_unit"] = "pp"
+        if paper is not None:
+            p = paper[printed(paper["nu"], nu) & printed(paper["deformation"], load["deformation"])]
+            if len(p) and pcol in p:
+                rec["paper_mss"] = float(p[pcol].iloc[0])
+                rec["paper_fem"] = float(p["fem_lsdyna"].iloc[0])
+                rec["paper_err"] = rec["paper_mss"] - rec["paper_fem"]
+    elif exp in ("shear", "torsion"):
+        col = "force_x" if exp == "shear" else "torque_z"
+        rec["quantity"], rec["unit"] = ("F_x", "N") if exp == "shear" else ("T_z", "N·m")
+        rec["mss"] = float(m[col]) if ok else np.nan
+        rec["fem"] = float(ref[col]) if ref is not None else np.nan
+        rec["err"] = 100 * (rec["mss"] - rec["fem"]) / abs(rec["fem"]) if rec["fem"] else np.nan
+        rec["err_unit"] = "%"
+        if paper is not None:  # [G20] Tables 4, 5: ν = 1/4 only
+            key = "angle_deg" if exp == "torsion" else "deformation"
+            p = paper[printed(paper["nu"], nu) & printed(paper[key], load[key])]
+            if len(p) and pcol in p:
+                rec["paper_mss"] = float(p[pcol].iloc[0])
+                rec["paper_fem"] = float(p["fem_lsdyna"].iloc[0])
+                rec["paper_err"] = 100 * (rec["paper_mss"] - rec["paper_fem"]) / abs(rec["paper_fem"])
+    else:
+        rec["quantity"], rec["unit"] = "tip deflection", "m"
+        rec["mss"] = float(m["tip_deflection"]) if ok else np.nan
+        rec["fem"] = float(ref["tip_deflection"]) if ref is not None else np.nan
+        # deflections point down: compare magnitudes, negative when the model deflects less
+        rec["err"] = 100 * (abs(rec["mss"]) - abs(rec["fem"])) / abs(rec["fem"]) if rec["fem"] else np.nan
+        rec["err_unit"] = "%"
+        rec["eb"] = float(m["euler_bernoulli_tip"]) if m is not None else np.nan
+
+
 # ------------------------------------------------------------------------------------ claims
 def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
+    """The publication's claims judged from the stored results and the headline comparison ``h``
+    (:func:`headline`), in the order the report prints them."""
+    subject = results.published_model("proposed")
+    vol = h[h["experiment"].isin(["compression", "tension"])] if not h.empty else h
+    out = _moduli_claims(results) + _volume_claims(vol, subject) + _incompressible_claims(results)
+    out += _paper_volume_claims(results, vol, subject) + _face_diagonal_claims(results, subject)
+    out += _reaction_claims(h, subject) + _bending_claims(h, subject) + _eform_claims(results)
+    out += published_claims(results)
+    out += _run_claims(results)
+    c = _perf_summary_claim(results.table("performance_summary"))
+    if c is not None:
+        out.append(c)
+    return out
+
+
+def _moduli_claims(results: Results) -> list[Claim]:
+    """The hybrid models' effective moduli, the spring-only lattice's ν and the E-form's moduli."""
     out = []
     mod = results.table("moduli")
     hybrid = hybrid_models(results)
     subject = results.published_model("proposed")
-    fd = results.published_model("no-face-diagonals")
     cf = results.published_model("springs-only")
     stmt = f"{' and '.join(hybrid)} have the input Young's modulus, Poisson's ratio and shear modulus for any ν"
     crit = f"|E_eff/E − 1|, |G_eff/G − 1| ≤ {100 * E_MODULI_TOL:g} %, |ν_eff − ν| ≤ {NU_MODULI_TOL:g}, every ν tested"
@@ -235,8 +257,12 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                               f"ν_eff = {float(ef.loc[ef['nu'] == 0, 'nu_eff'].iloc[0]):.3g})"
                               if (ef["nu"] == 0).any() else "") if not bad.empty else "all ν within tolerance",
                              len(ef), len(ef) - len(bad)))
+    return out
 
-    vol = h[h["experiment"].isin(["compression", "tension"])] if not h.empty else h
+
+def _volume_claims(vol: pd.DataFrame, subject: str | None) -> list[Claim]:
+    """The volume change against the FEM at small and large deformation."""
+    out = []
     for d, label in ((0.05, "small (5 %)"), (0.20, "large (20 %)")):
         sub = vol[vol["deformation"] == d] if not vol.empty else vol
         stmt = f"{subject} reproduces the FEM volume change in compression and tension at {label} deformation"
@@ -256,7 +282,13 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                                                    for _, r in failed.iterrows())
         verdict = REPRODUCED if len(within) == len(sub) else (PARTLY if len(within) >= len(sub) / 2 else NOT)
         out.append(Claim(stmt, crit, verdict, ev, len(sub), len(within)))
+    return out
 
+
+def _incompressible_claims(results: Results) -> list[Claim]:
+    """The hybrid models' volume at ν = 0.499."""
+    out = []
+    hybrid = hybrid_models(results)
     df = results.ok()
     if not df.empty:
         inc = df[(df["nu"].astype(float) == 0.499) & ~df["is_fem"]
@@ -271,7 +303,12 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                              REPRODUCED if n_ok == len(inc) else (PARTLY if n_ok >= len(inc) / 2 else NOT),
                              f"{n_ok} of {len(inc)} runs within; largest e = {e.max():.3g} % ({worst['label']})",
                              len(inc), n_ok))
+    return out
 
+
+def _paper_volume_claims(results: Results, vol: pd.DataFrame, subject: str | None) -> list[Claim]:
+    """Our volume changes against the publication's column (Tables 2, 3)."""
+    out = []
     if not vol.empty and "paper_mss" in vol:
         sub = vol.dropna(subset=["paper_mss"])
         n = len(sub)
@@ -283,7 +320,13 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                          REPRODUCED if len(close) == n else (PARTLY if len(close) >= n / 2 else NOT),
                          f"{len(close)} of {n} rows within (meshes here: {meshes}; the publication: 10×10×10 cube, "
                          f"4×4×24 beam)", n, len(close)))
+    return out
 
+
+def _face_diagonal_claims(results: Results, subject: str | None) -> list[Claim]:
+    """The proposed model closer to the FEM than the one without face diagonals."""
+    out = []
+    fd = results.published_model("no-face-diagonals")
     diffs = results.table("differences")
     if diffs is not None and len(diffs):
         keys = [k for k in ("experiment", "mesh", "nu", "E", "deformation", "angle_deg") if k in diffs]
@@ -304,7 +347,12 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                              f"mean rel. L2: {subject} {ma:.3g} %, {fd} {mb:.3g} %; {subject} closer in {wins} of "
                              f"{len(apart)} scenes that tell them apart ({len(common) - len(apart)} of {len(common)} "
                              "not counted)", len(apart), wins))
+    return out
 
+
+def _reaction_claims(h: pd.DataFrame, subject: str | None) -> list[Claim]:
+    """The shear force and torsion torque against the FEM."""
+    out = []
     for exp, q in (("shear", "shear force"), ("torsion", "torsion torque")):
         sub = h[(h["experiment"] == exp)] if not h.empty else h
         if sub.empty:
@@ -318,7 +366,12 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
         out.append(Claim(f"{subject} reproduces the FEM {q} on the top plate", f"within {REL_PCT:g} % of FEM for every ν and load",
                          REPRODUCED if n_ok == len(sub) else (PARTLY if n_ok >= len(sub) / 2 else NOT), ev,
                          len(sub), n_ok))
+    return out
 
+
+def _bending_claims(h: pd.DataFrame, subject: str | None) -> list[Claim]:
+    """The beam's tip deflection against Euler–Bernoulli."""
+    out = []
     bend = h[h["experiment"] == "bending"] if not h.empty else h
     if not bend.empty:
         rel = 100 * (bend["mss"].abs() - bend["eb"].abs()) / bend["eb"].abs()  # negative: deflects less
@@ -328,7 +381,12 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                          REPRODUCED if n_ok == len(bend) else (PARTLY if n_ok else NOT),
                          "; ".join(f"mesh {r['mesh']}, E = {r['E'] / 1e6:g} MPa: {x:+.3g} %" for (_, r), x in
                                    zip(bend.iterrows(), rel)), len(bend), n_ok))
+    return out
 
+
+def _eform_claims(results: Results) -> list[Claim]:
+    """Which calibration the publication's volume changes follow."""
+    out = []
     ef = results.table("eform_check")
     if ef is not None:
         for exp in ("compression", "tension"):
@@ -336,9 +394,12 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
             if not len(sub):
                 continue
             out.append(eform_claim(sub, "Table 2" if exp == "compression" else "Table 3", exp))
+    return out
 
-    out += published_claims(results)
 
+def _run_claims(results: Results) -> list[Claim]:
+    """Every run of the publication's scenes reaches a result."""
+    out = []
     rows = results.rows
     if not rows.empty and "study" in rows:
         rows = rows[rows["study"].isin(EXPERIMENT_ORDER)]  # the publication's studies, not the stress tests
@@ -354,10 +415,6 @@ def claims(results: Results, h: pd.DataFrame) -> list[Claim]:
                              f"{r['label']} [{r['solver']}]: {r['status']}"
                              for _, r in bad.sort_values(["label", "solver"]).head(6).iterrows())
                          + (" …" if len(bad) > 6 else "") + " (see Failures)", len(mss), len(mss) - nb))
-
-    c = _perf_summary_claim(results.table("performance_summary"))
-    if c is not None:
-        out.append(c)
     return out
 
 
@@ -491,115 +548,6 @@ def _perf_summary_claim(summ: pd.DataFrame | None) -> Claim | None:
                  REPRODUCED if ok else NOT,
                  "; ".join(ev) + "; the publication's C++ and this numba kernel differ, so only ratios compare",
                  len(s), n_ok)
-
-
-
-# ------------------------------------------------------------------ the publication's numbers beside ours
-def middle_layer_frame(results: Results) -> pd.DataFrame:
-    """[G20]'s mean position differences over the middle layer (shear, torsion at 20 %) beside
-    ours for [G20]'s proposed model against the FEM reference, with the alternative definitions."""
-    paper = paper_table("g20_middle_layer")
-    diffs = results.table("differences")
-    method = f"{results.published_model('proposed')} static"
-    if paper is None:
-        return pd.DataFrame()
-    rows = []
-    for _, p in paper.iterrows():
-        exp = p["experiment"]
-        mesh = results.primary_mesh(exp)
-        rec = {"experiment": exp, "nu": float(p["nu"]), "mesh": mesh or "", "paper_m": float(p["mean_diff_m"]),
-               "load": f"θ = {p['angle_deg']:g}°" if exp == "torsion" else f"d = {100 * p['deformation']:g} %"}
-        scene = dict(mesh=mesh, nu=float(p["nu"]))
-        if exp == "torsion":
-            scene["angle_deg"] = float(p["angle_deg"])
-        else:
-            scene["deformation"] = float(p["deformation"])
-        sel = pd.DataFrame()
-        if diffs is not None and mesh is not None:
-            m = (diffs["experiment"] == exp) & (diffs["mesh"] == mesh) & printed(diffs["nu"], p["nu"]) \
-                & (diffs["method"] == method)
-            m &= printed(diffs["angle_deg"], p["angle_deg"]) if exp == "torsion" else printed(diffs["deformation"], p["deformation"])
-            sel = diffs[m]
-        if len(sel):
-            r = sel.iloc[0]
-            rec.update(state="ok", reference=r["reference"], ours_m=r["mid_layer_mean_m"],
-                       ours_xy_m=r.get("mid_layer_mean_xy_m", np.nan), ours_svk_m=r.get("mid_layer_mean_svk_m", np.nan),
-                       n_points=r.get("mid_layer_n", np.nan))
-        else:
-            st = run_state(results, exp, method, printed=True, **scene) if mesh else "missing"
-            if not st:
-                st = "missing (no FEM reference)" if results.reference(exp, printed=True, **scene) is None else "missing"
-            rec.update(state=st)
-        rows.append(rec)
-    return pd.DataFrame(rows)
-
-
-
-# ------------------------------------------------------------------ [B09]
-def b09_frame(cantilever: pd.DataFrame | None, lshape: pd.DataFrame | None, paper: pd.DataFrame | None) -> pd.DataFrame:
-    """Rows ``experiment, mesh, model, state`` with our error statistics (``err_*``: normalized by
-    the largest reference displacement; ``rel_*``: nodal relative error) and [B09]'s (``b09_*``)."""
-    parts = []
-    for exp, t in (("cantilever", cantilever), ("lshape", lshape)):
-        if t is None:
-            continue
-        t = t.copy()
-        t["experiment"] = exp
-        if "err_std_pct" in t and "err_sd_pct" not in t:  # older result folders
-            t["err_sd_pct"] = t["err_std_pct"]
-        if "status" not in t:
-            t["status"] = "ok"
-        parts.append(t)
-    if not parts:
-        return pd.DataFrame()
-    df = pd.concat(parts, ignore_index=True)
-    df["state"] = df["status"].fillna("missing").astype(str)
-    if paper is not None:  # [B09]'s figures are for its own model, named in the published table
-        p = paper.rename(columns={"mean_pct": "b09_mean_pct", "sd_pct": "b09_sd_pct", "max_pct": "b09_max_pct"})
-        df = df.merge(p, on=["experiment", "mesh", "model"], how="left")
-    return df
-
-
-def b09_particles(experiment: str, mesh: str) -> int:
-    """Particles of [B09]'s lattices: the nodes of the cantilever's box grid, and of the cells of the
-    L-shape's mask (the column x < n/2 and the arm z ≥ n/2 of the n³ grid, as
-    :func:`studies.paper.baudet.lshape_mask`)."""
-    dims = [int(v) for v in str(mesh).split("x")]
-    if experiment != "lshape":
-        return int(np.prod([d + 1 for d in dims]))
-    n = dims[0]
-    cells = np.zeros((n, n, n), dtype=bool)
-    cells[: n // 2, :, :] = True
-    cells[:, :, n // 2:] = True
-    nodes = np.zeros((n + 1, n + 1, n + 1), dtype=bool)
-    for di in (0, 1):
-        for dj in (0, 1):
-            for dk in (0, 1):
-                nodes[di:n + di, dj:n + dj, dk:n + dk] |= cells
-    return int(nodes.sum())
-
-
-def b09_normalisation(df: pd.DataFrame) -> pd.DataFrame:
-    """[B09]'s SD beside ours read two ways, for the rows with published values: our SD over the N
-    particles, and our standard error of the mean SD/√N scaled by the ratio of the means
-    (``sem_scaled_pct``: what [B09] would print if its SD were the standard error of its mean);
-    ``sem_ratio``: that over [B09]'s SD (1 if the reading holds)."""
-    s = df[df["state"].eq("ok") & df.get("b09_sd_pct", pd.Series(np.nan, index=df.index)).notna()].copy()
-    if s.empty:
-        return s
-    s["n_particles"] = [b09_particles(e, m) for e, m in zip(s["experiment"], s["mesh"])]
-    s["sem_pct"] = s["err_sd_pct"] / np.sqrt(s["n_particles"])
-    s["sem_scaled_pct"] = s["sem_pct"] * s["b09_mean_pct"] / s["err_mean_pct"]
-    s["sd_ratio"] = s["err_sd_pct"] / s["b09_sd_pct"]
-    s["sem_ratio"] = s["sem_scaled_pct"] / s["b09_sd_pct"]
-    return s
-
-
-def b09_models(df: pd.DataFrame) -> list[str]:
-    """The models [B09]'s figures are for (those rows of :func:`b09_frame` with published values)."""
-    if "b09_mean_pct" not in df:
-        return []
-    return list(dict.fromkeys(df.loc[df["b09_mean_pct"].notna(), "model"]))
 
 
 # ------------------------------------------------------------------ the stored verdicts

@@ -183,6 +183,7 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
     """Run (or resume) the named studies into the results folder ``out`` and write the tables.
     ``runner`` (a :class:`studies.sweep.runner.Runner`) chooses where runs are computed."""
     from studies.paper.claims import write_claims
+    from studies.paper.stored import write_derived
     from studies.paper.tables import write_tables
 
     import importlib
@@ -213,4 +214,5 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
             getattr(importlib.import_module(module), func)(store, quick=quick, jobs=jobs, progress=progress,
                                                            runner=runner)
     write_claims(store)  # the verdicts, from every table the studies just wrote
+    write_derived(store)  # the tables the report shows that the studies derive from the others
     return rows

@@ -40,7 +40,7 @@ from hybmss.solve import StaticSolveError
 
 from studies.paper import publications as publication
 from studies.sweep import roles
-from studies.sweep.results import printed_match as printed
+from studies.sweep.results import method_frame, printed_match as printed
 from studies.sweep.compare import default_law, diff_metrics
 from studies.paper.values import load as load_paper
 from studies.sweep.store import Store
@@ -60,9 +60,7 @@ def runs_frame(store: Store, first=None) -> pd.DataFrame:
         return pd.DataFrame()
     df = pd.DataFrame([{k: v for k, v in r.items() if k not in ("info", "traceback", "scene_fields")} for r in rows])
     df["variant"] = [_variant(r) for r in df.to_dict("records")]
-    df["method"] = np.where(df["solver"].str.startswith("fem"), df["solver"],
-                            df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
-    return df
+    return method_frame(df)
 
 
 def _variant(row: dict) -> str:
@@ -84,11 +82,11 @@ def _ok(df):
 
 
 def _mss(df):
-    return df[~df["solver"].str.startswith("fem")]
+    return df[~df["is_fem"]]
 
 
 def _fem(df):
-    return df[df["solver"].str.startswith("fem")]
+    return df[df["is_fem"]]
 
 
 def volume_table(df: pd.DataFrame, experiment: str, paper_name: str) -> pd.DataFrame:

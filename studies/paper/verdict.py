@@ -36,13 +36,13 @@ COLUMNS = ["regime", "quantity", "unit", "scene", "method", "value", "state", "r
 
 def rivals(results: Results, methods) -> list[str]:
     """The static methods of the models compared (not FEM, not calibration variants)."""
-    return [m for m in results.method_order(methods)
-            if not m.startswith("fem") and m.endswith(" static") and "(E-form)" not in m]
+    info = [results.method(m) for m in results.method_order(methods)]
+    return [i["method"] for i in info if i["solver_kind"] == "static" and not i["is_fem"] and not i["e_form"]]
 
 
 def _ref_col(results: Results, experiment: str, t: pd.DataFrame, r) -> str | None:
     law = results.reference_law(experiment, r.get("deformation", 0.0) or 0.0, r.get("angle_deg", 0.0) or 0.0)
-    return next((c for c in t.columns if law and c.startswith("fem") and c.endswith(law)), None)
+    return results.fem_with_law(t.columns, law)
 
 
 def _pick(t: pd.DataFrame, results: Results, experiment: str, nu: float, load: str, which) -> pd.Series | None:
@@ -81,7 +81,7 @@ def _error_rows(results: Results, regime: str, quantity: str, unit: str, experim
         err = (v - ref if kind == "pp" else 100 * (v - ref) / abs(ref)) if pd.notna(v) and pd.notna(ref) else np.nan
         state = "ok" if pd.notna(err) else (run_state(results, experiment, m, mesh=r["mesh"], nu=nu,
                                                       **{load: r[load]}) or "missing")
-        out.append(dict(regime=regime, quantity=quantity, unit=unit, scene=scene, method=m.rsplit(" ", 1)[0],
+        out.append(dict(regime=regime, quantity=quantity, unit=unit, scene=scene, method=results.variant(m),
                         value=err, state=state))
     return out
 
@@ -96,11 +96,11 @@ def _lost_equilibria(results: Results) -> list[dict]:
     big = big[(big["deformation"].fillna(0) >= 0.2) | (big["angle_deg"].fillna(0) >= 45)]
     out = []
     for m in rivals(results, [f"{v} static" for v in big["variant"].unique()]):
-        g = big[big["variant"] == m.rsplit(" ", 1)[0]]
+        g = big[big["variant"] == results.variant(m)]
         lost = int((g["status"] != "ok").sum())
         out.append(dict(regime="ν < 1/4 at large strain", quantity="scenes without equilibrium (of those run)",
                         unit="count", scene=f"compression, tension, shear, torsion at 20 % / 45°, ν < 1/4",
-                        method=m.rsplit(" ", 1)[0], value=float(lost), state="ok", total=len(g)))
+                        method=results.variant(m), value=float(lost), state="ok", total=len(g)))
     return out
 
 
@@ -108,7 +108,7 @@ def _bending_rows(results: Results) -> list[dict]:
     t = results.table("bending")
     if t is None:
         return []
-    nh = next((c for c in t.columns if c.startswith("fem") and c.endswith("neo-hookean")), None)
+    nh = results.fem_with_law(t.columns, "neo-hookean")
     if nh is None:
         return []
     out = []
@@ -117,7 +117,7 @@ def _bending_rows(results: Results) -> list[dict]:
         worst = rel.loc[rel.abs().idxmax()] if rel.notna().any() else np.nan
         out.append(dict(regime="bending", quantity="tip deflection, worst mesh and E, (|model| − |FEM|)/|FEM|",
                         unit="%", scene="beam under gravity, ν = 0.25, meshes " + ", ".join(sorted(t["mesh"].unique())),
-                        method=m.rsplit(" ", 1)[0], value=worst, state="ok" if pd.notna(worst) else "missing"))
+                        method=results.variant(m), value=worst, state="ok" if pd.notna(worst) else "missing"))
     return out
 
 

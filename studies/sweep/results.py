@@ -24,8 +24,41 @@ VTK_HEX_ORDER = [0, 1, 3, 2, 4, 5, 7, 6]
 EXPERIMENT_ORDER = ("compression", "tension", "shear", "torsion", "bending")
 
 
-def is_fem(solver: str) -> bool:
-    return str(solver).startswith("fem")
+#: the columns that say what a run's method is, so that nothing reads a method's name back
+METHOD_COLUMNS = ("method", "variant", "model", "solver_kind", "solver_element", "solver_law", "solver_refine",
+                  "is_fem", "e_form")
+
+
+def _from_label(solver: str) -> dict:
+    """``solver_kind``, ``solver_element``, ``solver_law``, ``solver_refine`` of a run stored without them, from its
+    solver label (``"mss-static"``, ``"fem-hex2-neo-hookean r2"``): the one place a label is read."""
+    s, _, refine = str(solver).partition(" r")
+    if s.startswith("fem-"):
+        element, _, law = s[len("fem-"):].partition("-")
+        return {"solver_kind": "fem", "solver_element": element, "solver_law": law,
+                "solver_refine": int(refine) if refine.isdigit() else 1}
+    return {"solver_kind": s.replace("mss-", "", 1), "solver_element": "", "solver_law": "", "solver_refine": 1}
+
+
+def method_frame(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` (stored rows with ``solver``, ``model`` and ``variant``) with the structured columns
+    of :data:`METHOD_COLUMNS`: a run's solver kind, FEM element and law as stored (derived from
+    its solver label where a row stored none), and its method's name, ``"<variant> <kind>"`` for a
+    model's run, the solver label for the FEM's."""
+    df = df.copy()
+    derived = pd.DataFrame([_from_label(s) for s in df["solver"]], index=df.index)
+    for col in ("solver_kind", "solver_element", "solver_law"):
+        stored = df[col] if col in df else pd.Series(np.nan, index=df.index, dtype=object)
+        stored = stored.where(stored.notna() & (stored.astype(str) != ""), derived[col])
+        df[col] = stored.fillna("").astype(str)
+    refine = df["solver_refine"] if "solver_refine" in df else pd.Series(np.nan, index=df.index)
+    df["solver_refine"] = refine.where(refine.notna(), derived["solver_refine"]).astype(int)
+    df["e_form"] = df["e_form"].fillna(False).astype(bool) if "e_form" in df else False
+    fem = df["solver_kind"] == "fem"
+    df["is_fem"] = fem
+    df["method"] = np.where(fem, df["solver"].astype(str),
+                            df["variant"].astype(str) + " " + df["solver"].astype(str).str.replace("mss-", "", regex=False))
+    return df
 
 
 class Results:
@@ -54,7 +87,7 @@ class Results:
         df = pd.DataFrame(recs)
         for col, default in (("e_form", False), ("status", "ok"), ("message", ""),
                              ("angle_deg", 0.0), ("deformation", 0.0), ("elapsed_s", np.nan),
-                             ("solver_law", ""), ("solver_refine", 1), ("model", "")):
+                             ("model", "")):
             if col not in df:
                 df[col] = default
         df["e_form"] = df["e_form"].fillna(False).astype(bool)
@@ -62,11 +95,43 @@ class Results:
         # the variant name the study stored with the run (its model's name for its parameters)
         stored = df["variant"] if "variant" in df else pd.Series(np.nan, index=df.index)
         df["variant"] = stored.where(stored.notna(), df["model"])
-        fem = df["solver"].map(is_fem)
-        df["method"] = np.where(fem, df["solver"],
-                                df["variant"] + " " + df["solver"].str.replace("mss-", "", regex=False))
-        df["is_fem"] = fem
-        return df
+        return method_frame(df)
+
+    @cached_property
+    def methods(self) -> pd.DataFrame:
+        """One row per method of the stored runs, indexed by its name, with its variant, model,
+        solver kind, FEM element and law (:data:`METHOD_COLUMNS`): what a table whose columns are
+        methods is read by."""
+        df = self.rows
+        if df.empty:
+            return pd.DataFrame(columns=list(METHOD_COLUMNS)).set_index("method")
+        return df[list(METHOD_COLUMNS)].drop_duplicates("method").set_index("method")
+
+    def method(self, name: str) -> dict:
+        """The structured columns of a method (:attr:`methods`); for a name no stored run has, its
+        solver kind only: ``"fem"`` for FEM labels, ``""`` otherwise."""
+        t = self.methods
+        if name in t.index:
+            return {"method": name, **t.loc[name].to_dict()}
+        return {"method": name, "variant": "", "model": "", "solver_kind": "", "solver_element": "",
+                "solver_law": "", "solver_refine": 1, "is_fem": False, "e_form": False}
+
+    def is_fem(self, name: str) -> bool:
+        return bool(self.method(name)["is_fem"])
+
+    def variant(self, name: str) -> str:
+        return str(self.method(name)["variant"])
+
+    def law(self, name: str) -> str:
+        return str(self.method(name)["solver_law"])
+
+    def fem_with_law(self, columns, law: str | None) -> str | None:
+        """The first of ``columns`` that is the FEM with ``law`` on the scene's own mesh (refine 1)."""
+        for c in columns:
+            i = self.method(c)
+            if law and i["is_fem"] and i["solver_law"] == law and int(i["solver_refine"]) == 1:
+                return c
+        return None
 
     @property
     def damaged(self) -> list[DamagedRun]:
@@ -264,8 +329,8 @@ class Results:
         order = self.model_order()
 
         def key(m: str):
-            variant = m.rsplit(" ", 1)[0]
-            if is_fem(m):
+            variant = self.variant(m)
+            if self.is_fem(m):
                 return (2, (False, 0), m)
             return (0, order[variant], m) if variant in order else (1, (False, 0), m)
 
@@ -310,8 +375,8 @@ def run_state(results: Results, experiment: str, method: str, printed: bool = Fa
     for :meth:`Results.find`); a variant the studies do not compare at the scene's ν
     (``tables/study_variants.csv``, e.g. the E-form at ν = 1/4, the G-form's constants) says so."""
     sub = results.find(experiment, method=method, ok_only=False, printed=printed, **scene)
-    if sub.empty and scene.get("nu") is not None and not is_fem(method) and \
-            not results.in_design(method.rsplit(" ", 1)[0], scene["nu"]):
+    if sub.empty and scene.get("nu") is not None and not results.is_fem(method) and \
+            not results.in_design(results.variant(method), scene["nu"]):
         return "not in the study at this ν"  # e.g. the E-form at ν = 1/4: the G-form's constants
     if sub.empty:
         return "missing"

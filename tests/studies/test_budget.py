@@ -190,7 +190,7 @@ def test_a_candidate_not_at_rest_has_no_error_and_wins_nothing(tmp_path, monkeyp
     still answer (the test is not vacuous)."""
     import dataclasses
 
-    from reports.figures import no_result_count
+    from reports.study_figures import no_result_count
     from studies.sweep import cost
 
     monkeypatch.setattr(pareto, "PROTOCOL", dataclasses.replace(pareto.PROTOCOL, steps=200))

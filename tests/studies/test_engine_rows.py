@@ -136,7 +136,7 @@ def test_engine_rows_in_the_tables_against_the_fem_of_their_own_mesh(tmp_path, t
     from fem_reference.solve import solve as fem_solve
     from hybmss.solve import solve_static
     from reports.data import Results
-    from reports.tables import competitors_volume_tables, volume_table
+    from reports.sections.publication import competitors_volume_tables, volume_table
     from studies.sweep.runner import run_tasks
     from studies.study.experiment import experiment_tasks
     from studies.paper.tables import write_tables

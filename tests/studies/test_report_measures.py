@@ -48,7 +48,7 @@ def test_relative_l2_of_two_equilibria():
 def test_a_scene_with_two_equilibria_is_marked_where_its_value_is_shown():
     """The stored pairs apart (explicit at rest vs static) mark that model's cell of that scene ‡,
     and only that one; a failed cell stays a failure."""
-    from reports.tables import _flagged, nonunique_scenes
+    from reports.tables import flagged as _flagged, nonunique_scenes
 
     class Stored:  # the one table nonunique_scenes reads
         def table(self, name):

@@ -611,7 +611,7 @@ def test_performance_claim_and_short_table_come_from_the_stored_summary(results)
     each ratio within ±50 %."""
     from reports.data import Results
     from reports.findings import performance_sentence
-    from reports.tables import performance_short
+    from reports.sections.studies import performance_short
     from studies.paper.claims import REPRODUCED, claims, headline
 
     r = Results(results)
@@ -776,7 +776,7 @@ def test_edge_ink_sees_a_table_off_the_page(tmp_path):
 def test_build_refuses_a_table_wider_than_the_page(results, tmp_path, monkeypatch):
     """A 27-column table in the printed report: the build fails naming it, and no PDF is written."""
     from reports import build as buildmod
-    from reports import tables as tabmod
+    from reports.sections import publication as tabmod
     from reports.layout import PageOverflowError
 
     wide = tabmod.Table("table_wide", "A table of 27 columns", "", [f"column {i}" for i in range(27)],
@@ -859,3 +859,31 @@ def test_tables_beside_the_publication_fit_and_name_their_sign(report):
     assert "hybmss (pp)" not in others.columns and "hybmss-fd (pp)" not in others.columns
     d = t2.columns.index("Δ hybmss − FEM, ours (pp)")
     assert all(c[0] == "–" or c[0] == "0" or c[0][0] in "+-" for c in (r[d] for r in t2.rows))
+
+
+@pytest.mark.slow
+def test_the_report_reads_the_derived_tables_as_the_studies_store_them(results, tmp_path):
+    """The tables the studies derive for the report (middle layer, [B09] comparison, ...) read the
+    same from a folder stored without them (derived on read) as written by the studies; the
+    [B09] comparison carries our error of every model run and [B09]'s published means beside them."""
+    import shutil
+
+    from reports.data import DERIVED_TABLES, Results
+    from studies.paper.stored import write_derived
+    from studies.sweep.store import Store
+
+    copy = tmp_path / "stored"
+    shutil.copytree(results, copy)
+    written = write_derived(Store(copy))
+    assert {"b09_comparison", "b09_published"} <= set(written)
+    on_read, stored = Results(results), Results(copy)
+    assert not (results / "tables" / "b09_comparison.csv").exists()
+    for name in DERIVED_TABLES:
+        a, b = on_read.table(name), stored.table(name)
+        assert (a is None) == (b is None), name
+        if a is not None:
+            pd.testing.assert_frame_equal(a.reset_index(drop=True), b, check_dtype=False)
+    cmp = stored.table("b09_comparison")
+    cant = stored.table("baudet_cantilever")
+    assert set(cmp.loc[cmp["experiment"] == "cantilever", "model"]) == set(cant["model"])
+    assert cmp["b09_mean_pct"].notna().any()

@@ -10,11 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from studies.paper.verdict import TIE_COST, TIE_PP
-from studies.paper.claims import E_FEM_PP, NOT, PARTLY, REL_PCT, REPRODUCED, SUPPORTED, e_threshold, thresholds
-
-from .data import EXPERIMENT_ORDER, Results
-from .tables import REL_DIFF_PCT, Table, fmt, grade
+from ..data import (E_FEM_PP, EXPERIMENT_ORDER, NOT, PARTLY, REL_PCT, REPRODUCED, SUPPORTED, TIE_COST, TIE_PP,
+                   Results, e_threshold, thresholds)
+from .base import Context, Section, add_tables, escape
+from ..tables import REL_DIFF_PCT, Table, fmt, grade
 
 __all__ = ["caveats", "verdict", "verdict_sentences", "verdict_table", "claims", "claims_table", "claims_tables", "headline", "headline_table", "overview", "thresholds"]
 
@@ -250,3 +249,23 @@ def claim_findings(cl: pd.DataFrame, *needles: str) -> str:
                     pd.notna(c.get("rows_within")) else "")
             out.append(f"{claim}: <b>{c['verdict']}</b>{rows}.")
     return " ".join(out)
+
+
+def section(ctx: Context) -> Section:
+    """§1: the verdict first (where each method wins, in sentences and one table), the caveats of the
+    reproduction, then the claims of the publication and the headline comparison."""
+    results, head, claims = ctx.results, ctx.head, ctx.claims
+    v = verdict(results)
+    paras = verdict_sentences(v, results.published_model("proposed")) if not v.empty else []
+    notes = caveats(results, claims, head)
+    intro = "".join(f"<p>{p}</p>" for p in paras)
+    if notes:
+        intro += "<p><b>Caveats.</b></p><ul class='caveats'>" + "".join(f"<li>{escape(n)}</li>" for n in notes) + "</ul>"
+    s = Section("summary", "Summary: where each method wins", intro)
+    if not v.empty:
+        add_tables(s, verdict_table(v, results.published_model("springs-only")))
+    if not claims.empty:
+        add_tables(s, *claims_tables(claims))
+    if not head.empty:
+        add_tables(s, headline_table(head))
+    return s
