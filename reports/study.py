@@ -22,7 +22,7 @@ import numpy as np
 
 from . import palette
 from .render import _view, hex_grid
-from studies.study import Study, metrics as study_metrics, outcome as study_outcome, tables as study_tables
+from studies.study import Study, metrics as study_metrics, outcome as study_outcome, tables as study_tables, tet_scores
 
 from .study_modes import dynamics_html, modes_html
 
@@ -100,12 +100,10 @@ def export_tet_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
     where a node is not scored: :mod:`studies.study.tet_scores`)."""
     import pyvista as pv
 
-    from studies.study.tet_scores import _config as tet_config, reference_at_nodes, references
-
-    refs, fields, paths = references(runs), {}, []
+    refs, fields, paths = tet_scores.references(runs), {}, []
     mats = list(study.materials)
     for r in runs:
-        ref = refs.get(tet_config(r["task"]))
+        ref = refs.get(tet_scores.reference_config(r["task"]))
         if r["arrays"] is None or ref is None or ref["arrays"] is None:
             continue
         s, a = r["task"].scene, r["arrays"]
@@ -117,7 +115,7 @@ def export_tet_vtu(study, runs: list[dict], folder: Path) -> list[Path]:
         grid.point_data["displacement"] = a["u"]
         grid.field_data["model"] = [s.label]
         if r is not ref:
-            u_f = reference_at_nodes(study, r, ref, fields)
+            u_f = tet_scores.reference_at_nodes(study, r, ref, fields)
             grid.point_data["fem_displacement"] = u_f
             grid.point_data["|error|"] = np.linalg.norm(a["u"] - u_f, axis=1)
         material = s.material if hasattr(s, "material") else s.build().material

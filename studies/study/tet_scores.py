@@ -29,14 +29,14 @@ def _material(task):
     return s.material if isinstance(s, (TetEngineScene, TetReferenceScene)) else s.build().material
 
 
-def _config(task) -> tuple:
+def reference_config(task) -> tuple:
     m = _material(task)
     return (task.scene.load_case, m.E, m.nu, m.rho)
 
 
 def references(runs: list[dict]) -> dict:
     """The reference run of each configuration (load case, E, ν, ρ)."""
-    return {_config(r["task"]): r for r in runs if isinstance(r["task"].scene, TetReferenceScene)}
+    return {reference_config(r["task"]): r for r in runs if isinstance(r["task"].scene, TetReferenceScene)}
 
 
 def scored(study, run: dict, ref: dict, fields: dict):
@@ -78,7 +78,7 @@ def tet_error_rows(study, runs: list[dict], cost) -> list[dict]:
                "E": m.E, "nu": m.nu, "rho": m.rho, "solver": task.solver.kind,
                "status": (r["row"] or {}).get("status", "missing"), "message": (r["row"] or {}).get("message", ""),
                "note": notes.get(s.label, "")}
-        ref = refs[_config(task)]
+        ref = refs[reference_config(task)]
         if r["arrays"] is not None and ref["arrays"] is not None:
             row.update(tet_errors(study, r, ref, *scored(study, r, ref, fields)))
         row.update(cost(task, r["row"] or {}))
