@@ -82,11 +82,22 @@ def summary(pairs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def _pair_job(job: tuple) -> list[dict]:
+    """The rows of one body at one ν (a worker's share of :func:`run`)."""
+    body, quick, nu = job
+    return pair_rows(body, quick, nus=(nu,))
+
+
 def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, *, runner=None) -> dict:
-    """Study driver (``EXTRA_STUDIES``): writes ``modes_pairs``, ``modes_cube`` and ``modes_beam``."""
+    """Study driver (``EXTRA_STUDIES``): writes ``modes_pairs``, ``modes_cube`` and ``modes_beam``;
+    each body at each ν on one of ``jobs`` processes (the rows in the order of a serial run)."""
+    from studies.sweep.executors import map_local
+
+    work = [(body, quick, nu) for body in BODIES for nu in NUS]
+    done = dict(zip(work, map_local(_pair_job, work, jobs)))
     tables, pairs = {}, []
     for body in BODIES:
-        rows = pd.DataFrame(pair_rows(body, quick))
+        rows = pd.DataFrame([r for nu in NUS for r in done[(body, quick, nu)]])
         pairs.append(rows)
         tables[f"modes_{body}"] = summary(rows)
     tables["modes_pairs"] = pd.concat(pairs, ignore_index=True)

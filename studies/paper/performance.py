@@ -17,9 +17,10 @@ threads.  Times are divided by those of [G20]'s model without face diagonals (th
 of its ratios) and of its springs-only lattice on the same mesh and thread count; the
 publication's ratios (``studies/data/g20_performance.csv``) are joined by its names for the models.
 
-**Timing protocol.**  The machine is shared, so every figure is the best of ``repeats`` runs
-(more for runs shorter than :data:`MIN_SPAN`/``repeats``),
-and the variants of one mesh and thread count are timed round-robin (variant 1, 2, 3, 4, then
+**Timing protocol.**  The machine is shared, so every figure is the best of ``repeats`` runs,
+each of ``steps`` steps or, where ``repeats`` of them would span less than :data:`MIN_SPAN`,
+of the multiple of ``steps`` that does (:func:`run_steps`: a first round of ``steps`` measures
+a step), and the variants of one mesh and thread count are timed round-robin (variant 1, 2, 3, 4, then
 again) so that the ratios compare runs made in the same minute.  Every timed run on several
 threads follows :data:`hybmss.explicit.WARM_UP_THREADS` of untimed steps, so that it is not
 timed while the second core wakes up.  ``wall_time_s`` of
@@ -66,12 +67,13 @@ BEAM_E = 1e7
 CUBE_DT = 1e-3
 WORD = 8  # bytes (float64)
 MIN_SPAN = 0.5
-"""Seconds of stepping each figure spans at least (short runs get more repeats)."""
+"""Seconds of stepping each figure spans at least (short runs get more steps, :func:`run_steps`)."""
 MAX_NODE_STEPS = 10_000_000
 """Grid nodes × steps of one timed run at most (:func:`timed_steps`): the 30³ cube and the
 16×16×96 beam (~3·10⁴ nodes) run 300 steps instead of 1,000, about 0.4 s on one thread (three
 rounds still span over 1 s)."""
 MAX_REPEATS = 25
+"""A figure spans at most the steps of this many runs of ``steps`` (:func:`run_steps`)."""
 CALL_SECONDS = 0.5
 """Seconds of stepping per kernel call of a timed run, at most about (:func:`check_steps`): a run
 longer than that is called in pieces, between which Ctrl-C stops it; a shorter one (most of
@@ -145,6 +147,23 @@ def beam_dt(meshes) -> float:
 
 
 # ------------------------------------------------------------------------------ compiling
+def kernel_cached(key: str) -> bool:
+    """Whether the generated kernel ``key`` is in the kernel cache with Numba's index of its
+    machine code beside it (:func:`hybmss._stencil_gen.cache_dir`; with ``NUMBA_CACHE_DIR`` set
+    the index is elsewhere and this says False).  A kernel said cached that is not is compiled by
+    its first timed figure's untimed 0-step call, outside the timed span."""
+    import os
+
+    from hybmss._stencil_gen import cache_dir
+
+    d = cache_dir()
+    name = f"hybmss_stencil_{key}"
+    if os.environ.get("NUMBA_CACHE_DIR") or not os.path.exists(os.path.join(d, name + ".py")):
+        return False
+    index = os.path.join(d, "__pycache__")
+    return os.path.isdir(index) and any(f.startswith(name + ".") and f.endswith(".nbi") for f in os.listdir(index))
+
+
 def _compile_one(job: tuple) -> tuple:
     """Compile (into the on-disk kernel cache) the kernel of one configuration: two steps of it."""
     from hybmss.explicit import simulate_explicit
@@ -160,8 +179,8 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
     processes at a time, before any is timed: each (mesh, offsets, terms, threads) has its own
     kernel (:mod:`hybmss._stencil_gen`), about 3 s of compilation on one thread and 6 s on two
     (the 10³ cube at ν = 0.499), most of it Numba's type inference of the step bodies.  The
-    timings then load them from the cache.  ``jobs``: (kind, mesh, dt); returns the kernels
-    compiled."""
+    timings then load them from the cache.  A kernel already in the cache (:func:`kernel_cached`)
+    is not loaded again here.  ``jobs``: (kind, mesh, dt); returns the kernels compiled."""
     from hybmss.explicit import stencil
     from hybmss.system import build
 
@@ -172,7 +191,11 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
         for model, nu in variants():
             S = build(_spec(kind, mesh, model, nu).build())
             for th in threads:
-                todo.setdefault(stencil(S, dt, 1.0, threads=th).config.key(), (kind, mesh, model, nu, th, dt))
+                key = stencil(S, dt, 1.0, threads=th).config.key()
+                if not kernel_cached(key):
+                    todo.setdefault(key, (kind, mesh, model, nu, th, dt))
+    if not todo:
+        return 0
     if progress:
         print(f"performance: compiling {len(todo)} kernels", flush=True)
     # the longest (two threads, large meshes) first, so that no worker is left with one at the end
@@ -199,45 +222,61 @@ def check_steps(steps: int, step_s: float) -> int:
     return max(1, min(int(steps), max(MIN_CHECK_STEPS, per_call)))
 
 
+def run_steps(steps: int, t_est: float, repeats: int, min_span: float = MIN_SPAN) -> int:
+    """Steps of each of the ``repeats`` timed runs of a figure whose run of ``steps`` steps took
+    about ``t_est`` seconds: ``steps`` when ``repeats`` such runs span ``min_span``, else the
+    smallest multiple ``k · steps`` with which they do (at most the span of :data:`MAX_REPEATS`
+    runs of ``steps``).  A short run is lengthened rather than repeated more often: each run
+    has its set-up, final state and (two threads) warm-up outside the timed span, which cost
+    more than the stepping of the smallest meshes."""
+    if repeats * t_est >= min_span:
+        return int(steps)
+    k = int(np.ceil(min_span / (repeats * max(t_est, 1e-6))))
+    return int(steps) * max(1, min(k, int(np.ceil(MAX_REPEATS / repeats))))
+
+
+def _time_threads(systems: dict, dt: float, steps: int, repeats: int, th: int, min_span: float) -> dict:
+    """``{variant: (steps, [seconds, ...])}`` on ``th`` threads: a first round of ``steps``
+    steps, whose slowest run sets the steps of the rounds (:func:`run_steps`); it is the first
+    of the ``repeats`` rounds when they keep ``steps``, else only the measure of a step."""
+    from hybmss.explicit import simulate_explicit
+
+    step_s = {}
+
+    def timed_run(v, n):
+        scene, S = systems[v]
+        t = simulate_explicit(scene, dt=dt, steps=n, threads=th, system=S, compute_dt_crit=False,
+                              check_every=check_steps(n, step_s[v]),
+                              warm_up=WARM_UP_THREADS if th > 1 else 0.0).wall_time_s
+        step_s[v] = min(step_s[v], t / n)  # the warm-up's 5 steps overstate a step up to 4x
+        return t
+
+    for v, (scene, S) in systems.items():  # warm-up (loads the cached compiled kernels), a first figure
+        step_s[v] = simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S,
+                                      compute_dt_crit=False).wall_time_s / 5
+    first = {v: timed_run(v, steps) for v in systems}  # round-robin, as every round
+    n = run_steps(steps, max(first.values()), repeats, min_span)
+    times = {v: [first[v]] if n == steps else [] for v in systems}
+    for _ in range(repeats - (1 if n == steps else 0)):
+        for v in systems:
+            times[v].append(timed_run(v, n))
+    return {v: (n, ts) for v, ts in times.items()}
+
+
 def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THREADS,
               min_span: float = MIN_SPAN) -> list[dict]:
-    """Best-of-``repeats`` wall time of ``steps`` steps for every variant and thread count on
-    one mesh (variants timed round-robin)."""
-    from hybmss.explicit import simulate_explicit, stencil
+    """Best-of-``repeats`` wall time of at least ``steps`` steps (:func:`run_steps`) for every
+    variant and thread count on one mesh (variants timed round-robin)."""
+    from hybmss.explicit import stencil
     from hybmss.system import build
 
-    timed = variants()
     systems = {}
-    for model, nu in timed:
-        spec = _spec(kind, mesh, model, nu)
-        scene = spec.build()
+    for model, nu in variants():
+        scene = _spec(kind, mesh, model, nu).build()
         systems[(model, nu)] = (scene, build(scene))
     rows = []
     for th in threads:
-        times = {v: [] for v in timed}
-        step_s = {}
-
-        def timed_run(v, th=th):
-            scene, S = systems[v]
-            t = simulate_explicit(scene, dt=dt, steps=steps, threads=th, system=S, compute_dt_crit=False,
-                                  check_every=check_steps(steps, step_s[v]),
-                                  warm_up=WARM_UP_THREADS if th > 1 else 0.0).wall_time_s
-            step_s[v] = min(step_s[v], t / steps)  # the warm-up's 5 steps overstate a step up to 4x
-            return t
-
-        for v in timed:  # warm-up (loads the cached compiled kernels), a first figure of the step's time
-            scene, S = systems[v]
-            step_s[v] = simulate_explicit(scene, dt=dt, steps=5, threads=th, system=S,
-                                          compute_dt_crit=False).wall_time_s / 5
-        for v in timed:  # the first round, whose longest run sets the number of rounds
-            times[v].append(timed_run(v))
-        t_est = max(ts[0] for ts in times.values())
-        # short runs are repeated more often, so that each figure spans at least MIN_SPAN seconds
-        n_rep = int(min(MAX_REPEATS, max(repeats, np.ceil(min_span / max(t_est, 1e-6)))))
-        for _ in range(n_rep - 1):
-            for v in timed:
-                times[v].append(timed_run(v))
-        for (model, nu), ts in times.items():
+        for (model, nu), (n, ts) in _time_threads(systems, dt, steps, repeats, th, min_span).items():
             scene, S = systems[(model, nu)]
             st = stencil(S, dt, 1.0)
             counts = S.lattice.counts()
@@ -248,7 +287,7 @@ def time_mesh(kind: str, mesh, dt: float, steps: int, repeats: int, threads=THRE
                 "nu": nu,
                 "label": f"{model} ν={nu:g}",
                 "threads": th,
-                "steps": steps,
+                "steps": n,
                 "dt": dt,
                 "best_s": float(min(ts)),
                 "median_s": float(np.median(ts)),
