@@ -8,11 +8,9 @@ mixed element a CHOLMOD factor of the displacement block and CG on the pressure 
 also at refine 3 (119,614 unknowns for ν = 0.49), where the saddle point is above the direct
 limit and went to block-preconditioned MINRES before.  ``time_reference_minres`` is that MINRES
 path (``method='amg'``, refine 1 only: 86 times the Schur path's CPU time there, 57 s);
-``time_reference_fresh_factor`` is ``time_reference`` at refine 3 without the reused factor
-(``fem_reference.linalg.REUSE_MAXITER_SADDLE``); ``track_newton_iterations`` counts the Newton
-iterations of ``time_reference``.  Compare commits
+``track_newton_iterations`` counts the Newton iterations of ``time_reference``.  Compare commits
 with ``asv continuous``; one solve is ``python -m benchmarks.asv_fem_reference NU REFINE METHOD
-[OUT.npz]`` (``METHOD`` ``fresh`` is ``auto`` without the reused factor; wall and CPU seconds, Newton and linear iterations, load average; the displacement
+[OUT.npz]`` (wall and CPU seconds, Newton and linear iterations, load average; the displacement
 and the top plate's force and torque saved to ``OUT.npz`` to compare two commits' fields).
 """
 
@@ -24,7 +22,6 @@ import time
 
 import numpy as np
 
-from fem_reference import linalg
 from fem_reference.solve import solve as fem_solve
 from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, Body, Material, Motion, Plate, Region, Scene
 
@@ -64,19 +61,6 @@ class FEMReference:
             raise NotImplementedError("the MINRES path is timed on the mixed element at refine 1 only")
         fem_solve(self.scene, law="neo-hookean", refine=refine, method="amg")
 
-    def time_reference_fresh_factor(self, nu, refine):
-        """``time_reference`` with every Newton iteration's tangent factorized afresh (no flexible
-        GMRES on the last factor): the modified Newton's gain on the saddle points above the
-        direct limit (the mixed element at refine 3)."""
-        if nu < NEARLY_INCOMPRESSIBLE_NU or refine < 3:
-            raise NotImplementedError("the factor is reused on the mixed element above the direct limit only")
-        saved = linalg.REUSE_MAXITER_SADDLE
-        linalg.REUSE_MAXITER_SADDLE = 0
-        try:
-            fem_solve(self.scene, law="neo-hookean", refine=refine)
-        finally:
-            linalg.REUSE_MAXITER_SADDLE = saved
-
     def track_newton_iterations(self, nu, refine):
         return fem_solve(self.scene, law="neo-hookean", refine=refine).iterations
 
@@ -87,8 +71,6 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     nu, refine, method = float(argv[0]), int(argv[1]), argv[2] if len(argv) > 2 else "auto"
     sc = twist(nu)
-    if method == "fresh":
-        linalg.REUSE_MAXITER_SADDLE, method = 0, "auto"
     t0, c0 = time.perf_counter(), time.process_time()
     res = fem_solve(sc, law="neo-hookean", refine=refine, method=method)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
