@@ -88,15 +88,11 @@ SCHUR_MAXITER = 300
 """Its iteration limit; past it the saddle point is factorized by SuperLU."""
 
 REUSE_MAXITER_SADDLE = 6
-"""A Newton iteration of the mixed element above :data:`DIRECT_MAX_NNZ_SADDLE` whose displacement
-block has the pattern of the last CHOLMOD factor first solves its saddle point by flexible GMRES
-preconditioned with the last
+"""A Newton iteration of the mixed element whose displacement block has the pattern of the last
+CHOLMOD factor first solves its saddle point by flexible GMRES preconditioned with the last
 :class:`SchurSolve` (the exact inverse of an earlier tangent: modified Newton with a Krylov
 correction); past this many iterations, or when the residual's contraction so far cannot reach
-the tolerance within them, the tangent is factorized afresh.  0: always factorize.  Below that
-limit a factorization costs few triangular solves and it is not tried: on the 30° twist of the
-160-cell cylinder at refine 2 (48,576 unknowns) it gave the same field (5e-13 relative) with 2 of
-6 solves reused but 1.3-1.4× the CPU time (17.3-18.1 s against 13.0-13.5 s, load average 11-16)."""
+the tolerance within them, the tangent is factorized afresh.  0: always factorize."""
 REUSE_INNER_RTOL = 1e-3
 """Relative tolerance of the pressure CG inside that preconditioner (flexible GMRES admits a
 preconditioner that changes from one application to the next)."""
@@ -466,7 +462,7 @@ def solve_saddle(
             (kind == "direct" and _choose_spd("auto", Aff.nnz, separator) == "direct")
             or (kind == "amg" and Aff.nnz <= DIRECT_MAX_NNZ_CHOLMOD)):
         x = _schur_solve(A, Bf, C, rhs, free, _local_order(order, np.concatenate([free, np.zeros(m, bool)])),
-                         cache, stats, schur_rtol, Aff if kind == "amg" else None)
+                         cache, stats, schur_rtol, Aff)
         if x is not None:
             u[free] = x[: int(free.sum())]
             return u, x[int(free.sum()):]
