@@ -49,8 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .krylov import LINEAR_RTOL_FLOOR, fgmres
-from .ordering import dof_order, nested_dissection, separator_dofs, unknown_order  # noqa: F401 - imported from here too
+from hybmss.lattice import box_dissection
 
 try:  # CHOLMOD (SuiteSparse) through cvxopt's wheels: supernodal Cholesky, reusable symbolic analysis
     import cvxopt
@@ -87,16 +86,6 @@ stand-alone solve, and the tightest one inside Newton (which asks for less far f
 SCHUR_MAXITER = 300
 """Its iteration limit; past it the saddle point is factorized by SuperLU."""
 
-REUSE_MAXITER_SADDLE = 6
-"""A Newton iteration of the mixed element whose displacement block has the pattern of the last
-CHOLMOD factor first solves its saddle point by flexible GMRES preconditioned with the last
-:class:`SchurSolve` (the exact inverse of an earlier tangent: modified Newton with a Krylov
-correction); past this many iterations, or when the residual's contraction so far cannot reach
-the tolerance within them, the tangent is factorized afresh.  0: always factorize."""
-REUSE_INNER_RTOL = 1e-3
-"""Relative tolerance of the pressure CG inside that preconditioner (flexible GMRES admits a
-preconditioner that changes from one application to the next)."""
-
 DIRECT_MAX_NNZ = DIRECT_MAX_NNZ_SUPERLU
 """Largest reduced SPD matrix (non-zeros) that ``method='auto'`` factorizes directly when no
 separator size is known (without CHOLMOD, or without a nested-dissection order)."""
@@ -117,8 +106,6 @@ class SolveStats:
     iterations: int = 0
     calls: int = 0
     details: list = field(default_factory=list)
-    reused: int = 0
-    """Solves by Krylov iterations preconditioned with an earlier factorization (no new one)."""
 
     def add(self, method: str, iterations: int) -> None:
         self.method = method
@@ -138,6 +125,51 @@ def rigid_modes(points: np.ndarray) -> np.ndarray:
     B[:, 1, 4], B[:, 2, 4] = -z, y
     B[:, 2, 5], B[:, 0, 5] = -x, z
     return B.reshape(3 * n, 6)
+
+
+def nested_dissection(points: np.ndarray, h: float, leaf: int = 16) -> np.ndarray | None:
+    """Nested-dissection order of the Lagrange nodes ``points`` (n, 3) of a voxel mesh with
+    element edge ``h``: the box of elements is split at the middle element-face plane of its
+    longest extent; the nodes strictly on either side are ordered first (recursively, down to
+    ``leaf`` nodes or one element across), the nodes on the plane (a separator: no element
+    couples the two sides through it) after them.  Returns the node order, or ``None`` when the
+    nodes are not on the half-element grid of Hex1/Hex2 nodes (e.g. a distorted mesh)."""
+    p = np.asarray(points, float)
+    q = (p - p.min(axis=0)) / (0.5 * h)
+    g = np.rint(q).astype(np.int64)  # half-element units: vertices even, Hex2 mid-nodes odd
+    if len(p) == 0 or np.abs(q - g).max() > 1e-6:
+        return None
+    return box_dissection(g, np.zeros(3, np.int64), -(-g.max(axis=0) // 2), step=2, leaf=leaf)
+
+
+def separator_dofs(points: np.ndarray, h: float, components: int = 3) -> int | None:
+    """Unknowns on the first separator of :func:`nested_dissection` (the middle element-face plane
+    across the longest extent of the nodes ``points``), ``components`` per node; ``None`` when the
+    nodes are not on the half-element grid."""
+    p = np.asarray(points, float)
+    if len(p) == 0:
+        return None
+    q = (p - p.min(axis=0)) / (0.5 * h)
+    g = np.rint(q).astype(np.int64)
+    if np.abs(q - g).max() > 1e-6:
+        return None
+    ext = -(-g.max(axis=0) // 2)
+    ax = int(np.argmax(ext))
+    return components * int(np.count_nonzero(g[:, ax] == 2 * (ext[ax] // 2)))
+
+
+def dof_order(node_order: np.ndarray | None, n_vector_nodes: int, n_scalar: int = 0) -> np.ndarray | None:
+    """Unknowns in the order of ``node_order`` (a permutation of ``n_vector_nodes + n_scalar``
+    nodes): vector node ``k`` (< ``n_vector_nodes``) stands for dofs ``3k, 3k+1, 3k+2``, scalar
+    node ``n_vector_nodes + j`` for unknown ``3 n_vector_nodes + j`` (the pressure of a saddle point)."""
+    if node_order is None:
+        return None
+    k = np.asarray(node_order, np.int64)
+    vec = k < n_vector_nodes
+    counts = np.where(vec, 3, 1)
+    start = np.where(vec, 3 * k, 3 * n_vector_nodes + (k - n_vector_nodes))
+    first = np.cumsum(counts) - counts
+    return np.repeat(start, counts) + (np.arange(int(counts.sum())) - np.repeat(first, counts))
 
 
 class OrderedLU:
@@ -462,7 +494,7 @@ def solve_saddle(
             (kind == "direct" and _choose_spd("auto", Aff.nnz, separator) == "direct")
             or (kind == "amg" and Aff.nnz <= DIRECT_MAX_NNZ_CHOLMOD)):
         x = _schur_solve(A, Bf, C, rhs, free, _local_order(order, np.concatenate([free, np.zeros(m, bool)])),
-                         cache, stats, schur_rtol, Aff)
+                         cache, stats, schur_rtol)
         if x is not None:
             u[free] = x[: int(free.sum())]
             return u, x[int(free.sum()):]
@@ -529,11 +561,9 @@ def _pcg_on_factor(K, f, u, free, fac: CholmodFactor, rtol: float):
     return (x, count[0]) if info == 0 else None
 
 
-def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats, rtol: float = SCHUR_RTOL, Aff=None):
+def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats, rtol: float = SCHUR_RTOL):
     """:class:`SchurSolve` of the saddle point (see :func:`solve_saddle`), or ``None`` if ``A`` is not
-    positive definite or the CG does not converge.  With the last :class:`SchurSolve` of a matrix of
-    the same pattern in ``cache``, flexible GMRES preconditioned with it is tried first
-    (:data:`REUSE_MAXITER_SADDLE`)."""
+    positive definite or the CG does not converge."""
     if not A.has_sorted_indices:
         A = A.sorted_indices()
     fac = cache.get("cholmod") if cache is not None else None
@@ -541,13 +571,6 @@ def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats, rtol: float = SCHUR_RT
         fac = CholmodFactor(A, free, perm)
         if cache is not None:
             cache["cholmod"] = fac
-    elif Aff is not None and isinstance(cache.get("lu"), SchurSolve) and cache["lu"].factor is fac:
-        x = _reuse_schur(Aff, Bf, C, rhs, cache["lu"], rtol)
-        if x is not None:
-            if stats is not None:
-                stats.add("cholmod-schur", x[1])
-                stats.reused += 1
-            return x[0]
     C_lu = cache.get("C_lu") if cache is not None and cache.get("C") is C else None
     if C_lu is None:
         C_lu = spla.splu(sp.csc_matrix(C))
@@ -569,23 +592,10 @@ def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats, rtol: float = SCHUR_RT
     return x
 
 
-def _reuse_schur(Aff, Bf, C, rhs, old: SchurSolve, rtol: float):
-    """The saddle point ``[[Aff, Bfᵀ], [Bf, −C]] x = rhs`` by flexible GMRES preconditioned with the
-    :class:`SchurSolve` ``old`` of an earlier tangent, its pressure CG to :data:`REUSE_INNER_RTOL`:
-    ``(x, iterations)`` once ``‖W(rhs − S x)‖ ≤ rtol ‖W rhs‖``, or ``None`` (refactorize).  ``W``
-    weights the pressure rows by ``√(mean diag Aff / mean diag C)`` (a volume residual in force
-    units).  ``rtol`` is the tolerance of the pressure CG of a fresh :class:`SchurSolve`."""
-    if REUSE_MAXITER_SADDLE <= 0:
-        return None
-    nf = Aff.shape[0]
-    w = np.sqrt(Aff.diagonal().mean() / max(C.diagonal().mean(), 1e-300))
-    weight = np.concatenate([np.ones(nf), np.full(C.shape[0], w)])
-    BfT = old.BfT if old.Bf is Bf else Bf.T.tocsr()
-
-    def matvec(x):
-        xu, xp = x[:nf], x[nf:]
-        return weight * np.concatenate([Aff @ xu + BfT @ xp, Bf @ xu - C @ xp])
-
-    x, its = fgmres(matvec, lambda r: old.solve(r / weight, REUSE_INNER_RTOL), weight * rhs,
-                    max(rtol, LINEAR_RTOL_FLOOR), REUSE_MAXITER_SADDLE)
-    return None if x is None else (x, its)
+def unknown_order(space, h: float, pspace=None) -> np.ndarray | None:
+    """Fill-reducing order of the unknowns of ``space`` (displacement dofs, then the pressures of
+    ``pspace`` for a mixed element) by nested dissection of their nodes, or ``None`` (no grid)."""
+    if pspace is None:
+        return dof_order(nested_dissection(space.points, h), space.n_scalar)
+    pts = np.vstack([space.points, pspace.points])
+    return dof_order(nested_dissection(pts, h), space.n_scalar, pspace.n_scalar)

@@ -108,7 +108,7 @@ def solve(
         info["n_dofs"] += int(len(sol.p))
         info["pressure_range"] = [float(sol.p.min()), float(sol.p.max())]
     info["linear_solver"] = {"method": sol.stats.method, "iterations": sol.stats.iterations,
-                             "solves": sol.stats.calls, "reused": sol.stats.reused}
+                             "solves": sol.stats.calls}
     return _result(scene, ops, law, element, dirichlet, traction, sol, info, int(iterations), converged,
                    time.perf_counter() - t0)
 
