@@ -111,6 +111,15 @@ def _back2(a: np.ndarray) -> np.ndarray:
     return np.moveaxis(a, (-2, -1), (0, 1))
 
 
+def _secant_guess(U, p, prev, s_done: float, s: float):
+    """The secant extrapolation to load factor ``s`` of the converged states ``prev = (s₀, U₀, p₀)``
+    and ``(s_done, U, p)``: ``(U, p)``, or ``None`` without an earlier step."""
+    if prev is None or s_done <= prev[0]:
+        return None
+    r = (s - s_done) / (s_done - prev[0])
+    return U + r * (U - prev[1]), None if p is None else p + r * (p - prev[2])
+
+
 @dataclass(frozen=True, eq=False)
 class Hyperelasticity(Discretization):
     """Newton solver for one mesh, formulation (``hex1``, ``hex2``, ``mixed``) and law."""
@@ -186,21 +195,18 @@ class Hyperelasticity(Discretization):
         (``None``: ``rtol``); ``chord=False``: a fresh tangent at every iteration."""
         if self.mixed and material.lam <= 0:
             raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
-        lam, mu = material.lam, material.G
         space = self.space
-        n = space.n_vector
         fext = space.body_load(material.rho * np.asarray(gravity, float))
         if load is not None:
             fext = fext + load
-        D = dirichlet.dofs
-        free = np.ones(n, dtype=bool)
-        free[D] = False
-        U = np.zeros(n)
+        free = np.ones(space.n_vector, dtype=bool)
+        free[dirichlet.dofs] = False
+        U = np.zeros(space.n_vector)
         p = np.zeros(self.pspace.n_scalar) if self.mixed else None
-        atol = 1e-12 * mu * self.fmesh.body.volume ** (2.0 / 3.0)
+        atol = 1e-12 * material.G * self.fmesh.body.volume ** (2.0 / 3.0)
         stats = SolveStats()
         log = NewtonLog()
-        C = self.pressure_mass / lam if self.mixed else None
+        C = self.pressure_mass / material.lam if self.mixed else None
         amg_cache: dict = {}  # AMG hierarchy reused across Newton iterations (same free dofs)
         lu_cache: dict = {}  # last direct factorization, for chord steps
 
@@ -213,10 +219,7 @@ class Hyperelasticity(Discretization):
             # gets few iterations, and on failure the base increment takes over.
             optimistic = s - s_done > base * (1.0 + 1e-9)
             its_max = min(maxiter, OPTIMISTIC_MAXITER) if optimistic else maxiter
-            guess = None
-            if adaptive and prev is not None and s_done > prev[0]:
-                r = (s - s_done) / (s_done - prev[0])
-                guess = (U + r * (U - prev[1]), None if p is None else p + r * (p - prev[2]))
+            guess = _secant_guess(U, p, prev, s_done, s) if adaptive else None
             last = s >= 1.0 - 1e-14
             ok, U_new, p_new, its, res, fresh = self._step(
                 U, p, s, fext, dirichlet, material, free, atol,
@@ -237,12 +240,8 @@ class Hyperelasticity(Discretization):
             if ds < min_increment:
                 log.converged = False
                 if adaptive and intermediate_rtol is not None and s_done > 0.0:  # to the full tolerance
-                    ok, U_t, p_t, its, res_t, _ = self._step(
-                        U, p, s_done, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
-                        amg_cache, None, adaptive, None)
-                    log.iterations += its
-                    if ok:
-                        U, p = U_t, p_t
+                    U, p = self._tighten(U, p, s_done, fext, dirichlet, material, free, atol, rtol, maxiter,
+                                         method, stats, C, amg_cache, log)
                 st = self._evaluate(U, p, s_done, fext, material, tangent=False)
                 partial = Solution(U.reshape(-1, 3), p, st["Ru"], space.integrate(st["psi"]), stats)
                 raise ConvergenceError(
@@ -250,9 +249,16 @@ class Hyperelasticity(Discretization):
                     partial, log, s_done,
                 )
         st = self._evaluate(U, p, 1.0, fext, material, tangent=False)
-        r = st["Ru"]
-        energy = space.integrate(st["psi"])
-        return Solution(U.reshape(-1, 3), p, r, energy, stats), log
+        return Solution(U.reshape(-1, 3), p, st["Ru"], space.integrate(st["psi"]), stats), log
+
+    def _tighten(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
+                 amg_cache, log):
+        """The converged state at load factor ``s`` (converged to :data:`INTERMEDIATE_RTOL`) taken to
+        the full ``rtol`` before a failure is reported; the state as it was if that fails."""
+        ok, U_t, p_t, its, _, _ = self._step(U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter,
+                                             method, stats, C, amg_cache, None, True, None)
+        log.iterations += its
+        return (U_t, p_t) if ok else (U, p)
 
     def _step(self, U, p, s, fext, dirichlet, material, free, atol, rtol, maxiter, method, stats, C,
               amg_cache=None, guess=None, inexact=True, lu_cache=None, extend_to=None):
@@ -262,18 +268,7 @@ class Hyperelasticity(Discretization):
         mu = material.G
         D = dirichlet.dofs
         target = dirichlet.values(s)
-        st = None
-        if guess is not None:  # secant predictor: start from the extrapolated state
-            Ug = guess[0].copy()
-            Ug[D] = target
-            pg = None if guess[1] is None else guess[1].copy()
-            st = self._evaluate(Ug, pg, s, fext, material, tangent=True)
-            if st is not None:
-                U, p = Ug, pg
-        if st is None:  # linearized predictor: impose the new plate displacements in Newton
-            U = U.copy()
-            p = None if p is None else p.copy()
-            st = self._evaluate(U, p, s, fext, material, tangent=True)
+        U, p, st = self._start(U, p, s, guess, target, D, fext, material)
         if st is None:
             return False, U, p, 0, np.inf, 0
         res = np.inf
@@ -305,41 +300,10 @@ class Hyperelasticity(Discretization):
                 stats.calls += 1
             else:
                 fresh += 1
-                if self.mixed:
-                    du, dp = solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
-                                          self.nullspace, 1.0 / mu + 1.0 / material.lam,
-                                          method=method, stats=stats, cache=lu_cache, order=self.order,
-                                          separator=self.separator, schur_rtol=eta_p)
-                else:
-                    du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
-                                   stats=stats, cache=amg_cache, order=self.order,
-                                   separator=self.separator)
-                    dp = None
+                du, dp = self._newton_solve(st, C, D, dD, material, method, stats, amg_cache, lu_cache,
+                                            eta, eta_p)
             first = np.any(dD != 0.0)
-            # Merit of the line search: the residual norm, or (displacement formulation, a
-            # minimum) the potential energy Π = ∫ψ − s fext·u, whose slope along du is Ru·du.
-            # Far from equilibrium under rotations the Newton step can raise ‖R‖ (spurious
-            # stresses of the linearized rotation) while lowering Π: accept on either.
-            energy_merit = not self.mixed and not first
-            if energy_merit:
-                pi0 = self._potential(st, U, s, fext)
-                slope = float(st["Ru"] @ du)
-                energy_merit = slope < 0.0
-            alpha, new = 1.0, None
-            while alpha >= 1.0 / 64:
-                Ut = U + alpha * du
-                pt = None if p is None else p + alpha * dp
-                trial = self._evaluate(Ut, pt, s, fext, material, tangent=False)
-                if trial is not None:
-                    rt = self._norm(trial, free, mu)
-                    if first or rt <= (1.0 - 1e-4 * alpha) * res0 or rt <= atol or (
-                            energy_merit
-                            and self._potential(trial, Ut, s, fext) <= pi0 + 1e-4 * alpha * slope):
-                        new = (Ut, pt, rt, trial)
-                        break
-                if first:
-                    break  # a predictor that inverts elements: shorten the load step instead
-                alpha *= 0.5
+            new, alpha = self._line_search(st, U, p, du, dp, s, fext, material, free, res0, atol, first)
             if new is None and use_chord:
                 chord = False  # the old factorization no longer gives a descent: refactorize
                 continue
@@ -361,6 +325,64 @@ class Hyperelasticity(Discretization):
             if fresh >= limit and limit < extend_to and alpha == 1.0 and res <= BASIN_CONTRACTION * res0:
                 limit += 1  # out of iterations but in Newton's quadratic basin: one more
         return False, U, p, it, res, fresh
+
+    def _start(self, U, p, s, guess, target, D, fext, material):
+        """The state a load step starts from: the secant ``guess`` with the plates at ``target`` when
+        it inverts no element, else the last converged state (its first Newton iteration imposes
+        the plates: a linearized predictor).  ``(U, p, state with tangent)``, state ``None`` if
+        inverted."""
+        if guess is not None:  # secant predictor: start from the extrapolated state
+            Ug = guess[0].copy()
+            Ug[D] = target
+            pg = None if guess[1] is None else guess[1].copy()
+            st = self._evaluate(Ug, pg, s, fext, material, tangent=True)
+            if st is not None:
+                return Ug, pg, st
+        U = U.copy()
+        p = None if p is None else p.copy()
+        return U, p, self._evaluate(U, p, s, fext, material, tangent=True)
+
+    def _newton_solve(self, st, C, D, dD, material, method, stats, amg_cache, lu_cache, eta, eta_p):
+        """The Newton update ``(du, dp)`` with the tangent of state ``st`` (prescribed increments
+        ``dD`` at ``D``), linear solves to ``eta`` (the pressure CG to ``eta_p``)."""
+        if self.mixed:
+            return solve_saddle(st["K"], st["B"], C, -st["Ru"], -st["Rp"], D, dD,
+                                self.nullspace, 1.0 / material.G + 1.0 / material.lam,
+                                method=method, stats=stats, cache=lu_cache, order=self.order,
+                                separator=self.separator, schur_rtol=eta_p)
+        du = solve_spd(st["K"], -st["Ru"], D, dD, self.nullspace, method=method, rtol=eta,
+                       stats=stats, cache=amg_cache, order=self.order, separator=self.separator)
+        return du, None
+
+    def _line_search(self, st, U, p, du, dp, s, fext, material, free, res0, atol, first):
+        """Backtracking along ``(du, dp)`` from ``1`` down to ``1/64``: ``((U, p, residual, state),
+        step)`` of the first trial that inverts no element and lowers the residual norm or (the
+        displacement formulation, a minimum) the potential energy; ``(None, step)`` if none does.
+        ``first``: the step imposes new plate displacements (accepted whole unless it inverts)."""
+        # Merit of the line search: the residual norm, or (displacement formulation, a
+        # minimum) the potential energy Π = ∫ψ − s fext·u, whose slope along du is Ru·du.
+        # Far from equilibrium under rotations the Newton step can raise ‖R‖ (spurious
+        # stresses of the linearized rotation) while lowering Π: accept on either.
+        energy_merit = not self.mixed and not first
+        if energy_merit:
+            pi0 = self._potential(st, U, s, fext)
+            slope = float(st["Ru"] @ du)
+            energy_merit = slope < 0.0
+        alpha = 1.0
+        while alpha >= 1.0 / 64:
+            Ut = U + alpha * du
+            pt = None if p is None else p + alpha * dp
+            trial = self._evaluate(Ut, pt, s, fext, material, tangent=False)
+            if trial is not None:
+                rt = self._norm(trial, free, material.G)
+                if first or rt <= (1.0 - 1e-4 * alpha) * res0 or rt <= atol or (
+                        energy_merit
+                        and self._potential(trial, Ut, s, fext) <= pi0 + 1e-4 * alpha * slope):
+                    return (Ut, pt, rt, trial), alpha
+            if first:
+                break  # a predictor that inverts elements: shorten the load step instead
+            alpha *= 0.5
+        return None, alpha
 
     def _potential(self, st, U, s, fext) -> float:
         """Π = ∫ψ − s fext·u (displacement formulation)."""

@@ -49,7 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from hybmss.lattice import box_dissection
+from .ordering import dof_order, nested_dissection, separator_dofs, unknown_order  # noqa: F401 - imported from here too
 
 try:  # CHOLMOD (SuiteSparse) through cvxopt's wheels: supernodal Cholesky, reusable symbolic analysis
     import cvxopt
@@ -125,51 +125,6 @@ def rigid_modes(points: np.ndarray) -> np.ndarray:
     B[:, 1, 4], B[:, 2, 4] = -z, y
     B[:, 2, 5], B[:, 0, 5] = -x, z
     return B.reshape(3 * n, 6)
-
-
-def nested_dissection(points: np.ndarray, h: float, leaf: int = 16) -> np.ndarray | None:
-    """Nested-dissection order of the Lagrange nodes ``points`` (n, 3) of a voxel mesh with
-    element edge ``h``: the box of elements is split at the middle element-face plane of its
-    longest extent; the nodes strictly on either side are ordered first (recursively, down to
-    ``leaf`` nodes or one element across), the nodes on the plane (a separator: no element
-    couples the two sides through it) after them.  Returns the node order, or ``None`` when the
-    nodes are not on the half-element grid of Hex1/Hex2 nodes (e.g. a distorted mesh)."""
-    p = np.asarray(points, float)
-    q = (p - p.min(axis=0)) / (0.5 * h)
-    g = np.rint(q).astype(np.int64)  # half-element units: vertices even, Hex2 mid-nodes odd
-    if len(p) == 0 or np.abs(q - g).max() > 1e-6:
-        return None
-    return box_dissection(g, np.zeros(3, np.int64), -(-g.max(axis=0) // 2), step=2, leaf=leaf)
-
-
-def separator_dofs(points: np.ndarray, h: float, components: int = 3) -> int | None:
-    """Unknowns on the first separator of :func:`nested_dissection` (the middle element-face plane
-    across the longest extent of the nodes ``points``), ``components`` per node; ``None`` when the
-    nodes are not on the half-element grid."""
-    p = np.asarray(points, float)
-    if len(p) == 0:
-        return None
-    q = (p - p.min(axis=0)) / (0.5 * h)
-    g = np.rint(q).astype(np.int64)
-    if np.abs(q - g).max() > 1e-6:
-        return None
-    ext = -(-g.max(axis=0) // 2)
-    ax = int(np.argmax(ext))
-    return components * int(np.count_nonzero(g[:, ax] == 2 * (ext[ax] // 2)))
-
-
-def dof_order(node_order: np.ndarray | None, n_vector_nodes: int, n_scalar: int = 0) -> np.ndarray | None:
-    """Unknowns in the order of ``node_order`` (a permutation of ``n_vector_nodes + n_scalar``
-    nodes): vector node ``k`` (< ``n_vector_nodes``) stands for dofs ``3k, 3k+1, 3k+2``, scalar
-    node ``n_vector_nodes + j`` for unknown ``3 n_vector_nodes + j`` (the pressure of a saddle point)."""
-    if node_order is None:
-        return None
-    k = np.asarray(node_order, np.int64)
-    vec = k < n_vector_nodes
-    counts = np.where(vec, 3, 1)
-    start = np.where(vec, 3 * k, 3 * n_vector_nodes + (k - n_vector_nodes))
-    first = np.cumsum(counts) - counts
-    return np.repeat(start, counts) + (np.arange(int(counts.sum())) - np.repeat(first, counts))
 
 
 class OrderedLU:
@@ -356,32 +311,11 @@ def solve_spd(
     K = sp.csr_matrix(K)
     kind = _choose_spd(method, _submatrix_nnz(K, free), separator if order is not None else None)
     if kind == "direct" and cholmod is not None:
-        perm = _local_order(order, free)
-        fac = cache.get("cholmod") if cache is not None else None
-        if fac is None or not fac.matches(K, free):
-            fac = CholmodFactor(K, free, perm)
-            if cache is not None:
-                cache["cholmod"] = fac
-                cache["factored"] = False
-        elif cache.get("factored") and cache.get("lu") is fac:
-            x = _pcg_on_factor(K, f, u, free, fac, rtol)  # the last factor of this pattern as preconditioner
-            if x is not None:
-                u[free] = x[0]
-                if stats is not None:
-                    stats.add("cholmod-pcg", x[1])
-                return u
-        try:
-            lu = fac.factorize(K)
-        except ArithmeticError:  # not positive definite: SuperLU's LU with diagonal pivots
-            lu = None
-        if cache is not None:
-            cache["factored"] = lu is not None
-        if lu is not None:
-            u[free] = lu.solve(f[free] - (K @ u)[free])  # u: the prescribed values, zero elsewhere
-            if cache is not None:
-                cache["lu"] = lu
+        x = _spd_cholmod(K, f, u, free, _local_order(order, free), rtol, cache)
+        if x is not None:
+            u[free] = x[0]
             if stats is not None:
-                stats.add("cholmod", 1)
+                stats.add(x[1], x[2])
             return u
     if kind == "direct":
         # extract the free block directly in the factorization's order
@@ -395,6 +329,48 @@ def solve_spd(
         if stats is not None:
             stats.add(kind, 1)
         return u
+    x = _spd_amg(K, f, D, uD, free, nullspace, rtol, cache)
+    if x is None:  # a stale preconditioner: rebuild and retry once
+        cache.clear()
+        return solve_spd(K, f, D, uD, nullspace, method, rtol, stats, cache, order, separator)
+    if stats is not None:
+        stats.add(kind, x[1])
+    u[free] = x[0]
+    return u
+
+
+def _spd_cholmod(K, f, u, free, perm, rtol: float, cache: dict | None):
+    """CHOLMOD's solve of the free block of ``K`` (``u``: the prescribed values, zero elsewhere):
+    ``(x, method, iterations)``, by CG on the last factor of the same pattern when it converges
+    within :data:`REUSE_MAXITER`, else by a fresh factorization; ``None`` when the matrix is not
+    positive definite."""
+    fac = cache.get("cholmod") if cache is not None else None
+    if fac is None or not fac.matches(K, free):
+        fac = CholmodFactor(K, free, perm)
+        if cache is not None:
+            cache["cholmod"] = fac
+            cache["factored"] = False
+    elif cache.get("factored") and cache.get("lu") is fac:
+        x = _pcg_on_factor(K, f, u, free, fac, rtol)  # the last factor of this pattern as preconditioner
+        if x is not None:
+            return x[0], "cholmod-pcg", x[1]
+    try:
+        lu = fac.factorize(K)
+    except ArithmeticError:  # not positive definite: SuperLU's LU with diagonal pivots
+        lu = None
+    if cache is not None:
+        cache["factored"] = lu is not None
+    if lu is None:
+        return None
+    if cache is not None:
+        cache["lu"] = lu
+    return lu.solve(f[free] - (K @ u)[free]), "cholmod", 1
+
+
+def _spd_amg(K, f, D, uD, free, nullspace, rtol: float, cache: dict | None):
+    """AMG-preconditioned CG on the free block of ``K`` to ``rtol``: ``(x, iterations)``; the
+    hierarchy is kept in ``cache`` and reused while CG needs at most twice the iterations per decade
+    it needed when it was built.  ``None`` when CG with a reused hierarchy fails (rebuild)."""
     Kr = K[free]
     A = Kr[:, free].tocsr()
     b = f[free] - Kr[:, D] @ uD
@@ -403,9 +379,8 @@ def solve_spd(
     count = [0]
     x, info = spla.cg(A, b, M=M, rtol=rtol, atol=0.0, maxiter=5000,
                       callback=lambda xk: count.__setitem__(0, count[0] + 1))
-    if info != 0 and reuse:  # a stale preconditioner: rebuild and retry once
-        cache.clear()
-        return solve_spd(K, f, D, uD, nullspace, method, rtol, stats, cache, order, separator)
+    if info != 0 and reuse:
+        return None
     if info != 0:
         raise RuntimeError(f"AMG-preconditioned CG did not converge ({count[0]} iterations)")
     its = count[0]
@@ -415,10 +390,7 @@ def solve_spd(
             cache.update(n=A.shape[0], M=M, rate0=rate)
         elif rate > 2 * cache["rate0"]:
             cache.clear()
-    if stats is not None:
-        stats.add(kind, its)
-    u[free] = x
-    return u
+    return x, its
 
 
 def solve_saddle(
@@ -491,31 +463,37 @@ def solve_saddle(
         if cache is not None:
             cache["lu"] = lu  # the caller may reuse the factorization (chord steps)
     else:
-        Ma = _amg(Aff.tocsr(), np.ascontiguousarray(nullspace[free]))
-        # Lumped pressure mass for the Schur block.
-        Mp = np.asarray(abs(C).sum(axis=1)).ravel()
-        Mp = np.where(Mp > 0, Mp, 1.0)
-        nu_ = Aff.shape[0]
-
-        def apply(r):
-            out = np.empty_like(r)
-            out[:nu_] = Ma @ r[:nu_]
-            out[nu_:] = r[nu_:] / (schur_scale * Mp)
-            return out
-
-        P = spla.LinearOperator(S.shape, matvec=apply, dtype=float)
-        count = [0]
-        # scipy's MINRES stops on ‖r‖ ≤ rtol (‖S‖ ‖x‖ + ‖b‖), looser than ‖r‖ ≤ rtol ‖b‖ when
-        # the blocks are scaled as differently as here (forces vs volumes): tighten it.
-        x, info = spla.minres(S, rhs, M=P, rtol=rtol * 1e-3, maxiter=10000,
-                              callback=lambda xk: count.__setitem__(0, count[0] + 1))
-        if info != 0:
-            raise RuntimeError(f"block-preconditioned MINRES did not converge ({count[0]} iterations)")
-        its = count[0]
+        x, its = _saddle_minres(S, rhs, Aff, C, np.ascontiguousarray(nullspace[free]), schur_scale, rtol)
     if stats is not None:
         stats.add(kind if kind == "direct" else "amg-minres", its)
     u[free] = x[: int(free.sum())]
     return u, x[int(free.sum()):]
+
+
+def _saddle_minres(S, rhs, Aff, C, nullspace, schur_scale: float, rtol: float):
+    """MINRES on the saddle point ``S`` with the block-diagonal preconditioner
+    ``diag(AMG(Aff), (schur_scale · lumped C)⁻¹)``: ``(x, iterations)``."""
+    Ma = _amg(Aff.tocsr(), nullspace)
+    # Lumped pressure mass for the Schur block.
+    Mp = np.asarray(abs(C).sum(axis=1)).ravel()
+    Mp = np.where(Mp > 0, Mp, 1.0)
+    nu_ = Aff.shape[0]
+
+    def apply(r):
+        out = np.empty_like(r)
+        out[:nu_] = Ma @ r[:nu_]
+        out[nu_:] = r[nu_:] / (schur_scale * Mp)
+        return out
+
+    P = spla.LinearOperator(S.shape, matvec=apply, dtype=float)
+    count = [0]
+    # scipy's MINRES stops on ‖r‖ ≤ rtol (‖S‖ ‖x‖ + ‖b‖), looser than ‖r‖ ≤ rtol ‖b‖ when
+    # the blocks are scaled as differently as here (forces vs volumes): tighten it.
+    x, info = spla.minres(S, rhs, M=P, rtol=rtol * 1e-3, maxiter=10000,
+                          callback=lambda xk: count.__setitem__(0, count[0] + 1))
+    if info != 0:
+        raise RuntimeError(f"block-preconditioned MINRES did not converge ({count[0]} iterations)")
+    return x, count[0]
 
 
 def _pcg_on_factor(K, f, u, free, fac: CholmodFactor, rtol: float):
@@ -567,12 +545,3 @@ def _schur_solve(A, Bf, C, rhs, free, perm, cache, stats, rtol: float = SCHUR_RT
         stats.add("cholmod-schur", 1)
         stats.details.append(solver.iterations)
     return x
-
-
-def unknown_order(space, h: float, pspace=None) -> np.ndarray | None:
-    """Fill-reducing order of the unknowns of ``space`` (displacement dofs, then the pressures of
-    ``pspace`` for a mixed element) by nested dissection of their nodes, or ``None`` (no grid)."""
-    if pspace is None:
-        return dof_order(nested_dissection(space.points, h), space.n_scalar)
-    pts = np.vstack([space.points, pspace.points])
-    return dof_order(nested_dissection(pts, h), space.n_scalar, pspace.n_scalar)

@@ -30,7 +30,8 @@ import numpy as np
 from hybmss.scene import Material
 
 from .dirichlet import Dirichlet
-from .linalg import SolveStats, rigid_modes, separator_dofs, solve_saddle, solve_spd, unknown_order
+from .linalg import SolveStats, rigid_modes, solve_saddle, solve_spd
+from .ordering import separator_dofs, unknown_order
 from .mesh import FemMesh
 from .space import Space
 

@@ -90,53 +90,68 @@ def solve(
         raise ValueError(f"refine must be an integer >= 1, got {refine!r}")
     if not scene.plates:
         raise ValueError("scene has no plate: the FEM needs prescribed displacements (rigid motions are free)")
-    ops = operators
-    if ops is None:
-        fmesh = build_mesh(scene.body, refine)
-        ops = LinearElasticity(fmesh, element) if law == "linear" else Hyperelasticity(fmesh, element, law)
-    else:
-        if ops.fmesh.body != scene.body or ops.fmesh.refine != int(refine) or ops.formulation != element:
-            raise ValueError("operators were built for another body, refinement or element")
-        if (law == "linear") != isinstance(ops, LinearElasticity) or getattr(ops, "law", law) != law:
-            raise ValueError("operators were built for another law")
+    ops = _checked_operators(scene, element, law, refine, operators)
     space = ops.space
-    mat = scene.material
     dirichlet = plate_dirichlet(scene, space)
     if len(dirichlet.dofs) == 0:
         raise ValueError("the plates select no FEM node: check their regions")
     info: dict = {"element": element, "law": law, "refine": int(refine), "h": ops.fmesh.h,
                   "n_elements": int(ops.fmesh.mesh.t.shape[1]), "n_dofs": int(space.n_vector)}
-    converged, iterations = True, 1
     traction = None
     if scene.loads:  # dead surface tractions (Scene.loads)
         from .loads import load_vector
 
         traction = load_vector(scene, space)
         info["surface_load"] = [float(v) for v in traction.reshape(-1, 3).sum(axis=0)]
-    if law == "linear":
-        sol = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0), method=method,
-                        load=traction)
-    else:
-        load_factor = 1.0
-        try:
-            sol, log = ops.solve(mat, dirichlet, scene.gravity if scene.has_gravity else (0, 0, 0),
-                                 steps=5 if steps is None else int(steps), method=method, load=traction)
-        except ConvergenceError as exc:
-            if strict or exc.solution is None:
-                raise ConvergenceError(f"{scene.name or 'scene'}: {exc}", exc.solution, exc.log,
-                                       exc.load_factor) from None
-            sol, log, load_factor, converged = exc.solution, exc.log, exc.load_factor, False
-        info["load_factor"] = load_factor
-        iterations = log.iterations
-        info["newton"] = {"steps": len(log.steps), "rejected_steps": log.rejected_steps,
-                          "final_residuals": [float(r) for _, _, r in log.steps]}
+    sol, iterations, converged = _run(scene, ops, law, dirichlet, traction, steps, method, strict, info)
     if sol.p is not None:
         info["n_dofs"] += int(len(sol.p))
         info["pressure_range"] = [float(sol.p.min()), float(sol.p.max())]
     info["linear_solver"] = {"method": sol.stats.method, "iterations": sol.stats.iterations,
                              "solves": sol.stats.calls}
+    return _result(scene, ops, law, element, dirichlet, traction, sol, info, int(iterations), converged,
+                   time.perf_counter() - t0)
 
-    # ---------------------------------------------------------------- outputs
+
+def _checked_operators(scene: Scene, element: str, law: str, refine: int, ops):
+    """``ops`` after checking that they fit ``scene``, ``element``, ``law`` and ``refine``, or new
+    operators when ``ops`` is ``None``."""
+    if ops is None:
+        fmesh = build_mesh(scene.body, refine)
+        return LinearElasticity(fmesh, element) if law == "linear" else Hyperelasticity(fmesh, element, law)
+    if ops.fmesh.body != scene.body or ops.fmesh.refine != int(refine) or ops.formulation != element:
+        raise ValueError("operators were built for another body, refinement or element")
+    if (law == "linear") != isinstance(ops, LinearElasticity) or getattr(ops, "law", law) != law:
+        raise ValueError("operators were built for another law")
+    return ops
+
+
+def _run(scene: Scene, ops, law: str, dirichlet, traction, steps, method: str, strict: bool, info: dict):
+    """The linear solve or the Newton solve of ``scene``: ``(solution, iterations, converged)``;
+    the Newton log and the load factor reached go to ``info``."""
+    gravity = scene.gravity if scene.has_gravity else (0, 0, 0)
+    if law == "linear":
+        return ops.solve(scene.material, dirichlet, gravity, method=method, load=traction), 1, True
+    load_factor, converged = 1.0, True
+    try:
+        sol, log = ops.solve(scene.material, dirichlet, gravity, steps=5 if steps is None else int(steps),
+                             method=method, load=traction)
+    except ConvergenceError as exc:
+        if strict or exc.solution is None:
+            raise ConvergenceError(f"{scene.name or 'scene'}: {exc}", exc.solution, exc.log,
+                                   exc.load_factor) from None
+        sol, log, load_factor, converged = exc.solution, exc.log, exc.load_factor, False
+    info["load_factor"] = load_factor
+    info["newton"] = {"steps": len(log.steps), "rejected_steps": log.rejected_steps,
+                      "final_residuals": [float(r) for _, _, r in log.steps]}
+    return sol, log.iterations, converged
+
+
+def _result(scene: Scene, ops, law: str, element: str, dirichlet, traction, sol, info: dict,
+            iterations: int, converged: bool, wall: float) -> Result:
+    """The :class:`Result` of solution ``sol``: the lattice particles' displacements, volumes,
+    reactions and energies (see the module's docstring)."""
+    space, mat = ops.space, scene.material
     U = sol.U
     lattice = ops.fmesh.lattice
     u_p = U[space.particle_dofs]
@@ -172,7 +187,7 @@ def solve(
         reactions=reactions,
         energy=energy,
         iterations=int(iterations),
-        wall_time_s=time.perf_counter() - t0,
+        wall_time_s=wall,
         converged=converged,
         cell_volumes=cellv,
         info=info,
