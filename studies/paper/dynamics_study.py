@@ -47,9 +47,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from hybmss import models
 from hybmss.experiments import SceneSpec
 from hybmss.scene import Scene
 
+from studies.sweep import roles
 from studies.sweep.runner import SolverSpec, Task, run_tasks
 
 NUS = (0.0, 0.25, 0.45, 0.499)
@@ -62,19 +64,10 @@ BODIES = {
     "cube": ("compression", 0.01),
     "beam": ("bending", 0.1),
 }
-LATTICE_MODELS = ("hybmss", "hybmss-fd", "hybmss-cf", "baudet2009", "corot-hex8", "corot-hex8-sri", "xpbd-nh")
-ENGINES = ("mujoco-tet", "mujoco-trilinear", "newton-semi", "newton-vbd", "pbd-xpbd-fem")
-"""The engines that run a released state: mujoco-quadratic's nodes are not the lattice particles (no
-released state on its own nodes) and newton-xpbd cannot represent a shear modulus (both refuse in one
-line before any work)."""
-BEAM_ENGINES = ("mujoco-tet", "mujoco-trilinear", "newton-semi")
-"""The engines released on the beam: newton-vbd and pbd-xpbd-fem take 25-100 s of a 2-core machine
-each for its two and a half periods (measured: 163 and 270 CPU s at load 8, five times every
-lattice model's beam runs together), so the full reproduction releases them on the cube only."""
-EXPECTED_DIVERGENCE = {"baudet2009": 0.45}
-"""Models whose released run at the user step (0.9 of the harness's stability limit) diverges from
-this ν on (measured: baudet2009 at ν = 0.45 and 0.499 on both bodies); their rows say so, and
-the runner counts them as runs without result as expected, not as failures."""
+LATTICE_MODELS = roles.RELEASED_MODELS
+ENGINES = roles.RELEASED_ENGINES["cube"]
+BEAM_ENGINES = roles.RELEASED_ENGINES["beam"]
+EXPECTED_DIVERGENCE = roles.RELEASED_DIVERGES
 
 
 @dataclass(frozen=True)
@@ -93,7 +86,7 @@ class Level:
 LEVELS = {
     "full": Level({"cube": (4, 4, 4), "beam": (2, 2, 12)}, NUS, LATTICE_MODELS,
                   {"cube": ENGINES, "beam": BEAM_ENGINES}, (0.25,), 2),
-    "quick": Level({"cube": (3, 3, 3), "beam": (2, 2, 12)}, (0.25,), ("hybmss-cf", "corot-hex8"), {}, (), 2),
+    "quick": Level({"cube": (3, 3, 3), "beam": (2, 2, 12)}, (0.25,), roles.RELEASED_QUICK, {}, (), 2),
 }
 FEM = SolverSpec("fem", element="hex2", law="linear")
 MODEL = SolverSpec("explicit")
@@ -139,7 +132,7 @@ class ReleasedRun:
     experiment = "released"
 
     def build(self) -> Scene:
-        return body_scene(self.body, self.mesh, self.nu, "hybmss" if self.model == "fem" else self.model)
+        return body_scene(self.body, self.mesh, self.nu, models.default_name() if self.model == "fem" else self.model)
 
     @property
     def key_extra(self) -> dict:
@@ -241,8 +234,6 @@ def expected_divergence(task: Task, row: dict | None) -> bool:
 
 
 def model_names(lv: Level, nu: float, body: str) -> tuple[str, ...]:
-    from hybmss import models
-
     engines = lv.engines.get(body, ())
     names = lv.models + (engines if any(math.isclose(nu, v) for v in lv.engine_nus) else ())
     return tuple(n for n in names if n in models.names())
