@@ -47,16 +47,16 @@ more, the same ones at every run)."""
 def run_estimates(shape, models, reference, materials) -> list[tuple[str, sizing.Estimate, int]]:
     """Each run a configuration of ``shape`` asks for: (the key that sets its size, its estimate,
     how many times it is solved: an untimed run and the timed repeats are counted by the caller)."""
-    from studies.study.tasks import AUTO_REFINE_MAX
+    from studies.study.tasks import auto_refine_cap
 
     out = []
     for i, m in enumerate(models):
         work = sizing.model_work(dict(m.params), m.kind)
         key = f"model[{i}].solver.steps" if m.kind != "static" else "body.cell_sizes"
         out.append((key, sizing.mss(shape, m.kind, m.steps, work), 1))
-    refine = AUTO_REFINE_MAX if reference.refine == "auto" else int(reference.refine)
-    key = "reference.refine" if refine > 1 else "body.cell_sizes"
     for nu in sorted({mat.nu for mat in materials}):
+        refine = auto_refine_cap(shape, reference, nu) if reference.refine == "auto" else int(reference.refine)
+        key = "reference.refine" if refine > 1 else "body.cell_sizes"
         out.append((key, sizing.fem(shape, reference.element, refine, reference.law, nu), 0))
     return out
 

@@ -192,9 +192,22 @@ def _reference_task(study, case, mat: Material, vox, plates, loads) -> Task:
                   f"{study.name} {case.name} FEM", loads)
     auto = None
     if ref.refine == "auto":
-        auto = (AUTO_REFINE_MAX, ref.tolerance * min(study.budgets))
+        auto = (auto_refine_cap(vox.body.shape, ref, mat.nu), ref.tolerance * min(study.budgets))
     solver = SolverSpec("fem", element=ref.element, law=ref.law, refine=1 if auto else int(ref.refine))
     return Task(StudyScene(scene, study.name, case.name, vox.le, "FEM", 1, auto), solver, study.name)
+
+
+def auto_refine_cap(shape, reference, nu: float) -> int:
+    """The finest refinement ``refine = "auto"`` may reach on a grid of ``shape``: the largest of
+    1 ... :data:`AUTO_REFINE_MAX` whose solve fits this machine's memory (the estimate of
+    :func:`studies.sweep.sizing.fem`; 1 if none does, which the memory check then refuses).  A
+    reference that stops there above its target says so in its row (``reference_error_estimate``
+    beside ``reference_error_target``)."""
+    from studies.sweep import sizing
+
+    fitting = [r for r in range(1, AUTO_REFINE_MAX + 1)
+               if sizing.fits(sizing.fem(shape, reference.element, r, reference.law, nu))]
+    return max(fitting, default=1)
 
 
 def is_reference(task: Task) -> bool:

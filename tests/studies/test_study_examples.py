@@ -304,3 +304,27 @@ def test_an_experiment_study_file_gives_the_experiment_tasks():
     study = Study.from_toml(path, quick=True)
     expected = experiment_tasks(tomllib.loads(path.read_text()), True)
     assert [t.key() for t in study.tasks()] == [t.key() for t in expected] and len(expected) > 10
+
+
+def test_auto_reference_stops_at_the_finest_refinement_that_fits_memory(tmp_path, monkeypatch):
+    """refine = "auto" on a machine whose memory holds the reference at refine 2 but not at 3:
+    the study is accepted (not refused for a level it may not need), the reference stops at 2 with
+    its estimate above an unreachable target, and says so in its row."""
+    from study_files import small_study
+    from studies.study import Study
+    from studies.sweep import sizing
+
+    doc = small_study()
+    doc["load_case"] = [{"name": "hang", "gravity": [-9.81, 0.0, 0.0],
+                         "support": [{"name": "top", "region": "z+", "motion": "clamped"}]}]
+    doc["metrics"] = {"plate_force": ["top"]}
+    doc["reference"] = {"element": "hex1", "law": "linear", "refine": "auto", "tolerance": 1e-9}
+    doc["study"]["budgets"] = [0.5]
+    path = write(doc, tmp_path / "auto.toml")
+    shape = [t for t in Study.from_toml(path).tasks() if t.solver.kind == "fem"][0].scene.build().body.shape
+    need = [sizing.fem(shape, "hex1", r, "linear", 0.3).bytes for r in (2, 3)]
+    monkeypatch.setattr(sizing, "limit", lambda: (need[0] + need[1]) / 2)
+    study = Study.from_toml(path)
+    study.run(tmp_path / "out", jobs=1, progress=False)
+    ref = study.tables(tmp_path / "out")["reference"].iloc[0]
+    assert ref["refine"] == 2 and ref["error_estimate"] > ref["error_target"] == 5e-10
