@@ -613,38 +613,27 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     soon as its part is done, and ``stability``, the last two together.
     ``parts`` selects and orders the parts; ``damping_mesh`` replaces the 10³ cube of (f),
     ``extreme_mesh`` the 6³ cube of (b, c)."""
+    pooled = {  # part: (its tasks, the table of their rows, the table's name, the progress bar's label)
+        "d": (lambda: limit_tasks(quick), limit_table, "limit_stretch", "stability limit"),
+        "f": (lambda: damping_tasks(quick, damping_mesh), damping_table, "damping_steps", "stability damping"),
+        "c": (lambda: extreme_tasks(quick, extreme_mesh), extreme_table, "stability_extreme", "stability extreme"),
+        "g": (lambda: engine_tasks(quick), lambda _store, ts, rows: engine_table(ts, rows), "stability_engines",
+              "stability engines"),
+    }
     tables = {}
     for part in parts:
-        if part == "a":
+        if part in pooled:
+            make, table, name, desc = pooled[part]
+            ts = make()
+            rows = run_tasks([t for _, t in ts], store, jobs=jobs, progress=progress, desc=desc, runner=runner)
+            tables[name] = table(store, ts, rows)
+            store.write_table(name, tables[name])
+        elif part == "a":
             tables["dt_stability"] = dt_table(quick, workers=jobs, store=store)
             store.write_table("dt_stability", tables["dt_stability"])
-        elif part == "d":
-            lim = limit_tasks(quick)
-            rows = run_tasks([t for _, t in lim], store, jobs=jobs, progress=progress,
-                             desc="stability limit", runner=runner)
-            tables["limit_stretch"] = limit_table(store, lim, rows)
-            store.write_table("limit_stretch", tables["limit_stretch"])
-        elif part == "f":
-            dmp = damping_tasks(quick, damping_mesh)
-            rows = run_tasks([t for _, t in dmp], store, jobs=jobs, progress=progress,
-                             desc="stability damping", runner=runner)
-            tables["damping_steps"] = damping_table(store, dmp, rows)
-            store.write_table("damping_steps", tables["damping_steps"])
-        elif part == "c":
-            ext = extreme_tasks(quick, extreme_mesh)
-            rows = run_tasks([t for _, t in ext], store, jobs=jobs, progress=progress,
-                             desc="stability extreme", runner=runner)
-            tables["stability_extreme"] = extreme_table(store, ext, rows)
-            store.write_table("stability_extreme", tables["stability_extreme"])
-            tables["stability"] = _combined(store)
-        elif part == "g":
-            eng = engine_tasks(quick)
-            rows = run_tasks([t for _, t in eng], store, jobs=jobs, progress=progress,
-                             desc="stability engines", runner=runner)
-            tables["stability_engines"] = engine_table(eng, rows)
-            store.write_table("stability_engines", tables["stability_engines"])
         elif part == "e":
             tables["stability_irregular"] = irregular_table(quick, workers=jobs, store=store)
             store.write_table("stability_irregular", tables["stability_irregular"])
+        if part in "ce":
             tables["stability"] = _combined(store)
     return tables
