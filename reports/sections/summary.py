@@ -209,7 +209,7 @@ def verdict_sentences(v: pd.DataFrame, subject: str | None) -> list[str]:
             (wins if rk in ("best", "tied with best") else losses).append(f"{regime}: {quantity.split(',')[0]}")
     if subject is not None and (wins or losses):
         lead = (f"{subject} is best or tied in: " + "; ".join(wins) if wins else f"{subject} is best in no regime")
-        lead += (f". It is behind in: " + "; ".join(losses) + "." if losses else ".")
+        lead += (". It is behind in: " + "; ".join(losses) + "." if losses else ".")
         out.insert(0, lead)
     return out
 

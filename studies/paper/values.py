@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from importlib import resources
 
-import numpy as np
 import pandas as pd
 
 def load(name: str) -> pd.DataFrame:

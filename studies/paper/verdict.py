@@ -99,7 +99,7 @@ def _lost_equilibria(results: Results) -> list[dict]:
         g = big[big["variant"] == results.variant(m)]
         lost = int((g["status"] != "ok").sum())
         out.append(dict(regime="ν < 1/4 at large strain", quantity="scenes without equilibrium (of those run)",
-                        unit="count", scene=f"compression, tension, shear, torsion at 20 % / 45°, ν < 1/4",
+                        unit="count", scene="compression, tension, shear, torsion at 20 % / 45°, ν < 1/4",
                         method=results.variant(m), value=float(lost), state="ok", total=len(g)))
     return out
 
@@ -178,7 +178,7 @@ def _cost_rows(results: Results) -> list[dict]:
                         state="ok" if pd.notna(r["cost"]) else no_limit))
         dtc = dt_crit_at(results, r["variant"], 0.499, r["mesh"])
         value = 1e3 * cost.cost_per_simulated_second(r["us_per_step"], cost.stable_dt(dtc)) if pd.notna(dtc) else np.nan
-        out.append(dict(regime="cost", quantity=f"the same at ν = 0.499 (dt_crit of the stability study)", unit="ms/s",
+        out.append(dict(regime="cost", quantity="the same at ν = 0.499 (dt_crit of the stability study)", unit="ms/s",
                         scene=scene, method=r["variant"], value=value,
                         state="ok" if pd.notna(value) and r["status"] == "ok"
                         else (no_limit if pd.isna(r["cost"]) else "missing")))
