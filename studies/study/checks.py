@@ -54,7 +54,7 @@ def run_estimates(shape, models, reference, materials) -> list[tuple[str, sizing
         work = sizing.model_work(dict(m.params), m.kind)
         key = f"model[{i}].solver.steps" if m.kind != "static" else "body.cell_sizes"
         out.append((key, sizing.mss(shape, m.kind, m.steps, work), 1))
-    for nu in sorted({mat.nu for mat in materials}):
+    for nu in sorted({mat.nu for mat in materials}) if reference is not None else ():  # None: on tetrahedra
         refine = auto_refine_cap(shape, reference, nu) if reference.refine == "auto" else int(reference.refine)
         key = "reference.refine" if refine > 1 else "body.cell_sizes"
         out.append((key, sizing.fem(shape, reference.element, refine, reference.law, nu), 0))
@@ -92,7 +92,8 @@ def check_time(study, top) -> None:
     ``hybmss run``, :mod:`studies.sweep.sizing`), naming the key that sets it."""
     every = []
     for vox in study.voxels:
-        for key, est, timed in run_estimates(vox.body.shape, study.models, study.reference, study.materials):
+        reference = None if study.tet_sizes else study.reference  # a tetrahedral study's: studies.study.tet
+        for key, est, timed in run_estimates(vox.body.shape, study.models, reference, study.materials):
             seconds = est.seconds * (1 + timed * study.repeats)
             every.append(sizing.Estimate(est.what, est.bytes, seconds * len(study.load_cases)))
             if seconds > sizing.TIME_LIMIT_S:

@@ -186,7 +186,8 @@ def _user_study(top: Table, body: Table, quick: bool) -> Study:
     reference = _read_reference(top.sub("reference"))
     metrics = _read_metrics(top.sub("metrics"), cases)
     top.done()
-    checks.check_size(body, functools.partial(grid_shape, source), voxel_sizes, runs, reference, materials)
+    checks.check_size(body, functools.partial(grid_shape, source), voxel_sizes, runs,
+                      None if tet_sizes else reference, materials)  # a tetrahedral reference: studies.study.tet
     voxels = _voxelize(body, source, voxel_sizes)
     tet_bodies = tet.mesh_tets(body, source, tet_sizes) if tet_sizes else ()
     study = Study(**head, quick=quick, source=source, cell_sizes=tuple(voxel_sizes), materials=materials,

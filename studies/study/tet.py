@@ -24,9 +24,12 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from studies.study.errors import StudyError
 from studies.study.keys import Table
 from studies.study.regions import held_modes
+from studies.sweep import sizing
 from studies.sweep.tet_runs import TET_REFINES, NodeRegion, TetEngineScene, TetReferenceScene, TetSupport
 
 TET_SOURCES = ("mesh", "pyvista")
@@ -88,6 +91,30 @@ def mesh_tets(t: Table, source, sizes) -> tuple:
     return tuple(bodies)
 
 
+def reference_size(body, refine: int, nu: float) -> sizing.Estimate:
+    """The memory and time of the tetrahedral reference on ``body`` refined ``refine`` times in h
+    (:func:`studies.sweep.sizing.fem_of`): 3 unknowns per P2 node (vertex and edge midpoint), plus a
+    pressure per vertex for the mixed element, counted exactly through each split of every
+    tetrahedron into eight: (V, E, F, T) -> (V + E, 2E + 3F + T, 4F + 8T, 8T)."""
+    from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU
+
+    t = np.sort(np.asarray(body.tets), axis=1)
+    edges = len(np.unique(t[:, [0, 0, 0, 1, 1, 2, 1, 2, 3, 2, 3, 3]].reshape(-1, 2, 6).transpose(0, 2, 1)
+                          .reshape(-1, 2), axis=0))
+    faces = len(np.unique(t[:, [0, 1, 2, 0, 1, 3, 0, 2, 3, 1, 2, 3]].reshape(-1, 3), axis=0))
+    V, E, F, T = len(body.X), edges, faces, len(t)
+    for _ in range(int(refine).bit_length() - 1):  # refine 1, 2, 4: 0, 1, 2 splits
+        V, E, F, T = V + E, 2 * E + 3 * F + T, 4 * F + 8 * T, 8 * T
+    pressures = V if nu >= NEARLY_INCOMPRESSIBLE_NU else 0
+    return sizing.fem_of(3 * (V + E) + pressures, "hex2", "linear", "tetrahedral FEM reference")
+
+
+def auto_largest(body, nu: float) -> int:
+    """The finest of :data:`TET_REFINES` whose reference fits this machine's memory (the first if none
+    does, which :func:`check_tet_study` refuses)."""
+    return max([r for r in TET_REFINES if sizing.fits(reference_size(body, r, nu))], default=TET_REFINES[0])
+
+
 def check_tet_study(study, top: Table) -> None:
     """What a tetrahedral body cannot take (module docstring), before any work."""
     ref = study.reference
@@ -119,6 +146,17 @@ def check_tet_study(study, top: Table) -> None:
                                  "body.tet_sizes", top.file)
         for body in study.tet_bodies:
             _check_held(study, top, where, case, body)
+
+    finest = study.tet_bodies[-1]  # the reference's mesh: memory last, once the rest is allowed
+    for mat in study.materials:
+        refine = TET_REFINES[0] if ref.refine == "auto" else ref.refine
+        est = reference_size(finest, refine, mat.nu)
+        if not sizing.fits(est):
+            key = "reference.refine" if refine != TET_REFINES[0] else "body.tet_sizes"
+            raise StudyError(key, ref.refine if key == "reference.refine" else list(study.tet_sizes),
+                             f"a reference that fits this machine's memory: at h {finest.h:g} m the {est.what} "
+                             f"would need about {sizing.size(est.bytes)}, allowed {sizing.size(sizing.limit())}",
+                             top.file)
 
 
 def _check_held(study, top, where, case, body) -> None:
@@ -174,7 +212,8 @@ def tet_study_tasks(study, voxel_tasks) -> list:
             ref = study.reference
             target = ref.tolerance * min(study.budgets)
             scene = TetReferenceScene(finest, mat, _on(supports, finest), study.name, case.name, finest.h, "FEM",
-                                      refine=ref.refine, target=target if ref.refine == "auto" else float("inf"))
+                                      refine=ref.refine, target=target if ref.refine == "auto" else float("inf"),
+                                      largest=auto_largest(finest, mat.nu))
             refs.append(Task(scene, SolverSpec("fem", element="tet", law="linear"), study.name))
     return tasks + refs
 

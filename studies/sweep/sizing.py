@@ -95,10 +95,15 @@ def fem_dofs(shape, element: str = "hex2", refine: int = 1, nu: float = 0.25) ->
 
 def fem(shape, element: str = "hex2", refine: int = 1, law: str = "linear", nu: float = 0.25) -> Estimate:
     """A FEM reference solve of a box of ``shape`` cells split ``refine``³ times."""
-    D = float(fem_dofs(shape, element, refine, nu))
+    return fem_of(float(fem_dofs(shape, element, refine, nu)), element, law)
+
+
+def fem_of(dofs: float, element: str = "hex2", law: str = "linear", what: str = "FEM solve") -> Estimate:
+    """A FEM solve of ``dofs`` unknowns: per unknown as measured for Hex1 or for the quadratic
+    elements (Hex2, mixed; an upper bound for tetrahedral P2, whose rows couple fewer unknowns)."""
     per_dof = 8e3 if element == "hex1" else 22e3
-    seconds = 12.6 * (D / 46875.0) ** 1.3 * (1.0 if law == "linear" else 15.0)
-    return Estimate(f"FEM solve ({int(D):,} dofs)", BASE_BYTES + per_dof * D, seconds)
+    seconds = 12.6 * (dofs / 46875.0) ** 1.3 * (1.0 if law == "linear" else 15.0)
+    return Estimate(f"{what} ({int(dofs):,} dofs)", BASE_BYTES + per_dof * dofs, seconds)
 
 
 def model_work(params: dict, solver: str = "static") -> float:

@@ -166,12 +166,15 @@ class TetReferenceScene(_TetScene):
 
     refine: int | str = 1
     target: float = math.inf
+    largest: int = TET_REFINES[-1]
+    """The finest refinement ``auto`` may reach (the finest that fits the machine's memory)."""
 
     model = "fem-tet"
 
     @property
     def key_extra(self) -> dict:
-        return {"refine": self.refine, "target": self.target if self.refine == "auto" else None}
+        auto = self.refine == "auto"
+        return {"refine": self.refine, "target": self.target if auto else None, "largest": self.largest if auto else None}
 
     def digest(self) -> str:
         m = self.material
@@ -196,7 +199,7 @@ class TetReferenceScene(_TetScene):
         from fem_reference.tet import TetProblem, as_mesh
 
         mesh, sols = as_mesh(self.body), []
-        refines = [r for r in TET_REFINES if self.refine == "auto" or r <= self.refine]
+        refines = [r for r in TET_REFINES if r <= (self.largest if self.refine == "auto" else self.refine)]
         estimate = math.nan
         for i, r in enumerate(refines):
             if i:

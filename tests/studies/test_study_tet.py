@@ -166,3 +166,43 @@ def test_gel_cylinder_example_scores_every_engine_on_its_own_tetrahedra(tmp_path
             if load == "twist":
                 assert abs(reaction) > abs(conv.values[-1]) and reaction * conv.values[-1] > 0
                 assert rows.loc[s.label, "torque_top_rel"] == pytest.approx(direct["reaction"], rel=1e-2)
+
+
+def test_the_reference_size_counts_the_p2_unknowns_scikit_fem_solves(tmp_path):
+    """The guard's unknowns are scikit-fem's own: 3 per P2 node (vertices and edge midpoints) on
+    the tetrahedra as meshed (refine 1) and on the mesh split once and twice (refine 2, 4)."""
+    import skfem
+
+    from studies.study import Study
+    from studies.study.tet import reference_size
+    from studies.sweep import sizing
+
+    _stl(tmp_path)
+    body = Study.from_toml(write(_doc(), tmp_path / "s.toml")).tet_bodies[-1]
+    mesh = skfem.MeshTet(np.asarray(body.X, dtype=float).T, np.asarray(body.tets).T)
+    for refine, m in ((1, mesh), (2, mesh.refined()), (4, mesh.refined(2))):
+        n = skfem.Basis(m, skfem.ElementVector(skfem.ElementTetP2())).N
+        guessed = (reference_size(body, refine, 0.3).bytes - sizing.BASE_BYTES) / \
+            (sizing.fem_of(1.0).bytes - sizing.BASE_BYTES)
+        assert guessed == n, (refine, guessed, n)
+
+
+def test_a_reference_that_does_not_fit_memory_is_refused_and_auto_stops_where_it_fits(tmp_path, cli_in_process,
+                                                                                      monkeypatch):
+    """On a machine whose memory holds the reference at refine 1 but not 2: refine = 2 is refused
+    before any work (exit 2, reference.refine), and refine = "auto" is accepted with its finest
+    level 1 (its row then says its estimate was not reached)."""
+    from studies.study import Study
+    from studies.study.tet import reference_size
+    from studies.sweep import sizing
+
+    _stl(tmp_path)
+    body = Study.from_toml(write(_doc(), tmp_path / "s.toml")).tet_bodies[-1]
+    need = [reference_size(body, r, 0.3).bytes for r in (1, 2)]
+    monkeypatch.setattr(sizing, "limit", lambda: (need[0] + need[1]) / 2)
+    out = tmp_path / "out"
+    proc = cli_in_process("study", write(_doc(refine=2), tmp_path / "two.toml"), "--out", out, "--no-progress")
+    assert proc.returncode == 2 and "reference.refine" in proc.stderr and not out.exists(), proc.stderr
+    study = Study.from_toml(write(_doc(refine="auto"), tmp_path / "auto.toml"))
+    (ref,) = [t for t in study.tasks() if t.solver.kind == "fem"]
+    assert ref.scene.largest == 1
