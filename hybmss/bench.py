@@ -24,7 +24,6 @@ by default).  A quick run (a smoke run of the whole matrix, not a measurement) u
 from __future__ import annotations
 
 import os
-import time
 
 from . import models
 from .experiments import SceneSpec
@@ -32,6 +31,7 @@ from .explicit import WARM_UP_THREADS, dt_crit, simulate_explicit
 from .scene import Scene
 from .solve import solve_static
 from .system import build
+from .timing import time_repeated
 
 MESH = (10, 10, 10)
 LE = 0.5
@@ -220,9 +220,9 @@ def static_cases(names=None) -> list[tuple[str, float, float]]:
 
 def static_bench(quick: bool = False, repeats: int | None = None, mesh=None, names=None) -> list[dict]:
     """Wall time of the static Newton solve of the compression cube ``mesh`` (default the 10³
-    cube, :data:`QUICK_MESH` when ``quick``; best of ``repeats``, after a warm-up of the
-    sparsity pattern cache) of the models ``names`` (:func:`static_cases`).  ``quick``: the first
-    case of :func:`static_cases` only."""
+    cube, :data:`QUICK_MESH` when ``quick``; best of ``repeats`` after one untimed solve that
+    fills the sparsity pattern cache, :func:`hybmss.timing.time_repeated`) of the models ``names``
+    (:func:`static_cases`).  ``quick``: the first case of :func:`static_cases` only."""
     reps = repeats or (1 if quick else 3)
     mesh = tuple(mesh) if mesh is not None else (QUICK_MESH if quick else MESH)
     cases = static_cases(names)[:1] if quick else static_cases(names)
@@ -230,14 +230,15 @@ def static_bench(quick: bool = False, repeats: int | None = None, mesh=None, nam
     for model, nu, d in cases:
         scene = compression_scene(model, nu, mesh=mesh, d=d)
         system = build(scene)
-        solve_static(scene, system=system)  # warm-up
-        best, res = float("inf"), None
-        for _ in range(reps):
-            t0 = time.perf_counter()
-            res = solve_static(scene, system=system)
-            best = min(best, time.perf_counter() - t0)
+        last = []
+
+        def solve(scene=scene, system=system):
+            last[:] = [solve_static(scene, system=system)]
+
+        timing = time_repeated(solve, repeats=reps, warmup=1)  # the warm-up fills the pattern cache
+        res = last[0]
         rows.append({"scene": f"compression d={100 * d:g}% {model} nu={nu:g}", "mesh": mesh_label(mesh),
-                     "wall_time_s": best, "newton_iterations": res.iterations,
+                     "wall_time_s": timing.best, "newton_iterations": res.iterations,
                      "load_steps": res.info["load_steps"]})
     return rows
 
