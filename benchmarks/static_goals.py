@@ -57,6 +57,11 @@ def _warm_up() -> None:
 
 
 def run_case(spec: SceneSpec, repeat: int = 1) -> dict:
+    """The outcome row (answer, counts, ``cpu`` and ``wall`` seconds) of the solve of least CPU
+    time among ``repeat`` solves of ``spec``, each of a scene built afresh outside the timed span.
+    Not :func:`hybmss.timing.time_repeated`, which keeps the best wall time of one callable: the
+    goals are CPU times (the machine may be shared), the row keeps the wall time and the answer
+    of that same solve, and a lost equilibrium (:class:`StaticSolveError`) is a timed outcome too."""
     best = None
     for _ in range(repeat):
         scene = spec.build()

@@ -112,6 +112,8 @@ class _Config:
                                  compute_dt_crit=False, check_every=min(max(n, 1), CHECK_EVERY), warm_up=warm_up)
 
     def time_once(self):
+        """One timed run; the best so far is kept.  :func:`run_bench` calls it round-robin, every
+        configuration once per round (module docstring)."""
         r = self._run(self.steps, warm_up=WARM_UP_THREADS if self.threads > 1 else 0.0)
         self.substeps = int(r.info.get("substeps", 1))
         if r.wall_time_s < self.best[0]:
@@ -166,6 +168,11 @@ def run_bench(steps: int | None = None, kernels=("numba", "numpy"), quick: bool 
     thread, float64).  Models whose kernel is serial have no two-thread rows.  The static rows
     solve the first mesh, for the models ``static_models`` (:func:`static_cases`).  ``quick``: the :data:`QUICK_MESH` cube only, float64, one thread,
     runs of :data:`QUICK_TARGET_S`, one repeat (a smoke run, not a measurement).
+
+    The configurations are timed in ``repeats`` rounds, each configuration once per round, rather
+    than each one's repeats back to back (:func:`hybmss.timing.time_repeated`, as the static
+    rows are): a burst of load on the shared machine then falls on every configuration rather
+    than on one only, and the ratios of :func:`format_bench` compare runs made in the same minute.
     """
     if quick:  # one small mesh, one thread, float64: each configuration compiles a kernel of its own
         meshes, threads, precisions = meshes or (QUICK_MESH,), (1,), ("f64",)

@@ -112,7 +112,9 @@ def step_ratios(names, mesh=MESH, nu: float = TIMED_NU, steps: int | None = None
                 target_s: float = 0.5) -> list[dict]:
     """Time per explicit step of each model of ``names`` and of the registry's default model, hybmss (Numba, float64, one thread)
     on the compression cube ``mesh`` at ν, best of ``repeats`` runs of ``steps`` steps (default:
-    as many as fit in ``target_s`` after a probe, at least 20), interleaved model by model;
+    as many as fit in ``target_s`` after a probe, at least 20), interleaved model by model (a
+    round runs every model once, so that a burst of load on the shared machine does not fall on
+    one model only and each ratio compares runs of the same minute);
     ``ratio_to_hybmss`` per row, the 1-minute load average of each best run.  An engine steps at
     ``dt`` = 0.5 × its own ``dt_crit`` (its step time does not depend on dt), hybmss at 1 ms."""
     from hybmss.bench import compression_scene, load_average

@@ -238,7 +238,10 @@ def run_steps(steps: int, t_est: float, repeats: int, min_span: float = MIN_SPAN
 def _time_threads(systems: dict, dt: float, steps: int, repeats: int, th: int, min_span: float) -> dict:
     """``{variant: (steps, [seconds, ...])}`` on ``th`` threads: a first round of ``steps``
     steps, whose slowest run sets the steps of the rounds (:func:`run_steps`); it is the first
-    of the ``repeats`` rounds when they keep ``steps``, else only the measure of a step."""
+    of the ``repeats`` rounds when they keep ``steps``, else only the measure of a step.  Each
+    round runs every variant once (round-robin) rather than each variant's repeats back to back
+    (:func:`hybmss.timing.time_repeated`): a burst of load on the shared machine then falls on
+    every variant of a round, and the ratios between variants compare runs of the same minute."""
     from hybmss.explicit import simulate_explicit
 
     step_s = {}
