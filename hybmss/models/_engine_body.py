@@ -26,7 +26,6 @@ import math
 import numpy as np
 
 from ..explicit import BLOWUP_FACTOR, ramp
-from ..result import reaction_from_nodal
 from ..system import PlateSet, System
 
 

@@ -1,7 +1,10 @@
 """Checks of scene values: the constructors' validators (a field's type and range, named in the
 error), the face-connected pieces of a voxel mask, the schema of a scene's JSON form
 (:func:`scene_dict_error`) and the support checks a static solve needs before any work
-(:func:`free_rigid_modes`, :func:`unsupported`, :func:`plates_cross`).
+(:func:`free_rigid_modes`, :func:`unsupported`, :func:`plates_cross`).  Their ``scene`` is a
+:class:`hybmss.scene.Scene`, not named in their annotations: :mod:`.scene` imports this module,
+and an import of it here, even for type checkers only, would close an import circle (every
+import statement counts, tests/unit/test_imports.py).
 
 A rigid mode is free when the held components do not prevent it: with the rigid modes
 ``R = [e_x, e_y, e_z, e_x × r, e_y × r, e_z × r]`` restricted to the held (particle, component)
@@ -220,7 +223,7 @@ def _free_modes(X: np.ndarray, held: np.ndarray, size: float) -> list[str]:
     return named
 
 
-def free_rigid_modes(scene: Scene) -> list[tuple[int, list[str]]]:
+def free_rigid_modes(scene) -> list[tuple[int, list[str]]]:
     """The rigid-body motions the plates of ``scene`` do not prevent, per face-connected piece of
     its body (:func:`pieces`): ``[(cells of the piece, [mode names]), ...]`` for the pieces that
     are not held, empty when every piece is.  Rotations are about axes through the held
@@ -244,7 +247,7 @@ def free_rigid_modes(scene: Scene) -> list[tuple[int, list[str]]]:
     return out
 
 
-def unsupported(scene: Scene) -> str | None:
+def unsupported(scene) -> str | None:
     """Why ``scene`` cannot have a static equilibrium because its plates leave it free to move as
     a rigid body (:func:`free_rigid_modes`), in one line; ``None`` when every piece is held."""
     free = free_rigid_modes(scene)
@@ -267,7 +270,7 @@ PLATE_PATH_SAMPLES = 65
 """Load factors at which :func:`plates_cross` compares the plates' positions (0 to 1)."""
 
 
-def plates_cross(scene: Scene) -> str | None:
+def plates_cross(scene) -> str | None:
     """Why the plates of ``scene`` would pass through each other (``None`` if they do not): two
     plates prescribing the same component whose particles lie, at rest, wholly on either side of a
     coordinate plane, and whose prescribed motions bring the first to or past the second at a load
