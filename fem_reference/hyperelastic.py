@@ -14,6 +14,9 @@ Mixed u–p (Hex2 × Hex1, for ν ≥ 0.45): with ``ψ = W₀ + λ/2 g²``, the 
 gives ``R_u = ∫ (P₀ + p G) : ∇v − s ∫ ρ g · v`` and ``R_p = ∫ (g − p/λ) q``, and the Newton
 system ``[[∫∇v:(A₀ + p H):∇δu, Bᵀ], [B, −M_p/λ]]`` with ``B = ∫ q G : ∇δu``.
 
+A solve given a ``start`` near its solution (a coarser mesh's, prolonged) tries the whole load from
+there first.
+
 Load stepping: the plates' displacements (exact rigid rotations for ``rotate``) and the body load
 are scaled by s = s₁ < s₂ < … < 1.  The first step starts from the undeformed state and its first
 Newton iteration imposes the plate displacements as an inhomogeneous Dirichlet increment (a
@@ -185,6 +188,7 @@ class Hyperelasticity(Discretization):
         adaptive: bool = True,
         intermediate_rtol: float | None = INTERMEDIATE_RTOL,
         chord: bool = True,
+        start: tuple | None = None,
     ) -> tuple[Solution, NewtonLog]:
         """Solve up to load factor 1: one full step first, then increments of ``1/steps`` (halved on
         failure, doubled after a fast step).
@@ -192,7 +196,11 @@ class Hyperelasticity(Discretization):
         ``adaptive=False``: equal increments ``1/steps`` from the linearized predictor only (no
         full first step, no secant predictor, no growth), and linear solves to the tightest
         tolerance.  ``intermediate_rtol``: Newton tolerance of the load steps before the last
-        (``None``: ``rtol``); ``chord=False``: a fresh tangent at every iteration."""
+        (``None``: ``rtol``); ``chord=False``: a fresh tangent at every iteration.
+        ``start``: a state ``(U, p)`` near the solution at the full load (the prolonged solution of
+        a coarser mesh, :mod:`fem_reference.prolong`), from which the first, whole-load step starts
+        (plates at their values); when that step fails, the load stepping goes on from the
+        undeformed state as without it."""
         if self.mixed and material.lam <= 0:
             raise ValueError(f"the mixed u-p element needs lambda > 0 (nu > 0), got nu = {material.nu}")
         space = self.space
@@ -213,6 +221,10 @@ class Hyperelasticity(Discretization):
         base = 1.0 / max(1, int(steps))
         s_done, ds = 0.0, (1.0 if adaptive else base)
         prev = None  # (s, U, p) of the previous converged step, for the secant predictor
+        if start is not None and adaptive:
+            start = (np.asarray(start[0], float).reshape(-1), None if p is None else np.asarray(start[1], float))
+        else:
+            start = None
         while s_done < 1.0 - 1e-14:
             s = min(1.0, s_done + ds)
             # An increment above the base one (the first full step, or grown) is optimistic: it
@@ -220,6 +232,8 @@ class Hyperelasticity(Discretization):
             optimistic = s - s_done > base * (1.0 + 1e-9)
             its_max = min(maxiter, OPTIMISTIC_MAXITER) if optimistic else maxiter
             guess = _secant_guess(U, p, prev, s_done, s) if adaptive else None
+            if start is not None and s_done == 0.0 and s >= 1.0 - 1e-14:
+                guess = start
             last = s >= 1.0 - 1e-14
             ok, U_new, p_new, its, res, fresh = self._step(
                 U, p, s, fext, dirichlet, material, free, atol,

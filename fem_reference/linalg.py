@@ -95,6 +95,34 @@ DIRECT_MAX_NNZ_SADDLE = 20_000_000
 systems: block-preconditioned MINRES needs hundreds of iterations at ν → ½ (measured: 654
 iterations, 241 s, against 14 s for the factorization on the 10×10×10 cube, 29k dofs)."""
 
+SCHUR_BYTES_PER_NNZ = 150.0
+"""Peak memory of the Schur elimination of a saddle point above :data:`DIRECT_MAX_NNZ_CHOLMOD` per
+non-zero of its displacement block: the mixed twist of the 1,600-cell cylinder at refine 2 (330,723
+displacement dofs, 60.1M non-zeros, first separator 4,083 dofs) peaked at 9.0 GB, its numeric
+factorization 57 s; block-preconditioned MINRES on the same tangent had not converged its first
+Newton update in 5 minutes."""
+
+AVAILABLE_FRACTION = 0.8
+"""Share of the memory available at the time of a solve that a Schur elimination may plan to use."""
+
+
+def available_memory() -> float:
+    """Physical memory available now (bytes; ``inf`` where the system does not say)."""
+    import os
+
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return float("inf")
+
+
+def _schur_fits(nnz: int) -> bool:
+    """A saddle point's displacement block of ``nnz`` non-zeros may be factorized for the Schur
+    elimination: within :data:`DIRECT_MAX_NNZ_CHOLMOD`, or its measured peak
+    (:data:`SCHUR_BYTES_PER_NNZ`) within :data:`AVAILABLE_FRACTION` of the memory available now."""
+    return nnz <= DIRECT_MAX_NNZ_CHOLMOD or nnz * SCHUR_BYTES_PER_NNZ <= AVAILABLE_FRACTION * available_memory()
+
+
 METHODS = ("auto", "direct", "amg")
 
 
@@ -425,8 +453,9 @@ def solve_saddle(
     that solver, ``cache["cholmod"]`` the analysis of ``A``), its CG to ``schur_rtol`` (Newton's
     forcing term, :mod:`fem_reference.hyperelastic`); when ``A`` is not positive definite or the CG
     stalls, SuperLU factorizes the whole saddle point.  A saddle point above
-    :data:`DIRECT_MAX_NNZ_SADDLE` whose ``A`` CHOLMOD admits (:data:`DIRECT_MAX_NNZ_CHOLMOD`, any
-    separator) is eliminated the same way before MINRES is tried: MINRES with the block-diagonal
+    :data:`DIRECT_MAX_NNZ_SADDLE` whose ``A`` CHOLMOD admits (:data:`DIRECT_MAX_NNZ_CHOLMOD`, or a
+    larger one whose factorization fits the memory available, :func:`_schur_fits`; any separator) is
+    eliminated the same way before MINRES is tried: MINRES with the block-diagonal
     preconditioner needs hundreds of iterations a solve near ν = ½ and, inside Newton, more
     iterations (the finite-strain mixed twist of a 160-cell cylinder at ν = 0.49, 119,614 unknowns:
     6 Newton iterations and 47 s of CPU with the Schur elimination, see
@@ -447,7 +476,7 @@ def solve_saddle(
     kind = _choose(method, Aff.nnz + 2 * Bf.nnz + C.nnz, DIRECT_MAX_NNZ_SADDLE)
     if cholmod is not None and order is not None and method == "auto" and (
             (kind == "direct" and _choose_spd("auto", Aff.nnz, separator) == "direct")
-            or (kind == "amg" and Aff.nnz <= DIRECT_MAX_NNZ_CHOLMOD)):
+            or (kind == "amg" and _schur_fits(Aff.nnz))):
         x = _schur_solve(A, Bf, C, rhs, free, _local_order(order, np.concatenate([free, np.zeros(m, bool)])),
                          cache, stats, schur_rtol)
         if x is not None:

@@ -89,6 +89,33 @@ class FemMesh:
         """Mesh vertex index of every lattice particle (matched by reference coordinates)."""
         return match_points(self.points, self.lattice.X, 1e-6 * self.h)
 
+    def elements_at(self, points: np.ndarray) -> np.ndarray:
+        """The element containing each of ``points`` (k, 3) (one of those sharing a face, edge or
+        vertex the point lies on): a look-up on the refined grid.  Raises :class:`ValueError` for a
+        point outside the body."""
+        h, shape = self.h, np.asarray(self.body.shape) * self.refine
+        g = (np.asarray(points, float) - np.asarray(self.body.origin)) / h
+        base = np.floor(g + 1e-9).astype(np.int64)
+        on_face = np.abs(g - np.round(g)) <= 1e-9
+        ids = -np.ones(tuple(shape), dtype=np.int64)
+        ijk = self.element_cells
+        ids[ijk[:, 0], ijk[:, 1], ijk[:, 2]] = np.arange(len(ijk))
+        found = -np.ones(len(g), dtype=np.int64)
+        for back in HEX_CORNERS:  # the cell above the point, then those behind the faces it lies on
+            idx = base - back[None, :] * on_face
+            ok = (found < 0) & np.all((idx >= 0) & (idx < shape), axis=1) & ~np.any(back[None, :] & ~on_face, axis=1)
+            cand = np.full(len(g), -1, dtype=np.int64)
+            cand[ok] = ids[idx[ok, 0], idx[ok, 1], idx[ok, 2]]
+            found = np.where(found < 0, cand, found)
+        if np.any(found < 0):
+            raise ValueError(f"{int(np.sum(found < 0))} point(s) lie outside the body's cells")
+        return found
+
+    @cached_property
+    def element_cells(self) -> np.ndarray:
+        """(ne, 3) integer index of each element on the refined grid (its lowest vertex)."""
+        return self.grid[self.mesh.t[0]]
+
     def refined(self, r: int) -> "FemMesh":
         """The same body meshed with refinement factor ``r`` (absolute, not relative)."""
         return build_mesh(self.body, r)

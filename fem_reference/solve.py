@@ -18,6 +18,7 @@ times ``material.rho`` is the body load.  The Result follows the MSS schema:
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -82,6 +83,39 @@ def solve(
         with ``strict=False`` return the last converged state with ``converged=False`` and
         ``info['load_factor']`` < 1 (its reactions and gravity are those of that load factor).
     """
+    return _solve(scene, element, law, refine, steps, method, operators, strict)[0]
+
+
+def solve_levels(scene: Scene, refinements, element: str = "auto", law: str = "linear",
+                 steps: int | None = None, method: str = "auto", strict: bool = True):
+    """The FEM reference of ``scene`` on each of ``refinements`` (increasing), one :class:`Result` at
+    a time (a generator: stop taking them and no finer level is solved).  A finite-strain level
+    starts its Newton solve from the solution of the level before, prolonged
+    (:mod:`fem_reference.prolong`; ``info['started_from_refine']``); the answer does not depend on
+    the start (it converges to the same tolerance), only its cost does."""
+    previous = None
+    for r in refinements:
+        start = None
+        if previous is not None and law != "linear":
+            from .prolong import prolong
+
+            t0 = time.perf_counter()
+            ops_c, sol_c = previous
+            ops = _checked_operators(scene, resolve_element(element, scene.material.nu), law, r, None)
+            start = (ops_c.fmesh.refine, prolong(ops_c, ops, sol_c.U, sol_c.p), ops, time.perf_counter() - t0)
+        res, ops, sol = _solve(scene, element, law, r, steps, method, None if start is None else start[2],
+                               strict, None if start is None else start[1])
+        if start is not None:  # the prolongation is part of the level's cost
+            res.info.update(started_from_refine=start[0], prolong_time_s=start[3])
+            res = replace(res, wall_time_s=res.wall_time_s + start[3])
+        previous = (ops, sol)
+        yield res
+
+
+def _solve(scene: Scene, element: str, law: str, refine: int, steps, method: str, operators, strict: bool,
+           start=None):
+    """:func:`solve`'s work: ``(Result, operators, solution)``; ``start``: the Newton solve's start
+    state ``(U, p)`` at the full load."""
     t0 = time.perf_counter()
     if law not in LAW_CHOICES:
         raise ValueError(f"law must be one of {', '.join(LAW_CHOICES)}; got {law!r}")
@@ -103,14 +137,14 @@ def solve(
 
         traction = load_vector(scene, space)
         info["surface_load"] = [float(v) for v in traction.reshape(-1, 3).sum(axis=0)]
-    sol, iterations, converged = _run(scene, ops, law, dirichlet, traction, steps, method, strict, info)
+    sol, iterations, converged = _run(scene, ops, law, dirichlet, traction, steps, method, strict, info, start)
     if sol.p is not None:
         info["n_dofs"] += int(len(sol.p))
         info["pressure_range"] = [float(sol.p.min()), float(sol.p.max())]
     info["linear_solver"] = {"method": sol.stats.method, "iterations": sol.stats.iterations,
                              "solves": sol.stats.calls}
-    return _result(scene, ops, law, element, dirichlet, traction, sol, info, int(iterations), converged,
-                   time.perf_counter() - t0)
+    return (_result(scene, ops, law, element, dirichlet, traction, sol, info, int(iterations), converged,
+                    time.perf_counter() - t0), ops, sol)
 
 
 def _checked_operators(scene: Scene, element: str, law: str, refine: int, ops):
@@ -126,7 +160,8 @@ def _checked_operators(scene: Scene, element: str, law: str, refine: int, ops):
     return ops
 
 
-def _run(scene: Scene, ops, law: str, dirichlet, traction, steps, method: str, strict: bool, info: dict):
+def _run(scene: Scene, ops, law: str, dirichlet, traction, steps, method: str, strict: bool, info: dict,
+         start=None):
     """The linear solve or the Newton solve of ``scene``: ``(solution, iterations, converged)``;
     the Newton log and the load factor reached go to ``info``."""
     gravity = scene.gravity if scene.has_gravity else (0, 0, 0)
@@ -135,7 +170,7 @@ def _run(scene: Scene, ops, law: str, dirichlet, traction, steps, method: str, s
     load_factor, converged = 1.0, True
     try:
         sol, log = ops.solve(scene.material, dirichlet, gravity, steps=5 if steps is None else int(steps),
-                             method=method, load=traction)
+                             method=method, load=traction, start=start)
     except ConvergenceError as exc:
         if strict or exc.solution is None:
             raise ConvergenceError(f"{scene.name or 'scene'}: {exc}", exc.solution, exc.log,
