@@ -53,7 +53,16 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from hybmss.timing import Timing, time_repeated
+
+
+def __getattr__(name: str):
+    """``Timing`` and ``time_repeated`` from :mod:`hybmss.timing`, imported when first asked for: the
+    report reads this module's budget answers without importing the solvers' package."""
+    if name in ("Timing", "time_repeated"):
+        from hybmss import timing
+
+        return getattr(timing, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = ["NONE_WITHIN", "NO_BUDGET", "NO_RESULT", "SAFETY", "Timing", "budget_answer", "cost_per_simulated_second",
            "explicit_cost", "is_tie", "stable_dt", "time_repeated"]
