@@ -95,19 +95,18 @@ def solve_levels(scene: Scene, refinements, element: str = "auto", law: str = "l
     the start (it converges to the same tolerance), only its cost does."""
     previous = None
     for r in refinements:
-        start = None
+        ops, start, prolong_s = None, None, 0.0
         if previous is not None and law != "linear":
             from .prolong import prolong
 
             t0 = time.perf_counter()
-            ops_c, sol_c = previous
             ops = _checked_operators(scene, resolve_element(element, scene.material.nu), law, r, None)
-            start = (ops_c.fmesh.refine, prolong(ops_c, ops, sol_c.U, sol_c.p), ops, time.perf_counter() - t0)
-        res, ops, sol = _solve(scene, element, law, r, steps, method, None if start is None else start[2],
-                               strict, None if start is None else start[1])
+            start = prolong(previous[0], ops, previous[1].U, previous[1].p)
+            prolong_s = time.perf_counter() - t0
+        res, ops, sol = _solve(scene, element, law, r, steps, method, ops, strict, start)
         if start is not None:  # the prolongation is part of the level's cost
-            res.info.update(started_from_refine=start[0], prolong_time_s=start[3])
-            res = replace(res, wall_time_s=res.wall_time_s + start[3])
+            res.info.update(started_from_refine=previous[0].fmesh.refine, prolong_time_s=prolong_s)
+            res = replace(res, wall_time_s=res.wall_time_s + prolong_s)
         previous = (ops, sol)
         yield res
 

@@ -117,7 +117,7 @@ def _auto_reference(scene: Scene, solver: SolverSpec, largest: int, target: floa
     res = results[-1]
     res.info.update(reference_refine=len(results), reference_error_estimate=estimate,
                     reference_error_target=target, time_s=float(sum(r.wall_time_s for r in results)),
-                    time_levels_s=[float(r.wall_time_s) for r in results], time_repeats=1)
+                    time_repeats=1)
     return res
 
 
