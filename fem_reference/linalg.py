@@ -116,11 +116,33 @@ def available_memory() -> float:
         return float("inf")
 
 
-def _schur_fits(nnz: int) -> bool:
+def _schur_fits(nnz: int, cache: dict | None = None, wait: bool = True) -> bool:
     """A saddle point's displacement block of ``nnz`` non-zeros may be factorized for the Schur
     elimination: within :data:`DIRECT_MAX_NNZ_CHOLMOD`, or its measured peak
-    (:data:`SCHUR_BYTES_PER_NNZ`) within :data:`AVAILABLE_FRACTION` of the memory available now."""
-    return nnz <= DIRECT_MAX_NNZ_CHOLMOD or nnz * SCHUR_BYTES_PER_NNZ <= AVAILABLE_FRACTION * available_memory()
+    (:data:`SCHUR_BYTES_PER_NNZ`) within :data:`AVAILABLE_FRACTION` of the memory available now
+    less what other processes' large factorizations planned and have not allocated yet
+    (:func:`fem_reference.memory.admit`, which waits while it would fit once they end).  The plan is
+    kept in ``cache["memory_plan"]`` for as long as the cache (the factor's lifetime)."""
+    if nnz <= DIRECT_MAX_NNZ_CHOLMOD:
+        return True
+    from .memory import admit
+
+    plan = admit(nnz * SCHUR_BYTES_PER_NNZ, available_memory, AVAILABLE_FRACTION, wait=wait)
+    if plan is not None and cache is not None:
+        old = cache.pop("memory_plan", None)
+        cache["memory_plan"] = plan
+        if old is not None:
+            old.release()
+    return plan is not None
+
+
+def _holds_factor(cache: dict | None, A: sp.csr_matrix, free: np.ndarray) -> bool:
+    """``cache`` holds the CHOLMOD factor of a matrix of ``A``'s pattern (an earlier Newton
+    iteration's): its memory is this solve's already, admitted when it was made."""
+    fac = cache.get("cholmod") if cache is not None else None
+    if not isinstance(fac, CholmodFactor):
+        return False
+    return fac.matches(A if A.has_sorted_indices else A.sorted_indices(), free)
 
 
 METHODS = ("auto", "direct", "amg")
@@ -476,7 +498,7 @@ def solve_saddle(
     kind = _choose(method, Aff.nnz + 2 * Bf.nnz + C.nnz, DIRECT_MAX_NNZ_SADDLE)
     if cholmod is not None and order is not None and method == "auto" and (
             (kind == "direct" and _choose_spd("auto", Aff.nnz, separator) == "direct")
-            or (kind == "amg" and _schur_fits(Aff.nnz))):
+            or (kind == "amg" and (_holds_factor(cache, A, free) or _schur_fits(Aff.nnz, cache)))):
         x = _schur_solve(A, Bf, C, rhs, free, _local_order(order, np.concatenate([free, np.zeros(m, bool)])),
                          cache, stats, schur_rtol)
         if x is not None:
