@@ -116,7 +116,7 @@ def available_memory() -> float:
         return float("inf")
 
 
-def _schur_fits(nnz: int, cache: dict | None = None, wait: bool = True) -> bool:
+def _schur_fits(nnz: int, cache: dict | None = None) -> bool:
     """A saddle point's displacement block of ``nnz`` non-zeros may be factorized for the Schur
     elimination: within :data:`DIRECT_MAX_NNZ_CHOLMOD`, or its measured peak
     (:data:`SCHUR_BYTES_PER_NNZ`) within :data:`AVAILABLE_FRACTION` of the memory available now
@@ -127,7 +127,7 @@ def _schur_fits(nnz: int, cache: dict | None = None, wait: bool = True) -> bool:
         return True
     from .memory import admit
 
-    plan = admit(nnz * SCHUR_BYTES_PER_NNZ, available_memory, AVAILABLE_FRACTION, wait=wait)
+    plan = admit(nnz * SCHUR_BYTES_PER_NNZ, available_memory, AVAILABLE_FRACTION)
     if plan is not None and cache is not None:
         old = cache.pop("memory_plan", None)
         cache["memory_plan"] = plan
@@ -496,6 +496,8 @@ def solve_saddle(
     bp = g - B[:, D] @ uD
     rhs = np.concatenate([bu, bp])
     kind = _choose(method, Aff.nnz + 2 * Bf.nnz + C.nnz, DIRECT_MAX_NNZ_SADDLE)
+    if cache is None:  # a solve on its own: its factor (and memory plan) lives until it returns
+        cache = {}
     if cholmod is not None and order is not None and method == "auto" and (
             (kind == "direct" and _choose_spd("auto", Aff.nnz, separator) == "direct")
             or (kind == "amg" and (_holds_factor(cache, A, free) or _schur_fits(Aff.nnz, cache)))):
@@ -511,8 +513,7 @@ def solve_saddle(
         lu = OrderedLU(S, _local_order(order, np.concatenate([free, np.ones(m, dtype=bool)])))
         x = lu.solve(rhs)
         its = 1
-        if cache is not None:
-            cache["lu"] = lu  # the caller may reuse the factorization (chord steps)
+        cache["lu"] = lu  # the caller may reuse the factorization (chord steps)
     else:
         x, its = _saddle_minres(S, rhs, Aff, C, np.ascontiguousarray(nullspace[free]), schur_scale, rtol)
     if stats is not None:

@@ -61,12 +61,10 @@ def resident(pid: int) -> float:
 
 def others(folder: str | None = None) -> list[tuple[float, float]]:
     """``(planned, resident)`` bytes of each other live process with plans in the ledger (its plans
-    summed).  Plans of ended processes are removed."""
+    summed).  The files of ended processes are removed."""
     folder = ledger_dir() if folder is None else folder
     planned: dict[int, float] = {}
     for name in os.listdir(folder):
-        if not name.endswith(".plan"):
-            continue
         try:
             pid = int(name.split("-")[0])
         except ValueError:
@@ -74,8 +72,10 @@ def others(folder: str | None = None) -> list[tuple[float, float]]:
         if pid == os.getpid():
             continue
         path = os.path.join(folder, name)
-        if not _alive(pid):
+        if not _alive(pid):  # its plans, and a plan it was writing when it ended
             _remove(path)
+            continue
+        if not name.endswith(".plan"):
             continue
         try:
             with open(path) as fh:

@@ -46,9 +46,11 @@ def test_others_plans_count_less_what_they_hold_and_ended_ones_are_removed(ledge
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     stale = _plan_of(ledger, dead.pid, 9 * GB)
+    unfinished = ledger / f"{dead.pid}-1.plan.tmp"  # a plan it was writing when it ended
+    unfinished.write_text("1.0")
     [(planned, held)] = memory.others()
     assert planned == 7 * GB and 0 < held < 1 * GB  # its two plans, its resident memory
-    assert not stale.exists()
+    assert not stale.exists() and not unfinished.exists()
     assert os.path.exists(mine.path)
     mine.release()
     assert not os.path.exists(mine.path)
