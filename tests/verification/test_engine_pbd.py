@@ -26,13 +26,14 @@ H = N * LE
 STRAIN = 1e-4
 
 
-def cube(nu: float, motion: Motion, rho: float = 1000.0, **kw) -> Scene:
-    return Scene(body=Body.box(N, N, N, le=LE), material=Material(E=E, nu=nu, rho=rho), model=Model(NAME),
+def cube(nu: float, motion: Motion, rho: float = 1000.0, le: float = LE, **kw) -> Scene:
+    return Scene(body=Body.box(N, N, N, le=le), material=Material(E=E, nu=nu, rho=rho), model=Model(NAME),
                  plates=(Plate("bottom", Region("z-")), Plate("top", Region("z+"), motion)), **kw)
 
 
-def motion(kind: str, eps: float) -> Motion:
-    return Motion("translate", (0.0, 0.0, eps * H) if kind == "stretch" else (eps * H, 0.0, 0.0))
+def motion(kind: str, eps: float, le: float = LE) -> Motion:
+    h = N * le
+    return Motion("translate", (0.0, 0.0, eps * h) if kind == "stretch" else (eps * h, 0.0, 0.0))
 
 
 def engine_tets(scene: Scene) -> np.ndarray:
@@ -48,7 +49,17 @@ def engine_tets(scene: Scene) -> np.ndarray:
 def test_same_mesh_linear_fem(kind, tet_p1_reaction):
     """At strain 1e-4 the reaction equals the linear FEM's on the library's tetrahedra to 1e-3
     (the XPBD bias and the O(ε) St Venant–Kirchhoff term), the plates balance to 1e-3."""
-    sc = cube(0.3, motion(kind, STRAIN), rho=0.0)
+    same_mesh_check(kind, LE, tet_p1_reaction)
+
+
+def test_millimetre_cells(tet_p1_reaction):
+    """The same at 4 mm cells (tetrahedra of 1e-8 m³): the library drops a tetrahedron below 1e-6
+    of its length unit cubed, so in metres the body had no stiffness and did not move."""
+    same_mesh_check("stretch", 0.004, tet_p1_reaction)
+
+
+def same_mesh_check(kind: str, le: float, tet_p1_reaction) -> None:
+    sc = cube(0.3, motion(kind, STRAIN, le), rho=0.0, le=le)
     r = solve_static(sc)
     got = np.asarray(r.reactions["top"].force)
     ref = tet_p1_reaction(sc, engine_tets(sc))
