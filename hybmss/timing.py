@@ -66,11 +66,15 @@ class Timing:
                 f"{prefix}_spread": self.spread, f"{prefix}_repeats": self.repeats}
 
 
-def time_repeated(fn: Callable[[], object], repeats: int = 5, warmup: int = 1) -> Timing:
+def time_repeated(fn: Callable[[], object], repeats: int = 5, warmup: int = 1,
+                  budget_s: float | None = None) -> Timing:
     """Call ``fn()`` ``warmup`` times untimed, then ``repeats`` times each timed with
-    :func:`time.perf_counter`."""
-    if repeats < 1 or warmup < 0:
-        raise ValueError(f"repeats={repeats}, warmup={warmup}: allowed repeats >= 1, warmup >= 0")
+    :func:`time.perf_counter`; with ``budget_s``, the timed calls stop once together they took
+    that long (at least one: a run of 30 s is timed once, its repeats would add a minute and a
+    spread of a few per cent)."""
+    if repeats < 1 or warmup < 0 or (budget_s is not None and not budget_s > 0):
+        raise ValueError(f"repeats={repeats}, warmup={warmup}, budget_s={budget_s}: allowed repeats >= 1, "
+                         "warmup >= 0, budget_s > 0 or None")
     for _ in range(warmup):
         fn()
     out = []
@@ -78,4 +82,6 @@ def time_repeated(fn: Callable[[], object], repeats: int = 5, warmup: int = 1) -
         t0 = time.perf_counter()
         fn()
         out.append(time.perf_counter() - t0)
+        if budget_s is not None and sum(out) >= budget_s:
+            break
     return Timing.from_samples(out)

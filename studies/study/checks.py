@@ -25,6 +25,7 @@ import numpy as np
 
 from studies.sweep import sizing
 from studies.study.errors import StudyError
+from studies.study.tasks import timed_repeats
 
 E_RANGE = (1e-3, 1e13)
 """Young's moduli a study accepts, Pa: from below the softest gels (about 10 Pa) to above diamond
@@ -94,7 +95,7 @@ def check_time(study, top) -> None:
     for vox in study.voxels:
         reference = None if study.tet_sizes else study.reference  # a tetrahedral study's: studies.study.tet
         for key, est, timed in run_estimates(vox.body.shape, study.models, reference, study.materials):
-            seconds = est.seconds * (1 + timed * study.repeats)
+            seconds = est.seconds * (1 + timed * timed_repeats(est.seconds, study.repeats))
             every.append(sizing.Estimate(est.what, est.bytes, seconds * len(study.load_cases)))
             if seconds > sizing.TIME_LIMIT_S:
                 value = _value_of(study, key, top)

@@ -10,12 +10,25 @@ is below its target.  Both add the reactions of every support to the result's ``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from hybmss import models
 from hybmss.scene import Material, Model, Scene
 
 from studies.sweep.runner import SolverSpec, Task, solve_scene
+
+TIMING_BUDGET_S = 10.0
+"""A model run's timed repeats stop once together they took this long (at least one): the
+``repeats`` of a study are for runs short enough to be disturbed by the machine; a run of a
+minute is timed once (its spread unknown) instead of costing ``repeats`` minutes more."""
+
+
+
+def timed_repeats(seconds: float, repeats: int) -> int:
+    """How many of ``repeats`` timed runs of ``seconds`` each :func:`_timed` makes."""
+    return min(repeats, max(1, math.ceil(TIMING_BUDGET_S / seconds))) if seconds > 0 else repeats
+
 
 AUTO_REFINE_MAX = 3
 """``refine = "auto"`` refines up to this factor (cells split into 3³ elements)."""
@@ -88,12 +101,14 @@ def _once(scene: Scene, solver: SolverSpec):
 
 
 def _timed(scene: Scene, solver: SolverSpec, repeats: int):
-    """The result of an untimed first run (compilation, caches), with the timing of ``repeats``
-    more (:func:`studies.sweep.cost.time_repeated`: best, median, spread) in ``info['time_*']``."""
+    """The result of an untimed first run (compilation, caches), with the timing of up to
+    ``repeats`` more, stopped once they took :data:`TIMING_BUDGET_S` together
+    (:func:`studies.sweep.cost.time_repeated`: best, median, spread, their number) in ``info['time_*']``."""
     from studies.sweep.cost import time_repeated
 
     first = solve_scene(scene, solver)
-    timing = time_repeated(lambda: solve_scene(scene, solver), repeats=repeats, warmup=0)
+    timing = time_repeated(lambda: solve_scene(scene, solver), repeats=repeats, warmup=0,
+                           budget_s=TIMING_BUDGET_S)
     first.info.update(timing.as_dict("time"))
     return first
 

@@ -207,8 +207,6 @@ CASES = [
      "model[0].solver.steps"),
     ("G-implicit-1e8-steps", at("model.0.solver", {"kind": "implicit", "dt": 1e-4, "steps": 10**8}),
      "model[0].solver.steps"),
-    ("G-explicit-1e7-steps-100-repeats", both(at("study.repeats", 100), at(
-        "model.0.solver", {"kind": "explicit", "dt": 1e-4, "steps": 2 * 10**7})), "model[0].solver.steps"),
     # ------------------------------------------------ H. names
     ("H-label-accent", at("model.0.label", "modèle"), "model[0].label"),
     ("H-label-cjk", at("model.0.label", "模型"), "model[0].label"),

@@ -74,6 +74,22 @@ def test_bad_arguments_are_refused_before_any_call(repeats, warmup):
     assert calls == []
 
 
+@pytest.mark.parametrize("budget,timed", [(2.5, 3), (3.0, 3), (0.5, 1), (100.0, 5), (None, 5)])
+def test_a_time_budget_stops_the_timed_calls(monkeypatch, budget, timed):
+    # scripted clock: every timed call lasts 1 s; stop once the durations sum to the budget
+    log = []
+    _script(monkeypatch, [float(k) for k in range(20)], log)
+    t = time_repeated(lambda: log.append("call"), repeats=5, warmup=1, budget_s=budget)
+    assert t.repeats == timed and t.samples == (1.0,) * timed
+    assert log.count("call") == 1 + timed
+
+
+@pytest.mark.parametrize("budget", (0.0, -1.0, float("nan")))
+def test_a_budget_that_is_no_time_is_refused(budget):
+    with pytest.raises(ValueError, match="budget_s"):
+        time_repeated(lambda: None, repeats=2, budget_s=budget)
+
+
 def test_a_clock_that_does_not_advance_is_no_duration(monkeypatch):
     _script(monkeypatch, [2.0, 2.0])
     with pytest.raises(ValueError, match="samples"):
