@@ -222,6 +222,10 @@ class EngineBody:
     def _steps(self, step0: int, n: int) -> None:
         raise NotImplementedError
 
+    def for_rest(self) -> None:
+        """Told that the run is for its rest state only (its path between the loop's checks is not
+        read): an engine may then step more cheaply (:meth:`hybmss.models.pbd.engine.PbdBody.for_rest`)."""
+
     @property
     def force_resolution_N(self) -> float:
         """:attr:`resolution_N`, under the name the loop reads (:func:`hybmss.explicit.stepper_rest`)."""

@@ -325,6 +325,7 @@ class EngineModel(ModelBase):
         c = 2.0 * w1
         body = self.make_body(S1, dt, T, damping=c, density=density, gravity=S1.gravity)
         body.compile_time_s += probe.compile_time_s
+        body.for_rest()
         body.solver = f"{self.name}-rest"
         body.info = {"kernel": "engine", "engine_name": self.engine, "until_rest": True}
         check = max(1, int(round(1.0 / (w1 * dt))))

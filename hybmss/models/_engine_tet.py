@@ -111,6 +111,7 @@ def rest_on_tets(model, body, material, holds, *, settle: float, rtol: float | N
     T = 2.0 * math.pi / w1
     eng = model.make_tet_body(body, material, holds, dt, T, damping=2.0 * w1)
     eng.compile_time_s += probe.compile_time_s
+    eng.for_rest()
     X = eng.nodes.X
     eng.load(X, np.zeros_like(X))
     held = eng.nodes.fixed.all(axis=1)
