@@ -74,6 +74,17 @@ class StudyScene:
     def model(self) -> str:
         return self.scene.model.name
 
+    def expected_bytes(self, solver: SolverSpec) -> float:
+        """The estimated peak memory of the run (:mod:`studies.sweep.sizing`): an adaptive
+        reference's at its largest refinement, a model run's as the sweep's."""
+        from studies.sweep import sizing
+
+        if solver.kind == "fem":
+            refine = self.refine_auto[0] if self.refine_auto is not None else solver.refine
+            return sizing.fem(self.mesh, solver.element, refine, solver.law, self.nu).bytes
+        steps = getattr(solver, "steps", None) or 10_000
+        return sizing.mss(self.mesh, solver.kind, steps).bytes
+
     def to_dict(self) -> dict:
         m = self.scene.material
         return {"experiment": "study", "load_case": self.load_case, "cell_size": self.cell_size,

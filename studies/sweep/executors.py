@@ -107,6 +107,8 @@ class LocalPool:
     """A pool of ``jobs`` worker processes on this machine (:func:`worker_context`)."""
 
     dashboard = None
+    shares_memory = True
+    """Its runs share this machine's memory (the runner starts those that fit together)."""
 
     def __init__(self, fn: Callable, jobs: int):
         self.fn, self.jobs = fn, jobs

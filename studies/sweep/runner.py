@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import multiprocessing
 import os
 import signal
@@ -257,6 +258,40 @@ def _expected_cost(task: Task) -> float:
     return cells * per  # the FEM's units (8×8×48 beam: about 3,800 per second)
 
 
+def expected_bytes(task: Task) -> float:
+    """Estimated peak memory of a run (:mod:`studies.sweep.sizing`; a scene holder's own
+    ``expected_bytes``, e.g. a study's adaptive reference at its finest level); 0 where there is no
+    estimate."""
+    from studies.sweep import sizing
+
+    own = getattr(task.scene, "expected_bytes", None)
+    try:
+        return float(own(task.solver)) if own is not None else float(sizing.task(task.scene, task.solver).bytes)
+    except (AttributeError, KeyError, TypeError, ValueError):
+        return 0.0
+
+
+def memory_budget() -> float:
+    """The memory the runs of a local pool may plan together (:func:`studies.sweep.sizing.limit`)."""
+    from studies.sweep import sizing
+
+    return sizing.limit()
+
+
+def next_fitting(pending: deque, running: list[float], needs: dict, budget: float):
+    """Remove and return the first ``(key, task)`` of ``pending`` whose expected memory
+    (``needs``) fits ``budget`` beside the ``running`` runs' (any run when none is running: the
+    solvers' own memory plan, :mod:`fem_reference.memory`, then rules); ``None`` if none fits.
+    Two references of 10 GB on a 24 GB machine: the second waits for the first while the other
+    worker computes the runs after it, instead of idling its core in the memory plan's wait."""
+    used = sum(running)
+    for i, (k, t) in enumerate(pending):
+        if not running or used + needs.get(k, 0.0) <= budget:
+            del pending[i]
+            return k, t
+    return None
+
+
 @dataclass
 class Summary:
     """What a sweep did: runs asked for, computed here, found stored, computed meanwhile by
@@ -497,9 +532,16 @@ class Runner:
         by_key = dict(todo)
         waiting: list[tuple[str, Task]] = []
         own_version = code_version()
+        # a pool on this machine starts no run whose memory, with the running runs', would not fit
+        # (it takes the next that does); a cluster's workers have their own memory
+        budget = memory_budget() if getattr(ex, "shares_memory", False) else math.inf
+        needs = {k: expected_bytes(t) for k, t in todo} if budget < math.inf else {}
         while pending or claims or waiting:
             while pending and len(claims) < ex.capacity():
-                k, t = pending.popleft()
+                nxt = next_fitting(pending, [needs.get(c, 0.0) for c in claims], needs, budget)
+                if nxt is None:
+                    break
+                k, t = nxt
                 claim = store.claim(k)
                 if claim is None:  # another process is computing it
                     waiting.append((k, t))
