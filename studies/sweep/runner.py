@@ -7,7 +7,9 @@ progress bar, and stores each result atomically, in this process, as soon as it 
 failure (divergence, loss of equilibrium, an exception in a solver, a worker that died too often)
 is stored as a row with ``status`` and ``message``: it is reported, never raised past the runner.
 A damaged stored run is reported, moved aside and computed again; a run is claimed in the store
-before it is computed, so two sweeps on one folder share the work.
+before it is computed, so two sweeps on one folder share the work.  The runs start longest
+first; a pool on this machine starts none whose estimated memory, with the running runs', would
+not fit (:func:`next_fitting`): it takes the next that does.
 """
 
 from __future__ import annotations
