@@ -109,3 +109,23 @@ def test_a_saddle_point_beyond_cholmod_limit_is_eliminated_when_its_factor_fits(
     assert linalg._schur_fits(10**6)
     monkeypatch.setattr(linalg, "available_memory", lambda: 100.0 * linalg.SCHUR_BYTES_PER_NNZ / linalg.AVAILABLE_FRACTION)
     assert linalg._schur_fits(100) and not linalg._schur_fits(101)
+
+
+def test_the_mixed_element_reuses_its_factorization_further_from_the_solution(monkeypatch):
+    """Chord steps of the mixed element from CHORD_NEAR_MIXED of the force scale on: the same
+    equilibrium as with chord steps only from CHORD_NEAR (1e-8 of the field and the torques), with
+    fewer factorizations."""
+    from fem_reference import hyperelastic
+
+    sc = _twist(0.49)
+    runs = {}
+    for near in (hyperelastic.CHORD_NEAR, hyperelastic.CHORD_NEAR_MIXED):
+        monkeypatch.setattr(hyperelastic, "CHORD_NEAR_MIXED", near)
+        runs[near] = list(solve_levels(sc, (1, 2), law="neo-hookean"))[-1]
+    strict, loose = runs[hyperelastic.CHORD_NEAR], runs[max(runs)]
+    assert strict.converged and loose.converged
+    assert np.abs(loose.u - strict.u).max() <= 1e-8 * np.abs(strict.u).max()
+    ref = np.abs(strict.reactions["top"].torque).max()
+    assert np.abs(np.subtract(loose.reactions["top"].torque, strict.reactions["top"].torque)).max() <= 1e-8 * ref
+    fresh = {k: r.info["linear_solver"]["iterations"] for k, r in runs.items()}
+    assert fresh[max(runs)] < fresh[min(runs)]  # 1 and 2 measured
