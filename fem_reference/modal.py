@@ -20,6 +20,11 @@ The eigenproblem is solved by ARPACK in shift-invert mode (``scipy.sparse.linalg
 ``mode='normal'``) with a shift ``σ = −10⁻⁶ E / (ρ L²)`` (L: the body's longest side) just
 below zero, so ``K − σ M`` is positive definite even when supports leave rigid motions free,
 and the k eigenvalues nearest σ are the lowest.  Modes are mass-normalised (``φᵀ M φ = 1``).
+``K − σM`` is factorized once by CHOLMOD (:class:`fem_reference.linalg.CholmodFactor`) in the
+nested-dissection order of the mesh (:attr:`fem_reference.linear.LinearElasticity.order`), the
+mixed element's saddle point below by SuperLU in the same order (:class:`~fem_reference.linalg.OrderedLU`):
+on the 10×10×10 cube, Hex2 at ν = 0.25 in 3.8 s instead of 14.6 s with SuperLU's own order inside
+eigsh, the mixed element at ν = 0.499 in 5.7 s instead of 39.8 s, the frequencies equal to 5e-12.
 
 Mixed u–p element (Taylor–Hood Hex2 × Hex1, ν → ½): with ``p = λ div u`` the saddle point of
 :mod:`fem_reference.linear`, ``[[μ K_μ, Bᵀ], [B, −M_p/λ]]``, has the eigenproblem
@@ -28,7 +33,7 @@ Mixed u–p element (Taylor–Hood Hex2 × Hex1, ν → ½): with ``p = λ div u
 
 the pressure condensed exactly.  The Taylor–Hood pressure is continuous, so ``M_p⁻¹`` (and the
 condensed matrix) is dense: it is never formed.  Each shift-invert step solves the saddle point
-system ``[[μ K_μ − σ M, Bᵀ], [B, −M_p/λ]] [φ; p] = [M x; 0]`` (one sparse LU) and keeps ``φ``,
+system ``[[μ K_μ − σ M, Bᵀ], [B, −M_p/λ]] [φ; p] = [M x; 0]`` (one sparse LU, reused) and keeps ``φ``,
 which is ``(K_cond − σ M)⁻¹ M x``.  It needs λ > 0 (ν > 0), as the static mixed solve does.
 
 The FEM field at a lattice particle is its nodal value: every lattice particle is a vertex of the
@@ -46,6 +51,7 @@ import scipy.sparse.linalg as spla
 from hybmss.scene import Scene
 
 from .dirichlet import plate_dirichlet
+from .linalg import CholmodFactor, OrderedLU, _local_order, cholmod
 from .linear import FORMULATIONS, LinearElasticity
 from .mesh import build_mesh
 
@@ -116,18 +122,31 @@ def shift(scene: Scene) -> float:
     return -SHIFT * m.E / (max(m.rho, 1e-300) * L * L)
 
 
-def _saddle_inverse(A, B, C, M, sigma: float) -> spla.LinearOperator:
+def _saddle_inverse(A, B, C, M, sigma: float, order: np.ndarray | None = None) -> spla.LinearOperator:
     """``x ↦ φ`` of ``[[A − σM, Bᵀ], [B, −C]] [φ; p] = [M x; 0]``: the shift-invert operator of the
-    pressure-condensed eigenproblem (module docstring)."""
+    pressure-condensed eigenproblem (module docstring), factorized once in the fill-reducing
+    ``order`` of its unknowns (``None``: SuperLU's own; see :class:`fem_reference.linalg.OrderedLU`)."""
     n = A.shape[0]
-    S = sp.bmat([[A - sigma * M, B.T], [B, -C]], format="csc")
-    lu = spla.splu(S)
+    S = sp.bmat([[A - sigma * M, B.T], [B, -C]], format="csr")
+    lu = OrderedLU(S, order)
     zeros = np.zeros(B.shape[0])
 
     def solve(x):
         return lu.solve(np.concatenate([np.ravel(x), zeros]))[:n]
 
     return spla.LinearOperator((n, n), matvec=solve, dtype=float)
+
+
+def _spd_inverse(K, M, free: np.ndarray, sigma: float, order: np.ndarray | None) -> spla.LinearOperator | None:
+    """``x ↦ (K − σM)⁻¹ x`` on the free dofs by CHOLMOD's ``L Lᵀ`` in the fill-reducing ``order``
+    of all dofs (``K − σM`` is positive definite for σ below the spectrum); ``None`` without
+    CHOLMOD (eigsh then factorizes by SuperLU itself)."""
+    if cholmod is None:
+        return None
+    fac = CholmodFactor(sp.csr_matrix(K - sigma * M), free, _local_order(order, free))
+    fac.factorize(sp.csr_matrix(K - sigma * M))
+    n = int(free.sum())
+    return spla.LinearOperator((n, n), matvec=lambda x: fac.solve(np.ravel(x)), dtype=float)
 
 
 def eigen(K, M, k: int, sigma: float, OPinv=None) -> tuple[np.ndarray, np.ndarray]:
@@ -152,13 +171,15 @@ def modes(scene: Scene, k: int = 6, element: str = "hex2", refine: int = 1, mass
     if element == "mixed":
         A, B, C = K
         Aff, Bf = A[free][:, free].tocsc(), B.tocsc()[:, free]
-        op = _saddle_inverse(Aff, Bf, C.tocsc(), Mff, sigma)
+        keep = np.concatenate([free, np.ones(C.shape[0], dtype=bool)])
+        op = _saddle_inverse(Aff, Bf, C.tocsc(), Mff, sigma, _local_order(ops.order, keep))
         Clu = spla.splu(C.tocsc())
         Kop = spla.LinearOperator(Aff.shape, matvec=lambda x: Aff @ x + Bf.T @ Clu.solve(Bf @ np.ravel(x)),
                                   dtype=float)
         w, Vf = eigen(Kop, Mff, k, sigma, OPinv=op)
     else:
-        w, Vf = eigen(K[free][:, free].tocsc(), Mff, k, sigma)
+        Kff = K[free][:, free].tocsc()
+        w, Vf = eigen(Kff, Mff, k, sigma, OPinv=_spd_inverse(K, M, free, sigma, ops.order))
     V = np.zeros((ops.space.n_vector, len(w)))
     V[free] = Vf
     freq = np.sqrt(np.clip(w, 0.0, None)) / (2.0 * np.pi)
