@@ -395,8 +395,18 @@ NO_RESULT_COSTS = ("elapsed_s", "time_s", "time_median_s", "time_spread", "us_pe
 """The measured costs a candidate that reached no result does not show (NaN): a cost of no result."""
 
 
-def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Tidy table of candidates with errors and costs, and the reference table (one row per config)."""
+def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | None = None
+                 ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Tidy table of candidates with errors and costs, and the reference table (one row per config).
+    ``frames``: :func:`unlimited_frame` of each scene already computed (an eigen-solve each), kept
+    by the caller across calls and filled here."""
+    frames = {} if frames is None else frames
+
+    def frame_of(scene):
+        if scene not in frames:
+            frames[scene] = unlimited_frame(scene)
+        return frames[scene]
+
     specs = {m["config"]: m["base"] for m, _ in pairs}
     groups: dict[str, list] = {}
     timing: dict[tuple, list] = {}
@@ -438,7 +448,7 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False) -> tuple[pd.Dat
                    "message": row.get("message", ""), "reference_error_estimate": ref_err,
                    **timing_columns(task.solver, row, timing.get((cfg, meta["method"], meta["mesh"]), []),
                                     frame=None if task.solver.kind != "explicit" or models.get(
-                                        task.scene.model).explicit_limit else unlimited_frame(task.scene)),
+                                        task.scene.model).explicit_limit else frame_of(task.scene)),
                    "force_quantity": fname, "force_reference": f_ref, "volume_change_reference": e_ref,
                    "strain_scale": scale}
             for m in MEASURES:
@@ -526,10 +536,11 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     pairs = all_tasks(quick, experiments, nus, level)
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto",
                      runner=runner)
-    lv, timed = level_name(quick, level), set()
+    lv, timed, frames = level_name(quick, level), set(), {}
     while True:  # repeats only where two candidates are within noise (a new best may make a new pair)
-        df, refs = pareto_frame(store, pairs, rows, quick)
-        want = near_ties(budget_table(df)) - timed
+        df, refs = pareto_frame(store, pairs, rows, quick, frames)
+        budget = budget_table(df)
+        want = near_ties(budget) - timed
         if not want:
             break
         extra = [p for m, t in pairs if m["role"] == "candidate" and (m["config"], m["method"], m["mesh"]) in want
@@ -539,7 +550,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
                           runner=runner)
         pairs += extra
     tables = {"pareto": df, "pareto_front": df[df["pareto"]].sort_values(["config", "time_s"]),
-              "pareto_references": refs, "budget": budget_table(df)}
+              "pareto_references": refs, "budget": budget}
     for name, t in tables.items():
         store.write_table(name, t)
     return tables
