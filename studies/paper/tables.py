@@ -248,35 +248,51 @@ def eform_check(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def moduli_table(nus=(-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)) -> pd.DataFrame:
-    """Effective moduli of every model of the studies (:func:`studies.sweep.roles.studied`), with each
-    parameter set it is compared in."""
+MODULI_NUS = (-0.5, 0.0, 0.25, 0.3, 0.45, 0.49, 0.499)
+
+
+def moduli_variants(nus=MODULI_NUS) -> list[Model]:
+    """Every model of the studies (:func:`studies.sweep.roles.studied`) with each parameter set it
+    is compared in at any of ``nus``, in the registry's order."""
     variants = []
     studied = roles.studied()
     for m in models.all_models():
         if m.name not in studied or not m.supports("static"):
             continue
-        for nu in nus:  # every parameter set the model is compared in at any of these ν
+        for nu in nus:
             variants += [Model(m.name, **v) for v in m.study_variants(nu)]
-    variants = list(dict.fromkeys(variants))
-    rows = []
-    for nu in nus:
-        mat = Material(1e4, nu)
-        for model in variants:
-            name = model.variant
-            try:
-                m = measure_moduli(model, mat)
-                # a stationary homogeneous state exists even for a non-positive-definite material;
-                # it is stable only if -1 < nu_eff < 1/2 and G_eff > 0
-                stable = admissible_nu(m["nu_eff"]) and m["G_eff"] > 0 and m["E_eff"] > 0
-                status = "ok" if stable else "unstable material (nu_eff outside (-1, 1/2))"
-            except StaticSolveError as exc:  # a scene an engine cannot represent says so
-                why = getattr(exc, "row_status", None) or "unstable"
-                m, status = {"E_eff": np.nan, "nu_eff": np.nan, "G_eff": np.nan}, f"{why}: {exc}"[:160]
-            rows.append({"variant": name, "nu": nu, "E_eff_over_E": m["E_eff"] / mat.E, "nu_eff": m["nu_eff"],
-                         "G_eff_over_G": m["G_eff"] / mat.G, "status": status, "model": model.name,
-                         **{k: v for k, v in model.to_dict().items() if k != "name"}})
-    return pd.DataFrame(rows)
+    return list(dict.fromkeys(variants))
+
+
+def _moduli_row(job: tuple) -> dict:
+    """The ``moduli`` row of one model variant (``Model.to_dict()``) at one ν (a worker's share)."""
+    spec, nu = job
+    model = Model(**spec)
+    mat = Material(1e4, nu)
+    try:
+        m = measure_moduli(model, mat)
+        # a stationary homogeneous state exists even for a non-positive-definite material;
+        # it is stable only if -1 < nu_eff < 1/2 and G_eff > 0
+        stable = admissible_nu(m["nu_eff"]) and m["G_eff"] > 0 and m["E_eff"] > 0
+        status = "ok" if stable else "unstable material (nu_eff outside (-1, 1/2))"
+    except StaticSolveError as exc:  # a scene an engine cannot represent says so
+        why = getattr(exc, "row_status", None) or "unstable"
+        m, status = {"E_eff": np.nan, "nu_eff": np.nan, "G_eff": np.nan}, f"{why}: {exc}"[:160]
+    return {"variant": model.variant, "nu": nu, "E_eff_over_E": float(m["E_eff"]) / mat.E,
+            "nu_eff": float(m["nu_eff"]), "G_eff_over_G": float(m["G_eff"]) / mat.G, "status": status,
+            "model": model.name, **{k: v for k, v in model.to_dict().items() if k != "name"}}
+
+
+def moduli_table(nus=MODULI_NUS, store: Store | None = None, workers: int | None = None) -> pd.DataFrame:
+    """Effective moduli of every model of the studies with each parameter set it is compared in
+    (:func:`moduli_variants`), rows by ν then variant; measured on ``workers`` processes, each
+    row kept in ``store`` as computation ``moduli`` (:func:`studies.sweep.executors.map_stored`:
+    not measured again while the code is the same; ``None``: measured each time)."""
+    from studies.sweep.executors import map_stored
+
+    variants = moduli_variants(nus)
+    jobs = [(model.to_dict(), float(nu)) for nu in nus for model in variants]
+    return pd.DataFrame(map_stored(store, "moduli", _moduli_row, jobs, workers))
 
 
 def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -381,7 +397,7 @@ def write_tables(store: Store, keys=None) -> dict:
         tables["reference_laws"] = reference_laws_table(df)
         tables["study_variants"] = study_variants_table(df)
         tables["bending_curves"], tables["euler_bernoulli"] = bending_curves(df, store)
-    tables["moduli"] = moduli_table()
+    tables["moduli"] = moduli_table(store=store)
     tables["published_models"] = publication.published_models()
     tables["lattice_counts"] = lattice_counts_table()
     for name, t in tables.items():

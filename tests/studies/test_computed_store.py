@@ -166,3 +166,23 @@ def test_pool_results_are_stored_in_item_order(tmp_path):
 def test_a_dead_worker_is_one_line(tmp_path):
     with pytest.raises(SweepError, match="worker process died"):
         map_local(os._exit, [3, 3], workers=2)
+
+
+def test_moduli_table_rows_are_measured_once_and_kept(tmp_path, monkeypatch):
+    """The moduli table's rows are measured on workers and kept in the store: equal to a serial
+    measurement, row by row (E_eff, ν_eff and G_eff of a lattice under its own homogeneous tests),
+    and a second table is read from the store without measuring (a measurement now raises)."""
+    from studies.paper import tables
+
+    nus = (0.3,)
+    store = Store(tmp_path / "results")
+    stored = tables.moduli_table(nus=nus, store=store)
+    serial = pd.DataFrame([tables._moduli_row((m.to_dict(), 0.3)) for m in tables.moduli_variants(nus)])
+    pd.testing.assert_frame_equal(stored, serial)
+    assert (stored["status"] == "ok").sum() >= 3
+
+    def no_measurement(*a, **k):
+        raise AssertionError("measured again")
+
+    monkeypatch.setattr(tables, "measure_moduli", no_measurement)  # in this process: one worker
+    pd.testing.assert_frame_equal(tables.moduli_table(nus=nus, store=store, workers=1), stored)
