@@ -11,6 +11,7 @@ is below its target.  Both add the reactions of every support to the result's ``
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 from hybmss import models
@@ -23,11 +24,29 @@ TIMING_BUDGET_S = 10.0
 ``repeats`` of a study are for runs short enough to be disturbed by the machine; a run of a
 minute is timed once (its spread unknown) instead of costing ``repeats`` minutes more."""
 
+ONE_TIME_SHARE = 0.01
+"""A first run of at least :data:`TIMING_BUDGET_S` is its own (single) timing when the one-time
+cost it reports (``info['compile_time_s']`` + ``info['warm_up_s']``: an engine's kernel or model
+compilation, the explicit loop's warm-up call) is below this share of it: a second run would
+only repeat the measurement (measured on the cylinder study: the engines' first runs of 10–120 s
+within 3 % of their second, none slower)."""
 
 
 def timed_repeats(seconds: float, repeats: int) -> int:
-    """How many of ``repeats`` timed runs of ``seconds`` each :func:`_timed` makes."""
+    """How many of ``repeats`` timed runs of ``seconds`` each :func:`_timed` makes after the
+    first (none when the first is its own timing, :func:`first_is_timing`, which an estimate
+    cannot know: it counts them)."""
     return min(repeats, max(1, math.ceil(TIMING_BUDGET_S / seconds))) if seconds > 0 else repeats
+
+
+def first_is_timing(seconds: float, info: dict) -> bool:
+    """Whether a first run of ``seconds`` whose result reported ``info`` is its own timing
+    (:data:`ONE_TIME_SHARE`): long, and its one-time cost reported and negligible.  A solver that
+    does not report it (the Numba models compile inside their first call) is timed again."""
+    if "compile_time_s" not in info or not seconds >= TIMING_BUDGET_S:
+        return False
+    one_time = float(info.get("compile_time_s") or 0.0) + float(info.get("warm_up_s") or 0.0)
+    return math.isfinite(one_time) and one_time < ONE_TIME_SHARE * seconds
 
 
 AUTO_REFINE_MAX = 3
@@ -112,15 +131,24 @@ def _once(scene: Scene, solver: SolverSpec):
 
 
 def _timed(scene: Scene, solver: SolverSpec, repeats: int):
-    """The result of an untimed first run (compilation, caches), with the timing of up to
-    ``repeats`` more, stopped once they took :data:`TIMING_BUDGET_S` together
-    (:func:`studies.sweep.cost.time_repeated`: best, median, spread, their number) in ``info['time_*']``."""
-    from studies.sweep.cost import time_repeated
+    """The result of a first run with the timing of up to ``repeats`` more, stopped once they
+    took :data:`TIMING_BUDGET_S` together (:func:`hybmss.timing.time_repeated`: best, median,
+    spread, their number) in ``info['time_*']``; a first run that is its own timing
+    (:func:`first_is_timing`: long, its reported one-time cost negligible) is not run again:
+    ``time_repeats`` 1, ``time_first_run`` true."""
+    from hybmss.timing import Timing, time_repeated
 
+    t0 = time.perf_counter()
     first = solve_scene(scene, solver)
-    timing = time_repeated(lambda: solve_scene(scene, solver), repeats=repeats, warmup=0,
-                           budget_s=TIMING_BUDGET_S)
+    seconds = time.perf_counter() - t0
+    once = first_is_timing(seconds, first.info)
+    if once:
+        timing = Timing.from_samples([seconds])
+    else:
+        timing = time_repeated(lambda: solve_scene(scene, solver), repeats=repeats, warmup=0,
+                               budget_s=TIMING_BUDGET_S)
     first.info.update(timing.as_dict("time"))
+    first.info["time_first_run"] = once
     return first
 
 
