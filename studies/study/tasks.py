@@ -29,7 +29,7 @@ ONE_TIME_SHARE = 0.01
 cost it reports (``info['compile_time_s']`` + ``info['warm_up_s']``: an engine's kernel or model
 compilation, the explicit loop's warm-up call) is below this share of it: a second run would
 only repeat the measurement (measured on the cylinder study: the engines' first runs of 10–120 s
-within 3 % of their second, none slower)."""
+within −5 … +7 % of the second runs of an earlier study run, the run-to-run spread of the two)."""
 
 
 def timed_repeats(seconds: float, repeats: int) -> int:
