@@ -12,6 +12,7 @@ from studies.study.modes import modes_tables
 from studies.study.outcome import expectation, study_outcome
 from studies.study.release import dynamics_tables
 from studies.study.tables import study_tables
+from studies.study.tasks import given_predictions, predictor_sweeps
 
 
 def run_study(study, out, jobs=None, runner: Runner | None = None, progress: bool = True) -> dict:
@@ -21,6 +22,10 @@ def run_study(study, out, jobs=None, runner: Runner | None = None, progress: boo
     store = Store(Path(out))
     store.check_writable()
     tasks = study.tasks()
+    for step in predictor_sweeps(tasks):  # the coarser references that predict the finer ones
+        rows = run_tasks(step, store, jobs=jobs, progress=progress, desc=f"{study.name} (coarser references)",
+                         runner=runner, expected=expectation(study))
+        tasks = given_predictions(tasks, {t.key(): row for t, row in zip(step, rows)})
     run_tasks(tasks, store, jobs=jobs, progress=progress, desc=study.name, runner=runner,
               expected=expectation(study))
     tables = study.tables(out) if study.experiment is None else {}

@@ -124,6 +124,7 @@ def reference_rows(runs: list[dict]) -> list[dict]:
                     "solver": row.get("solver"), "element": info.get("element"), "law": r["task"].solver.law,
                     "refine": info.get("reference_refine", info.get("refine")),
                     "error_estimate": info.get("reference_error_estimate"),
+                    "error_basis": info.get("reference_error_basis"),
                     "error_target": info.get("reference_error_target"),
                     "time_s": info.get("time_s"), "status": row.get("status", "missing")})
     return out
