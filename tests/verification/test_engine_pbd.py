@@ -90,6 +90,44 @@ def test_a_rest_run_kicks_every_few_steps_and_reaches_the_same_rest_state():
     assert np.abs(ends[1] - ends[0]).max() <= 1e-6 * u
 
 
+@pytest.mark.skipif((__import__("os").cpu_count() or 1) < 2, reason="one core: OpenMP takes one thread anyway")
+def test_the_library_steps_on_one_thread():
+    """The library's OpenMP loop runs on the calling thread alone once a body steps (the model's
+    ``threads`` 1), not on every core: the runtime shipped in its wheel says so."""
+    from hybmss.models.pbd.engine import PbdBody, openmp_runtime
+
+    lib = openmp_runtime()
+    if lib is None:
+        pytest.skip("the library's wheel ships no OpenMP runtime")
+    S = build(cube(0.3, Motion("translate", (1e-4, 0.0, 1e-4))))
+    b = PbdBody(S, "xpbd-fem", 1e-5, 0.5, damping=20.0)
+    b.load(b.nodes.X, np.zeros_like(b.nodes.X))
+    b.advance(0, 2)
+    assert lib.omp_get_max_threads() == 1
+
+
+def test_a_rest_run_in_one_call_is_the_run_in_calls_of_one_group_each_bit_for_bit():
+    """Within one call of the loop the half kick after a group of steps and the next group's first
+    half are given in one pass over the nodes (the bindings' per-node calls cost more than the
+    library's step): the same operations in the same order as calls of one group each, which
+    give every half kick in its own pass."""
+    from hybmss.models.pbd.engine import PbdBody
+
+    S = build(cube(0.3, Motion("translate", (1e-4, 0.0, 1e-4))))
+    dt = 0.06 / PbdBody(S, "xpbd-fem", 1e-3, 0.5, damping=20.0).omega_max()
+    ends = []
+    for calls in (1, 40):
+        b = PbdBody(S, "xpbd-fem", dt, 0.5, damping=20.0)
+        b.for_rest()
+        b.load(b.nodes.X, np.zeros_like(b.nodes.X))
+        n = 40 * b.sync_every
+        for c in range(calls):
+            b._steps(c * n // calls, n // calls)
+        ends.append(b.state())
+    assert np.abs(ends[0][0] - S.X).max() > 1e-6
+    assert np.array_equal(ends[0][0], ends[1][0]) and np.array_equal(ends[0][1], ends[1][1])
+
+
 @pytest.mark.parametrize("nu", (pytest.param(0.0, marks=pytest.mark.slow), 0.25,
                                 pytest.param(0.45, marks=pytest.mark.slow)))
 def test_moduli(nu):
