@@ -23,6 +23,8 @@ def run_study(study, out, jobs=None, runner: Runner | None = None, progress: boo
     store.check_writable()
     tasks = study.tasks()
     for step in predictor_sweeps(tasks):  # the coarser references that predict the finer ones
+        keys = {t.key() for t in step}
+        step = [t for t in tasks if t.key() in keys]  # with the predictions of the steps before
         rows = run_tasks(step, store, jobs=jobs, progress=progress, desc=f"{study.name} (coarser references)",
                          runner=runner, expected=expectation(study))
         tasks = given_predictions(tasks, {t.key(): row for t, row in zip(step, rows)})

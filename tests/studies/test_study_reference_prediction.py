@@ -12,7 +12,7 @@ import pytest
 from study_files import small_study, write
 
 
-def _hanging(tmp_path, tolerance: float, sizes=(0.01, 0.005)):
+def _hanging(tmp_path, tolerance: float, sizes=(0.01, 0.005), budget: float = 0.1):
     from studies.study import Study
 
     doc = small_study()
@@ -21,7 +21,7 @@ def _hanging(tmp_path, tolerance: float, sizes=(0.01, 0.005)):
                          "support": [{"name": "top", "region": "z+", "motion": "clamped"}]}]
     doc["metrics"] = {"plate_force": ["top"]}
     doc["reference"] = {"element": "hex2", "law": "linear", "refine": "auto", "tolerance": tolerance}
-    doc["study"]["budgets"] = [0.1]
+    doc["study"]["budgets"] = [budget]
     return Study.from_toml(write(doc, tmp_path / f"hang-{tolerance}.toml"))
 
 
@@ -66,6 +66,18 @@ def test_a_prediction_above_the_target_refines_as_before(tmp_path):
     refs = study.tables(tmp_path / "out")["reference"].set_index("cell_size_m")
     assert refs.loc[0.005, "refine"] >= 2 and refs.loc[0.005, "error_basis"] == "richardson"
     assert refs.loc[0.01, "error_estimate"] > refs.loc[0.01, "error_target"] or refs.loc[0.01, "refine"] >= 2
+
+
+def test_a_chain_of_predictions_passes_each_prediction_on(tmp_path):
+    """At 20, 10 and 5 mm the 10 mm reference is predicted by the 20 mm one and predicts the 5 mm
+    one in turn: both solve refine 1 only, with the 20 mm refine-1 estimate as theirs."""
+    study = _hanging(tmp_path, tolerance=1.0, sizes=(0.02, 0.01, 0.005), budget=0.5)
+    study.run(tmp_path / "out", jobs=1, progress=False)
+    refs = study.tables(tmp_path / "out")["reference"].set_index("cell_size_m")
+    assert refs.loc[0.02, "error_basis"] == "richardson" and refs.loc[0.02, "refine"] >= 2
+    assert list(refs.loc[[0.01, 0.005], "error_basis"]) == ["predicted", "predicted"]
+    assert list(refs.loc[[0.01, 0.005], "refine"]) == [1, 1]
+    assert refs.loc[0.005, "error_estimate"] == refs.loc[0.01, "error_estimate"] <= refs.loc[0.005, "error_target"]
 
 
 @pytest.mark.parametrize("sizes, predictors", [
