@@ -123,7 +123,8 @@ class StudyScene:
 
     def solve(self, solver: SolverSpec):
         if solver.kind == "fem" and self.refine_auto is not None:
-            res = _auto_reference(self.scene, solver, *self.refine_auto, predicted=self.predicted)
+            res = _auto_reference(self.scene, solver, *self.refine_auto,
+                                  predicted=self.predicted if self.refine_one else None)
         else:
             res = _timed(self.scene, solver, self.repeats) if solver.kind != "fem" else _once(self.scene, solver)
         for name, r in res.reactions.items():
@@ -170,32 +171,31 @@ def _auto_reference(scene: Scene, solver: SolverSpec, largest: int, target: floa
     refinement, with the estimate in its ``info`` and the time of every level solved in ``time_s``.
     Each finite-strain level starts from the one before (:func:`fem_reference.solve.solve_levels`).
 
-    A ``predicted`` refine-1 error (:func:`predicted_refine_one`) at or below ``target`` is the
-    estimate of refine 1, which is then the only level solved (``reference_error_basis``
-    ``"predicted"``).  Every reference keeps the estimate of its refine-1 error,
+    A ``predicted`` refine-1 error (:func:`predicted_refine_one`, at or below ``target``:
+    :attr:`StudyScene.refine_one`) is the estimate of refine 1, which is then the only level
+    solved (``reference_error_basis`` ``"predicted"``).  Every reference keeps the estimate of its refine-1 error,
     ``reference_refine1_error`` (measured from its first two levels, or the prediction), for the
     finer configurations it predicts."""
     from fem_reference.solve import solve_levels
 
-    use_prediction = predicted is not None and predicted <= target
-    if use_prediction:
+    if predicted is not None:
         largest = 1
-    results, estimate, first = [], float("nan"), float("nan")
+    results, estimate, refine1 = [], float("nan"), float("nan")
     for res in solve_levels(scene, range(1, largest + 1), solver.element, solver.law):
         results.append(res)
         if len(results) < 2:
             continue
         estimate = reference_estimate(scene, results[-2:], [len(results) - 1, len(results)])
         if len(results) == 2:
-            first = reference_estimate(scene, results, [1, 2], level="coarsest")
+            refine1 = reference_estimate(scene, results, [1, 2], level="coarsest")
         if estimate <= target:
             break
-    if use_prediction:
-        estimate = first = float(predicted)
+    if predicted is not None:
+        estimate = refine1 = float(predicted)
     res = results[-1]
     res.info.update(reference_refine=len(results), reference_error_estimate=estimate,
-                    reference_error_target=target, reference_refine1_error=first,
-                    reference_error_basis="predicted" if use_prediction else "richardson" if len(results) > 1
+                    reference_error_target=target, reference_refine1_error=refine1,
+                    reference_error_basis="predicted" if predicted is not None else "richardson" if len(results) > 1
                     else "none",
                     time_s=float(sum(r.wall_time_s for r in results)), time_repeats=1)
     return res
