@@ -337,7 +337,8 @@ class EngineModel(ModelBase):
                                   rest_rtol=self.static_rest_rtol, stepper=st)
         except DivergenceError as e:
             raise StaticSolveError(f"{self.name} scene {scene.name or '(unnamed)'}: the damped run diverged "
-                                   f"(node {e.particle}); the step {dt:.3g} s is too long for this scene") from None
+                                   f"(node {e.particle}); the step {dt:.3g} s is too long for this scene",
+                                   cause="diverged", step=int(e.step), time=float(e.step * dt)) from None
         r.info.update({"damping": c, "omega_1": w1, "omega_max": wmax, "load_steps": 0, "until_rest": True,
                        "static_from": f"rest state of {self.engine}'s damped run (rest_report)"})
         if not r.converged:

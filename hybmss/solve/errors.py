@@ -5,7 +5,7 @@ A caller reads the fields, never the message: the message is for people and says
 from __future__ import annotations
 
 CAUSES = ("limit-point", "unstable-path", "indefinite-at-rest", "newton", "residual", "implicit-step",
-          "rest-state")
+          "rest-state", "diverged")
 """What a :class:`StaticSolveError` can name as its ``cause``:
 
 - ``limit-point``: a κ < 0 body dilated past a fold of the load path (no equilibrium beyond);
@@ -14,7 +14,8 @@ CAUSES = ("limit-point", "unstable-path", "indefinite-at-rest", "newton", "resid
 - ``newton``: the Hessian stays positive definite but Newton did not converge;
 - ``residual``: residual mode (non-conservative forces) lost the path, no stability certificate;
 - ``implicit-step``: Newton failed in one step of implicit Euler;
-- ``rest-state``: a model's own static solver did not settle to rest."""
+- ``rest-state``: a model's own static solver did not settle to rest;
+- ``diverged``: a model's own damped rest run left the physical range at its step."""
 
 
 class StaticSolveError(RuntimeError):

@@ -18,19 +18,26 @@ FAILURE_CHARS = 120
 def failures_table(results: Results) -> Table:
     df = results.rows
     bad = df[df["status"] != "ok"] if not df.empty else df
-    cols = {"label": "scene", "solver": "solver", "study": "study", "status": "status", "message": "message"}
+    cols = {"label": "scene", "solver": "solver", "study": "study", "status": "status", "counted": "counted as",
+            "message": "message"}
     if bad.empty:
         return Table("table_failures", "Runs that did not reach a result", "Every stored run reached status ok.",
                      list(cols.values()), [])
     bad = bad.sort_values(["study", "label"]).copy()
+    bad["counted"] = ["failure" if not f else f"finding: {f}" for f in bad["finding"]]
+    n_failed = int((bad["finding"] == "").sum())
     bad["message"] = [" ".join(str(m).split())[:FAILURE_CHARS] + ("…" if len(" ".join(str(m).split())) > FAILURE_CHARS
                                                                     else "") for m in bad["message"]]
     tab = frame_table(bad, "table_failures", "Runs that did not reach a result",
                       f"{len(bad)} of {len(df)} stored runs have a status other than ok; they are reported, not "
                       "hidden: 'unstable' = the static equilibrium was lost (limit point, Hessian no longer positive "
                       "definite), 'diverged' = explicit integration blew up, 'error' = an exception in a solver. "
+                      f"{len(bad) - n_failed} of them are findings of their study: a run not at rest within its step "
+                      "budget, an explicit or damped run that left the physical range at its step, a static or "
+                      "implicit solve that diagnosed the model's loss of stability (a limit point, an indefinite "
+                      f"Hessian, a step too long for Newton); {n_failed} are failures of the program. "
                       f"Messages shortened to {FAILURE_CHARS} characters (the HTML list of runs links every run).",
-                      cols, lambda r, c: "fail" if c == "status" else "")
+                      cols, lambda r, c: "fail" if c in ("status", "counted") and not r["finding"] else "")
     other = [i for i, k in enumerate(bad["key"]) if not results.is_publication_run(k)]
     if other:
         tab.row_classes = {i: "screen-only" for i in other}

@@ -28,15 +28,21 @@ def overview(results: Results) -> dict:
     out = {"n_runs": int(len(df)), "env": env}
     if df.empty:
         return out
-    out["n_ok"] = int((df["status"] == "ok").sum())
-    out["n_failed"] = int((df["status"] != "ok").sum())
+    no_result = df["status"] != "ok"
+    found = no_result & (df["finding"] != "")  # a finding of its study, counted apart from the failures
+    out["n_ok"] = int((~no_result).sum())
+    out["n_failed"] = int((no_result & ~found).sum())
+    out["n_findings"] = int(found.sum())
+    out["findings_by"] = [{"study": str(st), "reason": str(why), "n": int(n)} for (st, why), n in
+                          df[found].groupby(["study", "finding"]).size().items()]
     out["compute_s"] = float(pd.to_numeric(df["elapsed_s"], errors="coerce").fillna(0).sum())
     studies = []
     for study, g in df.groupby("study", sort=False):
         studies.append({
             "study": study,
             "runs": len(g),
-            "failed": int((g["status"] != "ok").sum()),
+            "failed": int(((g["status"] != "ok") & (g["finding"] == "")).sum()),
+            "findings": int(((g["status"] != "ok") & (g["finding"] != "")).sum()),
             "meshes": ", ".join(sorted(g["mesh"].astype(str).unique())),
             "nus": ", ".join(f"{v:g}" for v in sorted(g["nu"].astype(float).unique())),
             "solvers": ", ".join(sorted(g["solver"].unique())),

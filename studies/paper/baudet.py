@@ -289,10 +289,12 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     missing) into ``store``."""
     from studies.paper.reproduce import file_study_tables
     from studies.sweep.executors import map_stored
+    from studies.sweep.outcomes import expected_finding
     from studies.sweep.runner import run_tasks
 
     vol = tasks(quick)
-    rows = run_tasks(vol, store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner)
+    rows = run_tasks(vol, store, jobs=jobs, progress=progress, desc="b09 volume", runner=runner,
+                     expected=expected_finding)
     for name, table in file_study_tables(STUDY, vol, rows, quick, store=store).items():
         store.write_table(name, table)
     fn = partial(_table, progress=progress)

@@ -52,6 +52,7 @@ from hybmss.experiments import SceneSpec
 from hybmss.scene import Scene
 
 from studies.sweep import roles
+from studies.sweep.outcomes import expected_finding
 from studies.sweep.runner import SolverSpec, Task, run_tasks
 
 NUS = (0.0, 0.25, 0.45, 0.499)
@@ -67,7 +68,6 @@ BODIES = {
 LATTICE_MODELS = roles.RELEASED_MODELS
 ENGINES = roles.RELEASED_ENGINES["cube"]
 BEAM_ENGINES = roles.RELEASED_ENGINES["beam"]
-EXPECTED_DIVERGENCE = roles.RELEASED_DIVERGES
 
 
 @dataclass(frozen=True)
@@ -226,13 +226,6 @@ def tasks(quick: bool = False) -> list[Task]:
     return fem_tasks(level(quick))
 
 
-def expected_divergence(task: Task, row: dict | None) -> bool:
-    """A released run of :data:`EXPECTED_DIVERGENCE` that diverged where it is known to."""
-    run = task.scene
-    nu = EXPECTED_DIVERGENCE.get(getattr(run, "model", None))
-    return nu is not None and run.nu >= nu and (row or {}).get("status") == "diverged"
-
-
 def model_names(lv: Level, nu: float, body: str) -> tuple[str, ...]:
     engines = lv.engines.get(body, ())
     names = lv.models + (engines if any(math.isclose(nu, v) for v in lv.engine_nus) else ())
@@ -358,7 +351,7 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     ref_rows = run_tasks(refs, store, jobs=jobs, progress=progress, desc="dynamics references", runner=runner)
     runs = model_tasks(lv, refs, ref_rows)
     run_rows = run_tasks(runs, store, jobs=jobs, progress=progress, desc="dynamics", runner=runner,
-                         expected=expected_divergence)
+                         expected=expected_finding)
     out = tables(store, lv, refs, ref_rows, runs, run_rows)
     out["dynamics"]["load_average"] = f"{load0:.2f}-{os.getloadavg()[0]:.2f}"
     for name, t in out.items():

@@ -29,6 +29,7 @@ from hybmss import models
 from hybmss.experiments import SceneSpec, experiment
 
 from studies.sweep import roles
+from studies.sweep.outcomes import expected_finding
 from studies.sweep.runner import Task, run_tasks
 from studies.sweep.store import Store
 from studies.study.experiment import configurations, engine_models
@@ -191,7 +192,8 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     from studies.paper.reproduce import file_study_tables
 
     ts = tasks(quick, names)
-    rows = run_tasks(ts, store, jobs=jobs, progress=progress, desc="engines", runner=runner)
+    rows = run_tasks(ts, store, jobs=jobs, progress=progress, desc="engines", runner=runner,
+                     expected=expected_finding)
     tables = file_study_tables(STUDY, ts, rows, quick, skip=() if timing else ("engines-timing",), store=store)
     for name, t in tables.items():
         store.write_table(name, t)

@@ -102,6 +102,7 @@ from hybmss import models
 from hybmss.experiments import SceneSpec
 
 from studies.sweep import cost
+from studies.sweep.outcomes import expected_finding
 from studies.sweep.runner import SolverSpec, Task, no_result_because, run_tasks
 from studies.sweep.store import Store
 
@@ -535,7 +536,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     ``pareto_references`` and ``budget``."""
     pairs = all_tasks(quick, experiments, nus, level)
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto",
-                     runner=runner)
+                     runner=runner, expected=expected_finding)
     lv, timed, frames = level_name(quick, level), set(), {}
     while True:  # repeats only where two candidates are within noise (a new best may make a new pair)
         df, refs = pareto_frame(store, pairs, rows, quick, frames)
@@ -547,7 +548,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
                  for p in repeat_pairs(m, t, lv)]
         timed |= want
         rows += run_tasks([t for _, t in extra], store, jobs=jobs, progress=progress, desc="pareto repeats",
-                          runner=runner)
+                          runner=runner, expected=expected_finding)
         pairs += extra
     tables = {"pareto": df, "pareto_front": df[df["pareto"]].sort_values(["config", "time_s"]),
               "pareto_references": refs, "budget": budget}

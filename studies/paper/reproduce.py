@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from studies.sweep.outcomes import expected_finding
 from studies.sweep.runner import SolverSpec, Task, run_tasks
 from studies.sweep.store import Store
 from studies.study.experiment import configurations, experiment_tasks, file_tables, validate_experiment
@@ -206,7 +207,7 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
         if hasattr(module, "tasks"):
             pooled += module.tasks(quick)
     rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
-                     runner=runner)[:n_listed] if pooled else []
+                     runner=runner, expected=expected_finding)[:n_listed] if pooled else []
     write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None)
     for name in names:
         if name in drivers:

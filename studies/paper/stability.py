@@ -78,6 +78,7 @@ from hybmss.scene import Material
 
 from studies.sweep import roles
 from studies.sweep.compare import diff_metrics
+from studies.sweep.outcomes import expected_finding
 from studies.sweep.runner import SolverSpec, Task, failure_row, run_tasks
 from studies.sweep.store import Store
 
@@ -625,7 +626,8 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
         if part in pooled:
             make, table, name, desc = pooled[part]
             ts = make()
-            rows = run_tasks([t for _, t in ts], store, jobs=jobs, progress=progress, desc=desc, runner=runner)
+            rows = run_tasks([t for _, t in ts], store, jobs=jobs, progress=progress, desc=desc, runner=runner,
+                             expected=expected_finding)
             tables[name] = table(store, ts, rows)
             store.write_table(name, tables[name])
         elif part == "a":

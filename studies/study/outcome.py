@@ -2,7 +2,7 @@
 
 A run reaches no result when its stored row's ``status`` is not ``ok``
 (:func:`studies.sweep.runner.no_result_because`).  Its kind is ``not-at-rest`` for a time-stepping run
-that ended its step budget before rest (:func:`studies.sweep.runner.not_at_rest`), else its status
+that ended its step budget before rest (:func:`studies.sweep.outcomes.not_at_rest`), else its status
 (``not-converged`` for a static solve, ``diverged``, ``unstable``, ``non-finite``, ``error``,
 ``not-representable``; ``missing`` when not stored).  A model's table may declare the kinds it
 expects (``expect_no_result = ["not-at-rest"]``): such a run is counted apart, as a finding of the
@@ -49,7 +49,7 @@ def no_result_kind(row: dict | None) -> str:
 def expectation(study):
     """``expected(task, row)`` for :meth:`studies.sweep.runner.Runner.run`: whether a run without result
     is one its model's ``expect_no_result`` declares (a reference never is); in an experiment
-    study, as in the publication's, a time-stepping run not at rest."""
+    study, a time-stepping run not at rest (:func:`studies.sweep.outcomes.expected_not_at_rest`)."""
     if study.experiment is not None:
         return expected_not_at_rest
     declared = {m.label: set(m.expect_no_result) for m in study.models}

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from studies.sweep.roles import RELEASED_DIVERGES
+
 TIME_STEPPING = ("mss-explicit", "mss-implicit")
 """The solver labels of the runs that stop after their step budget, at rest or not."""
 
@@ -18,10 +20,55 @@ def not_at_rest(row: dict | None) -> bool:
 
 
 def expected_not_at_rest(task, row: dict | None) -> bool:
-    """The publication's studies' expectation: a run without result is expected when it is a
-    time-stepping run not at rest (:func:`not_at_rest`: explicit candidates of the speed-against-error
-    and stability studies given a step budget on purpose); any other is a failure."""
+    """A sweep's default expectation (a user's experiment study keeps it): a run without result is
+    expected when it is a time-stepping run not at rest (:func:`not_at_rest`: a run given a step
+    budget on purpose); any other is a failure.  The publication's studies expect more
+    (:func:`expected_finding`)."""
     return not_at_rest(row)
+
+
+FINDING_CAUSES = ("limit-point", "unstable-path", "indefinite-at-rest", "implicit-step", "rest-state",
+                  "diverged")
+"""The causes of a failed static or implicit solve (:data:`hybmss.solve.CAUSES`) that diagnose a
+loss of stability of the model at its load or step: a limit point (a κ < 0 body dilated past its
+fold), an unstable path or a body indefinite at rest (the constrained Hessian is not positive
+definite), an implicit step too long for Newton, a model's damped rest run that did not settle in
+its time budget or left the physical range at its step.  Not among them: ``newton`` (the Hessian
+stays positive definite and Newton did not converge) and ``residual`` (no certificate either way):
+failures of the solver, not findings."""
+
+
+def finding(row: dict | None) -> str:
+    """Why a stored run of the publication's studies without result is a finding of the study, on a
+    few words (``""`` for a result and for a failure of the program): a time-stepping run not at
+    rest within its step budget; an explicit run that left the physical range at the study's step
+    (status ``diverged``); a solve whose failure names one of :data:`FINDING_CAUSES`.  A released
+    transient (experiment ``released``) diverges as a finding only where
+    :data:`studies.sweep.roles.RELEASED_DIVERGES` says it does.  Everything else without result
+    (an exception, a non-finite result, a scene an engine cannot represent, Newton not converging
+    on a positive definite Hessian, a run missing) is a failure.  Reads the row's fields only, so
+    the sweep's summary and the report count alike."""
+    if row is None or row.get("status") == "ok":
+        return ""
+    if not_at_rest(row):
+        return "not at rest within its step budget"
+    status = row.get("status")
+    if row.get("experiment") == "released":
+        nu = RELEASED_DIVERGES.get(row.get("model"))
+        known = nu is not None and status == "diverged" and float(row.get("nu", -1.0)) >= nu
+        return "diverged" if known else ""
+    if status == "diverged":
+        return "diverged"
+    cause = row.get("failure_cause")
+    if status == "unstable" and isinstance(cause, str) and cause in FINDING_CAUSES:
+        return f"unstable, {cause}"
+    return ""
+
+
+def expected_finding(task, row: dict | None) -> bool:
+    """The publication's studies' expectation (``expected`` of :meth:`studies.sweep.runner.Runner.run`):
+    a run without result is expected when it is one of their findings (:func:`finding`)."""
+    return bool(finding(row))
 
 
 def non_finite(res) -> str:

@@ -35,7 +35,7 @@ from hybmss.scene import nearly_incompressible
 from studies.sweep.scenes import SceneSpec
 from studies.sweep.executors import EXECUTORS, SweepError, WorkerDied, local_executor
 from studies.sweep.rest_bound import skip_reason, skipped_row
-from studies.sweep.outcomes import expected_not_at_rest, non_finite, not_at_rest, warning_lines
+from studies.sweep.outcomes import expected_not_at_rest, finding, non_finite, warning_lines
 from studies.sweep.solving import measure, solve_scene
 from studies.sweep.store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
@@ -299,7 +299,8 @@ class Summary:
     """What a sweep did: runs asked for, computed here, found stored, computed meanwhile by
     another process, damaged runs moved aside; and over every run asked for (computed or stored),
     ``failed``: the runs without result that were not expected, and ``expected``: the runs without
-    result that were (a run not at rest within its step budget), counted by ``"study: reason"`` in
+    result that were (a run not at rest within its step budget; in the publication's studies, any of
+    their findings, :func:`studies.sweep.outcomes.finding`), counted by ``"study, reason"`` in
     ``expected_by``."""
 
     runs: int = 0
@@ -329,7 +330,7 @@ class Summary:
             return
         if expected(task, row):
             self.expected += 1
-            why = "not at rest within its step budget" if not_at_rest(row) else no_result_because(row).split(":")[0]
+            why = finding(row) or no_result_because(row).split(":")[0]
             where = f"{task.study}, {why}" if task.study else why
             self.expected_by[where] = self.expected_by.get(where, 0) + 1
         else:
