@@ -177,13 +177,29 @@ class _LoadPath:
         already made ``limit_iter`` steps without converging has decided it."""
         s_hi = self.s_hi
         if self.tried is not None and self.tried[0] == s_hi and self.tried[1] is self.x:
-            raise self.fold_error(self.tried[2], s_hi)
+            self.lost(self.fold_error(self.tried[2], s_hi))
+            return
         guess, lu = self.predict(self.S.prescribed(s_hi), s_hi, extrapolate=False)
         ok, x_new, f, rnorm, scale = self.newton(guess, self.opts.limit_iter, lu=lu, load=s_hi)
         if not ok:
-            raise self.fold_error(guess, s_hi)
+            self.lost(self.fold_error(guess, s_hi))
+            return
         self.accept(x_new, s_hi)
         self.ds, self.s_hi, self.fold_check = 2.0 * self.s_tol, None, False
+
+    def lost(self, error: StaticSolveError) -> None:
+        """Newton failed at the upper end of a narrow bracket.  With evidence of a fold (the
+        Hessian indefinite, or a κ < 0 body dilated: :func:`hybmss.solve.stability.fold_error`'s
+        cause) the equilibrium is lost: raise ``error``.  Without (cause ``newton``: positive
+        definite at the last equilibrium and at the predicted state) the suspicion was the
+        predictor's, far beyond: the bracket is dropped and the load steps on from the last
+        equilibrium with half the bracket's width, down to ``min_step`` as any failed step."""
+        if error.cause != "newton":
+            raise error
+        self.ds = 0.5 * (self.s_hi - self.s)
+        self.s_hi, self.tried, self.failed_before = None, None, True
+        if self.ds < self.opts.min_step:
+            raise error
 
     def unchanged(self, target: np.ndarray, s_new: float) -> bool:
         """A step that changes nothing (a zero load: no plate motion, no body load) is already in

@@ -71,3 +71,24 @@ def test_a_bifurcation_passed_on_the_path_is_not_reported_as_lost():
     ref = solve_static(sc, PLAIN)
     assert r.converged and r.info["load_steps"] > ref.info["load_steps"]  # the bracketing ran
     assert np.abs(r.u - ref.u).max() <= 1e-6 * np.abs(ref.u).max()
+
+
+def test_a_newton_failure_on_a_definite_hessian_inside_a_bracket_steps_on():
+    """hybmss-fd at ν = −0.5 (κ < 0, squared volume energy) stretched 100 %: the predictor from
+    rest suspects a fold at every load of the first step, and Newton fails at the narrowed
+    bracket's upper end (1/128) although the Hessian is positive definite at both of its ends: no
+    evidence of a fold.  The load then steps on from the last equilibrium, to the real limit
+    point: the dense Hessian at the lower end is positive definite, and the plain halving (no
+    bracketing) brackets the same point, more coarsely."""
+    sc = SceneSpec.default("tension", mesh=(4, 4, 24), nu=-0.5, deformation=1.0, model="hybmss-fd",
+                           volume_energy="squared").build()
+    p = _failure(sc)
+    s_lo, s_hi = p["s_last"], p["s_fail"]
+    assert s_lo > 1.0 / 128 and p["lambda_min"] > 0.0 > p["lambda_min_next"]
+    assert s_hi - s_lo <= 0.01 * 1.0 / 128
+    lower = SceneSpec.default("tension", mesh=(4, 4, 24), nu=-0.5, deformation=1.0 * s_lo, model="hybmss-fd",
+                              volume_energy="squared").build()
+    r = solve_static(lower, PLAIN)
+    assert r.converged and _lambda_min(lower, r) > 0.0
+    old = _failure(sc, PLAIN)  # the plain halving's coarser bracket holds this one
+    assert old["s_last"] - 1e-9 <= s_lo < s_hi <= old["s_fail"] + 1e-9
