@@ -13,6 +13,8 @@ import re
 
 import pandas as pd
 
+from studies.sweep.cost import TIMING_NOISE
+
 from .data import b09_models
 
 STATES = ("converged", "unstable", "diverged", "inverted", "missing")
@@ -106,7 +108,8 @@ def budget_sentence(ans: pd.DataFrame, budget: float | None = None) -> str:
     n_tie, n_unknown = int((ties == True).sum()), int(ties.isna().sum())  # noqa: E712
     tie_txt = (f" Of the {len(leads)} answers with a runner-up (all budgets), {n_tie} "
                + ("is a tie" if n_tie == 1 else "are ties") + ": the lead is "
-               "smaller than 1 + the larger timing spread (median over best of the repeats)"
+               "smaller than 1 + the larger timing spread (median over best of the repeats) or than "
+               f"{1 + TIMING_NOISE:.2f} (runs timed apart)"
                + (f"; {n_unknown} are undetermined (a single timing)" if n_unknown else "") + ".")
     return " ".join(parts) + tie_txt + " The chart names the winner of each."
 

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from studies.sweep.cost import TIMING_NOISE
+
 from . import findings, palette
 from .data import Results, paper_table
 from .plots import Figure, nu_axis, save_figure, shared_legend
@@ -299,7 +301,8 @@ def budget_chart(results: Results, path: Path, kind: str = "static") -> Figure |
                 ax.grid(False, axis="x")
                 ax.set_title(f"{short[m]} error\n{kind_title.get(kind, kind)}", fontsize=7.5)
         handles = [plt.Line2D([], [], ls="none", marker=mk, color=c, label=name) for name, (c, mk) in seen.items()]
-        handles += [plt.Line2D([], [], ls="none", marker="o", mfc="white", mec="k", label="hollow: tie (lead < 1 + spread)"),
+        handles += [plt.Line2D([], [], ls="none", marker="o", mfc="white", mec="k",
+                               label=f"hollow: tie (lead < 1 + max(spread, {TIMING_NOISE:g}))"),
                     plt.Line2D([], [], ls="none", marker=".", color="#bbbbbb", label="no method meets the budget")]
         fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, frameon=False, fontsize=7)
         fig.tight_layout()
@@ -314,7 +317,8 @@ def budget_chart(results: Results, path: Path, kind: str = "static") -> Figure |
                   f"of the nodal displacement), at the cost {cost_text.get(kind, kind)}: the fastest method within the budget "
                   "(marker and colour of its model; the table names its solver and mesh) and its lead = cost of "
                   "the next fastest other method / its cost. Hollow marker, 'tie': the lead is smaller than "
-                  "1 + the larger timing spread (median over best of the repeats; only candidates whose lead is "
+                  "1 + the larger timing spread (median over best of the repeats), and never smaller than "
+                  f"{1 + TIMING_NOISE:.2f}, the noise of two runs timed apart (only candidates whose lead is "
                   "within the assumed timing noise are repeated, and a lead beyond it is no tie)."
                   + no_result_note(no_result_count(results.table("pareto"))))
 

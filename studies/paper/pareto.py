@@ -85,7 +85,8 @@ listed in the budget table as :data:`studies.sweep.cost.NO_RESULT` with that rea
 
 **Budget answer** (:func:`budget_table`): per configuration, error measure and cost, the fastest
 method within 1, 5 and 10 %, its runner-up, the lead and whether the lead is a tie
-(:func:`studies.sweep.cost.budget_answer`: ``lead < 1 + the larger spread``).
+(:func:`studies.sweep.cost.budget_answer`: ``lead < 1 +`` the larger spread, at least
+:data:`studies.sweep.cost.TIMING_NOISE`).
 """
 
 from __future__ import annotations

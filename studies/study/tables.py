@@ -2,7 +2,8 @@
 against its reference (:mod:`studies.study.metrics`), its cost beside its error, and the budget
 answer (:func:`studies.sweep.cost.budget_answer`: the fastest model whose displacement field error
 ``u_rel_l2`` meets each budget, at its cheapest resolution within it, its lead over the next
-fastest, a tie when the lead is below 1 + the larger spread); and the references (element,
+fastest, a tie when the lead is below 1 + the larger spread or 1 +
+:data:`studies.sweep.cost.TIMING_NOISE`); and the references (element,
 refinement, own error estimate, time).
 
 Times are the best of the study's ``repeats`` runs after an untimed one, with their spread

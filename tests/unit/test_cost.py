@@ -9,7 +9,7 @@ import pytest
 
 from hybmss import timing
 from studies.sweep import cost
-from studies.sweep.cost import NO_BUDGET, NONE_WITHIN, Timing, budget_answer, is_tie
+from studies.sweep.cost import NO_BUDGET, NONE_WITHIN, TIMING_NOISE, Timing, budget_answer, is_tie
 
 
 # ------------------------------------------------------------------------------ timing
@@ -93,7 +93,9 @@ def test_explicit_cost_without_a_limit_takes_the_frame():
 def test_tie_rule():
     assert is_tie(1.1, 0.2, 0.05) is True  # 1.1 < 1.2: the lead is within the noise
     assert is_tie(1.1, 0.05, 0.2) is True  # the larger spread counts, whichever method has it
-    assert is_tie(1.1, 0.05, 0.05) is False  # 1.1 > 1.05
+    assert is_tie(1.1, 0.05, 0.05) is False  # 1.1 is not below 1 + max(0.05, TIMING_NOISE = 0.1)
+    assert is_tie(1.09, 0.01, 0.02) is True  # within the noise of runs measured apart, whatever their spreads
+    assert TIMING_NOISE == 0.10
     assert is_tie(1.5, 0.5, 0.25) is False  # exactly 1 + s: not smaller, not a tie
     assert is_tie(1.5, 0.0, 0.625) is True
     assert is_tie(3.0, math.nan, 0.1) is pd.NA  # a single timing: undetermined
