@@ -6,10 +6,11 @@ from here and formats."""
 
 from studies.paper.stored import (DERIVED as DERIVED_TABLES, E_FEM_PP, ENGINE_LAWS, EXPERIMENT_ORDER, MIDDLE_LAYER_TOL, NONUNIQUE_PCT, NOT,
                                   PAPER_PP, PARTLY, PROTOCOL_FAILURES, REL_PCT, REPRODUCED, SUPPORTED, TIE_COST,
-                                  TIE_PP, VTK_HEX_ORDER, StoredResults as Results, b09_models, e_threshold, mesh_size,
+                                  TIE_PP, TIMING_NOISE, VTK_HEX_ORDER, StoredResults as Results, b09_models, e_threshold, mesh_size,
                                   paper_source, paper_table, printed, run_state, thresholds)
 
 __all__ = ["DERIVED_TABLES", "E_FEM_PP", "ENGINE_LAWS", "EXPERIMENT_ORDER", "MIDDLE_LAYER_TOL", "NONUNIQUE_PCT", "NOT", "PAPER_PP",
-           "PARTLY", "PROTOCOL_FAILURES", "REL_PCT", "REPRODUCED", "SUPPORTED", "TIE_COST", "TIE_PP", "VTK_HEX_ORDER",
+           "PARTLY", "PROTOCOL_FAILURES", "REL_PCT", "REPRODUCED", "SUPPORTED", "TIE_COST", "TIE_PP", "TIMING_NOISE",
+           "VTK_HEX_ORDER",
            "Results", "b09_models", "e_threshold", "mesh_size", "paper_source", "paper_table", "printed", "run_state",
            "thresholds"]

@@ -13,9 +13,7 @@ import re
 
 import pandas as pd
 
-from studies.sweep.cost import TIMING_NOISE
-
-from .data import b09_models
+from .data import TIMING_NOISE, b09_models
 
 STATES = ("converged", "unstable", "diverged", "inverted", "missing")
 """Outcomes of a run in the stability map, in legend order."""

@@ -10,10 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from studies.sweep.cost import TIMING_NOISE
-
 from . import findings, palette
-from .data import Results, paper_table
+from .data import TIMING_NOISE, Results, paper_table
 from .plots import Figure, nu_axis, save_figure, shared_legend
 
 

@@ -17,6 +17,7 @@ from studies.paper.comparisons import b09_frame, b09_models, b09_normalisation, 
 from studies.paper.equilibria import NONUNIQUE_PCT, equilibria
 from studies.paper.values import paper_source, paper_table
 from studies.paper.verdict import TIE_COST, TIE_PP
+from studies.sweep.cost import TIMING_NOISE
 from studies.sweep.results import EXPERIMENT_ORDER, VTK_HEX_ORDER, Results, mesh_size, run_state
 from studies.sweep.results import printed_match as printed
 from studies.sweep.roles import ENGINE_LAWS
@@ -24,8 +25,8 @@ from studies.sweep.store import Store
 
 __all__ = ["DERIVED", "E_FEM_PP", "ENGINE_LAWS", "EXPERIMENT_ORDER", "MIDDLE_LAYER_TOL", "NONUNIQUE_PCT", "NOT",
            "PAPER_PP", "PARTLY", "PROTOCOL_FAILURES", "REL_PCT", "REPRODUCED", "SUPPORTED", "StoredResults", "TIE_COST",
-           "TIE_PP", "VTK_HEX_ORDER", "b09_models", "e_threshold", "mesh_size", "paper_source", "paper_table",
-           "printed", "run_state", "thresholds", "write_derived"]
+           "TIE_PP", "TIMING_NOISE", "VTK_HEX_ORDER", "b09_models", "e_threshold", "mesh_size", "paper_source",
+           "paper_table", "printed", "run_state", "thresholds", "write_derived"]
 
 
 def _b09_comparison(results: Results) -> pd.DataFrame:
