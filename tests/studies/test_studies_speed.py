@@ -134,7 +134,7 @@ def test_performance_quick_table():
                                          bandwidth_MB=16)
     assert bw["ceiling"] > 0
     timed = performance.variants()
-    assert len(df) == 4 * len(timed)
+    assert len(df) == (len(performance.QUICK_CUBES) + len(performance.QUICK_BEAMS)) * len(timed)
     # the [G20] models of the performance role at ν = 0.3, and the proposed one at ν = 1/4
     assert {m for m, _ in timed} == {"hybmss", "hybmss-fd", "hybmss-cf"} and ("hybmss", 0.25) in timed
     quarter = df[(df["variant"] == "hybmss") & (df["nu"] == 0.25)]
