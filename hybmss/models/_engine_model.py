@@ -173,8 +173,9 @@ def engine_version(requires: tuple[tuple[str, str, str], ...]) -> str:
 
 
 SETTLE = 20.0
-"""Time after the ramp, in 1/ω₁, before a float32 engine's state within its force resolution
-counts as at rest (the slowest mode, critically damped, decayed by e^-20)."""
+"""Time after the ramp, in 1/ω₁, from which a float32 engine's state within its force resolution
+counts as at rest even if it has not settled before (:class:`hybmss.explicit.Settling`: the
+slowest mode, critically damped, decayed by e^-20)."""
 
 
 class EngineModel(ModelBase):
@@ -188,9 +189,9 @@ class EngineModel(ModelBase):
     cfl: float = 0.9
     """Step of the static run as a fraction of the stability limit ``2/ω_max``."""
     settles: bool = False
-    """Whether the static run waits :data:`SETTLE`/ω₁ after the ramp before a state counts as at rest
-    even for a float64 engine (one whose rest state leaves a residual floor under the law its forces
-    are read with: XPBD's O((h ω)²) bias)."""
+    """Whether the static run waits until the body has settled (:class:`hybmss.explicit.Settling`)
+    before a state counts as at rest even for a float64 engine (one whose rest state leaves a
+    residual floor under the law its forces are read with: XPBD's O((h ω)²) bias)."""
 
     requires: tuple[tuple[str, str, str], ...] = ()
     """The engine's packages and version ranges (the folder's ``REQUIRES``)."""
@@ -302,11 +303,11 @@ class EngineModel(ModelBase):
         :attr:`cfl` × 2/ω_max with ω_max of the engine's own forces, damping 2 ω₁, ramp 2π/ω₁,
         ω₁ of the linear Hex8 stiffness of the same grid), stopped when
         :func:`hybmss.explicit.rest_report` finds it at rest with ``rtol`` :attr:`static_rest_rtol`
-        (for a float32 engine: within its force resolution, :data:`SETTLE`/ω₁ after the ramp),
+        (for a float32 engine: within its force resolution, once settled: :class:`hybmss.explicit.Settling`),
         checked every 1/ω₁; :class:`hybmss.solve.StaticSolveError` if it is not within
         ``T + 60/ω₁``.  A massless body (ρ = 0) runs with unit density and no weight (the rest
         state does not depend on a uniform density)."""
-        from ..explicit import DivergenceError, simulate_explicit
+        from ..explicit import DivergenceError, Settling, simulate_explicit
         from ..system import build
         from .corot_hex8 import CorotHex8, frequency_range
         self._check(scene)
@@ -330,7 +331,7 @@ class EngineModel(ModelBase):
         body.info = {"kernel": "engine", "engine_name": self.engine, "until_rest": True}
         check = max(1, int(round(1.0 / (w1 * dt))))
         n_max = int(math.ceil((T + 60.0 / w1) / dt))
-        st = UntilRest(body, self.static_rest_rtol, T, T + SETTLE / w1, self.settles)
+        st = UntilRest(body, self.static_rest_rtol, T, Settling(body.nodes.X, T, w1, SETTLE), self.settles)
         try:
             r = simulate_explicit(S1.scene, dt=dt, steps=n_max, kernel="engine", ramp_time=T, system=S1,
                                   dt_crit_value=2.0 / wmax, check_every=check, precision=self.precisions[0],
@@ -353,11 +354,13 @@ class UntilRest:
     """An engine body's stepper that stops at the first check (every ``check_every`` steps of the
     loop) from time ``T`` on at which :func:`hybmss.explicit.stepper_rest` finds it at rest with
     ``rtol``; a float32 engine (a force resolution) or one whose rest state leaves a residual
-    floor under its forces' law (``always_settle``) counts as at rest only from time ``settled``
-    on.  Everything else is the body's."""
+    floor under its forces' law (``always_settle``) counts as at rest only once it has settled
+    (``settling``, a :class:`hybmss.explicit.Settling`: its nodes still within its tolerance over
+    the last checks, at the latest from :data:`SETTLE`/ω₁ after the ramp on).  Everything else is
+    the body's."""
 
-    def __init__(self, body, rtol: float, T: float, settled: float, always_settle: bool):
-        self.body, self.rtol, self.T, self.settled = body, float(rtol), float(T), float(settled)
+    def __init__(self, body, rtol: float, T: float, settling, always_settle: bool):
+        self.body, self.rtol, self.T, self.settling = body, float(rtol), float(T), settling
         self.always_settle = bool(always_settle)
         self.at_rest = False
 
@@ -380,5 +383,6 @@ class UntilRest:
             rest = stepper_rest(body.node_system(), body, body.internal_forces(x), body.energy(x, v),
                                 ramp(t, body.ramp_time), self.rtol, x)
             floor = rest.get("resolution_N", 0.0) > 0.0 or self.always_settle
-            self.at_rest = bool(rest["at_rest"] and (not floor or t >= self.settled))
+            settled = self.settling.update(t, x) if floor else True
+            self.at_rest = bool(rest["at_rest"] and settled)
         return done, -1

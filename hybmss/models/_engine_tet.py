@@ -99,7 +99,9 @@ class TetRest:
 def rest_on_tets(model, body, material, holds, *, settle: float, rtol: float | None = None) -> TetRest:
     """The rest state of ``model``'s engine (an :class:`~hybmss.models._engine_model.EngineModel`
     with :meth:`make_tet_body`) on the tetrahedra of ``body`` under ``holds`` (module docstring);
-    ``settle``: :data:`hybmss.models._engine_model.SETTLE`."""
+    ``settle``: :data:`hybmss.models._engine_model.SETTLE` (:class:`hybmss.explicit.Settling`)."""
+    from ..explicit import Settling
+
     t_start = time.perf_counter()
     rtol = model.static_rest_rtol if rtol is None else float(rtol)
     probe = model.make_tet_body(body, material, holds, 1.0, 1.0, damping=0.0)
@@ -117,7 +119,7 @@ def rest_on_tets(model, body, material, holds, *, settle: float, rtol: float | N
     held = eng.nodes.fixed.all(axis=1)
     check = max(1, int(round(1.0 / (w1 * dt))))
     n_max = int(math.ceil((T + 60.0 / w1) / dt))
-    settled = T + settle / w1
+    settling = Settling(X, T, w1, settle)
     wait = eng.resolution_N > 0.0 or model.settles
     step, at_rest, err = 0, False, math.inf
     while step < n_max and not at_rest:
@@ -133,7 +135,8 @@ def rest_on_tets(model, body, material, holds, *, settle: float, rtol: float | N
         scale = float(np.linalg.norm(f[held]))
         res = float(np.linalg.norm(f[~held]))
         err = res / scale if scale > 0 else math.inf
-        at_rest = res <= max(rtol * scale, eng.resolution_N) and (not wait or t >= settled)
+        settled = settling.update(t, x) if wait else True
+        at_rest = res <= max(rtol * scale, eng.resolution_N) and settled
     x, _ = eng.state()
     f = eng.internal_forces(x)
     reactions = {ps.name: reaction_from_nodal(X[ps.particles], -f[ps.particles]) for ps in eng.nodes.plates}

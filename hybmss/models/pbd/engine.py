@@ -54,7 +54,8 @@ Scene translation
   the path while the body moves (1.5 % of the displacement on a 2×2×2 cube during its ramp), not
   the rest state (6e-8 of the displacement, tests/verification/test_engine_pbd.py).  With the scene's gravity every step has its kicks (its
   offset would be ``|g| (m h)²``, 0.25 m on a soft 1 m cube).  Measured: the 4 mm cylinder twisted
-  by 30° at ν = 0.49 at rest in 10 s instead of 35 (29,106 steps), its reactions equal to 9 digits.
+  by 30° at ν = 0.49 at rest in 10 s instead of 35 (29,106 steps, at the fixed wait of
+  SETTLE), its reactions equal to 9 digits.
 
 Readouts: the library exposes no force (its XPBD constraints' multipliers are not bound).  The
 force of a tetrahedron's constraint, at XPBD's fixed point ``C + α̃ λ = 0`` (α̃ = 1/(E h²)),
