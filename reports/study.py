@@ -147,7 +147,7 @@ def error_cost_chart(study, tables: dict, path: Path) -> str | None:
                 ax.plot(grp["time_s"], grp["u_rel_l2"], marker="os^vDP*X"[i % 8], label=model)
             for b in study.budgets:
                 ax.axhline(b, color=palette.COLORS["Euler-Bernoulli"], lw=0.8, ls=":")
-            ax.set(xscale="log", yscale="log", xlabel="wall time, best of repeats (s)",
+            ax.set(xscale="log", yscale="log", xlabel="wall time (s)",
                    ylabel="displacement error, relative L2", title=case)
             ax.xaxis.set_minor_formatter(NullFormatter())
             ax.yaxis.set_minor_formatter(NullFormatter())
@@ -259,6 +259,7 @@ def _render(study, sections, chart, reference, n_vtu: int, outcome: dict | None 
     css = (TEMPLATES / "report.css").read_text()
     return env.get_template("study.html.j2").render(
         study=study, sections=sections, chart=chart, n_vtu=n_vtu, css=css, outcome=outcome,
+        timing_noise=1.0 + study_tables.cost.TIMING_NOISE, retime_noise=1.0 + study_tables.RETIME_NOISE,
         reference=None if reference is None or reference.empty else _html_table(reference),
         generated=time.strftime("%Y-%m-%d %H:%M"))
 

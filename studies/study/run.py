@@ -12,11 +12,12 @@ from studies.study.modes import modes_tables
 from studies.study.outcome import expectation, study_outcome
 from studies.study.release import dynamics_tables
 from studies.study.tables import study_tables
-from studies.study.tasks import given_predictions, predictor_sweeps
+from studies.study.tasks import given_predictions, near_ties, predictor_sweeps
 
 
 def run_study(study, out, jobs=None, runner: Runner | None = None, progress: bool = True) -> dict:
-    """Compute what is not stored yet, write the tables; returns the tables' paths and what the
+    """Compute what is not stored yet, time again the runs of the budget answers' near ties
+    (:func:`studies.study.tasks.near_ties`), write the tables; returns the tables' paths and what the
     runs came to (:func:`studies.study.outcome.study_outcome`: the runs without result that were
     not expected are ``failed``, each in ``failures``)."""
     store = Store(Path(out))
@@ -30,6 +31,15 @@ def run_study(study, out, jobs=None, runner: Runner | None = None, progress: boo
         tasks = given_predictions(tasks, {t.key(): row for t, row in zip(step, rows)})
     run_tasks(tasks, store, jobs=jobs, progress=progress, desc=study.name, runner=runner,
               expected=expectation(study))
+    done: set[str] = set()
+    while study.experiment is None:  # re-time the near ties (a new best may make a new pair)
+        budgets = [df for name, df in study_tables(study, out).items() if name.startswith("budget_")]
+        again = near_ties(tasks, budgets, done)
+        if not again:
+            break
+        done |= {t.key() for t in again}
+        run_tasks(again, store, jobs=jobs, progress=progress, desc=f"{study.name} (near ties timed again)",
+                  runner=runner)
     tables = study.tables(out) if study.experiment is None else {}
     tables.update(modes_tables(study))  # [metrics] modes: natural frequencies against the FEM's
     tables.update(dynamics_tables(study))  # release = true: released transients against the FEM's

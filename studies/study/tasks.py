@@ -20,8 +20,8 @@ from hybmss.scene import Material, Model, Scene
 from studies.sweep.runner import SolverSpec, Task, solve_scene
 
 TIMING_BUDGET_S = 10.0
-"""A model run's timed repeats stop once together they took this long (at least one): the
-``repeats`` of a study are for runs short enough to be disturbed by the machine; a run of a
+"""A re-timing's repeats (:func:`_timed`) stop once together they took this long (at least one):
+the ``repeats`` of a study are for runs short enough to be disturbed by the machine; a run of a
 minute is timed once (its spread unknown) instead of costing ``repeats`` minutes more."""
 
 ONE_TIME_SHARE = 0.01
@@ -31,11 +31,23 @@ compilation, the explicit loop's warm-up call) is below this share of it: a seco
 only repeat the measurement (measured on the cylinder study: the engines' first runs of 10–120 s
 within −5 … +7 % of the second runs of an earlier study run, the run-to-run spread of the two)."""
 
+RETIME_NOISE = 0.5
+"""The noise of a single timing (:func:`_single`): a budget answer whose winner leads its runner-up
+by less than ``1 + RETIME_NOISE`` on single timings has both re-timed with the study's
+``repeats`` (:func:`near_ties`); a lead beyond it is no tie.  Measured on the cylinder study
+(``studies/examples/cylinder-squeeze-twist.toml``): see :func:`near_ties`."""
+
+WARM: set[tuple] = set()
+"""The (model, solver) pairs this worker process has solved: their one-time costs (Numba's
+compilation or the loading of its cache, an engine's kernel modules) are paid, so that a later run
+of the same pair in this process is its own timing (:func:`_single`).  A memo of the process, as
+Numba's dispatchers are: it changes which solves are timed, never a result."""
+
 
 def timed_repeats(seconds: float, repeats: int) -> int:
-    """How many of ``repeats`` timed runs of ``seconds`` each :func:`_timed` makes after the
-    first (none when the first is its own timing, :func:`first_is_timing`, which an estimate
-    cannot know: it counts them)."""
+    """How many of ``repeats`` timed runs of ``seconds`` each a re-timing (:func:`_timed`) makes
+    after the first (none when the first is its own timing, :func:`first_is_timing`, which an
+    estimate cannot know: it counts them)."""
     return min(repeats, max(1, math.ceil(TIMING_BUDGET_S / seconds))) if seconds > 0 else repeats
 
 
@@ -70,6 +82,7 @@ class StudyScene:
     refine_auto: tuple[int, float] | None = None  # (largest refine, target relative error)
     predictor: str | None = None  # the key of the reference whose refine-1 error predicts this one's
     predicted: float | None = field(default=None, compare=False)  # that error, once it is stored
+    retime: bool = False  # a near tie's re-timing: the run timed ``repeats`` times (:func:`near_ties`)
 
     experiment = "study"
 
@@ -82,7 +95,7 @@ class StudyScene:
         if self.refine_auto is not None:
             extra = {"refine": "auto", "largest": self.refine_auto[0], "target": self.refine_auto[1]}
             return {**extra, "predictor": self.predictor} if self.predictor else extra
-        return {"repeats": self.repeats}
+        return {"repeats": self.repeats, "retime": True} if self.retime else {"repeats": self.repeats}
 
     @property
     def refine_one(self) -> bool:
@@ -125,8 +138,10 @@ class StudyScene:
         if solver.kind == "fem" and self.refine_auto is not None:
             res = _auto_reference(self.scene, solver, *self.refine_auto,
                                   predicted=self.predicted if self.refine_one else None)
+        elif solver.kind == "fem":
+            res = _once(self.scene, solver)
         else:
-            res = _timed(self.scene, solver, self.repeats) if solver.kind != "fem" else _once(self.scene, solver)
+            res = _timed(self.scene, solver, self.repeats) if self.retime else _single(self.scene, solver)
         for name, r in res.reactions.items():
             for c, v in zip("xyz", r.force):
                 res.info[f"reaction_{name}_f{c}"] = float(v)
@@ -139,6 +154,29 @@ def _once(scene: Scene, solver: SolverSpec):
     res = solve_scene(scene, solver)
     res.info.update(time_s=float(res.wall_time_s), time_repeats=1)
     return res
+
+
+def _single(scene: Scene, solver: SolverSpec):
+    """The result of one run, timed: the run itself where this process has solved the same model
+    and solver before (:data:`WARM`: no one-time cost left to pay) or where it is its own timing
+    (:func:`first_is_timing`), else an untimed first run and one timed run after it.  ``info``:
+    ``time_s`` (``time_median_s`` the same, ``time_spread`` nan: one sample), ``time_repeats`` 1,
+    ``time_first_run`` whether the stored run is the timed one."""
+    from hybmss.timing import Timing
+
+    warm_key = (repr(scene.model), solver.kind, solver.kernel)
+    t0 = time.perf_counter()
+    first = solve_scene(scene, solver)
+    seconds = time.perf_counter() - t0
+    once = warm_key in WARM or first_is_timing(seconds, first.info)
+    WARM.add(warm_key)
+    if not once:
+        t0 = time.perf_counter()
+        solve_scene(scene, solver)
+        seconds = time.perf_counter() - t0
+    first.info.update(Timing.from_samples([seconds]).as_dict("time"))
+    first.info["time_first_run"] = once
+    return first
 
 
 def _timed(scene: Scene, solver: SolverSpec, repeats: int):
@@ -229,6 +267,33 @@ def reference_estimate(scene: Scene, results, refinements, level: str = "finest"
             out.append(err(lambda x, n=name: norm(x.reactions[n].force)) / force)
             out.append(err(lambda x, n=name: norm(x.reactions[n].torque)) / (force * R))
     return float(max(out)) if np.isfinite(out).all() else float("inf")
+
+
+def near_ties(tasks: list[Task], budgets: list, done: set[str] = frozenset()) -> list[Task]:
+    """The re-timings (:attr:`StudyScene.retime`) of every model run that wins a budget answer of
+    ``budgets`` (the study's ``budget_<case>`` tables, :func:`studies.study.tables.budget_answer`)
+    or is its runner-up, where the lead is within :data:`RETIME_NOISE` of single timings: the
+    runs whose order the noise of one timing could reverse, timed ``repeats`` times so that their
+    spreads decide the tie (:func:`studies.sweep.cost.is_tie`); none whose key is in ``done``."""
+    wanted = set()
+    for b in budgets:
+        if b is None or b.empty or "answer" not in b:
+            continue
+        near = b[(b["answer"] == "fastest") & (b["runner_up"].fillna("") != "") & (b["lead"] < 1.0 + RETIME_NOISE)]
+        for r in near.itertuples():
+            for model, le in ((r.method, r.cell_size_m), (r.runner_up, r.runner_up_cell_size_m)):
+                wanted.add((r.load_case, float(r.E), float(r.nu), float(r.rho), model, float(le)))
+    out = []
+    for t in tasks:
+        s = t.scene
+        if not isinstance(s, StudyScene) or is_reference(t) or s.retime:
+            continue
+        m = s.scene.material
+        if (s.load_case, float(m.E), float(m.nu), float(m.rho), s.label, float(s.cell_size)) in wanted:
+            retimed = replace(t, scene=replace(s, retime=True))
+            if retimed.key() not in done:
+                out.append(retimed)
+    return out
 
 
 # ---------------------------------------------------------------------------- the task list

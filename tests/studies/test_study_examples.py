@@ -29,6 +29,7 @@ from scipy.optimize import brentq
 
 from study_files import write
 from studies.sweep.cost import TIMING_NOISE
+from studies.study.tasks import RETIME_NOISE
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "studies" / "examples"
 LIVER = tomllib.loads((EXAMPLES / "liver-block.toml").read_text())
@@ -97,8 +98,11 @@ def test_liver_budget_answers_and_report(liver):
             if len(meets) > 1:
                 lead = meets.iloc[1]["time_s"] / meets.iloc[0]["time_s"]
                 assert math.isclose(b["lead"], lead, rel_tol=1e-12)
-                spread = max(meets.iloc[0]["time_spread"], meets.iloc[1]["time_spread"])
-                assert bool(b["tie"]) == (lead < 1 + max(spread, TIMING_NOISE))
+                if lead < 1 + RETIME_NOISE:  # a near tie on single timings: both timed again, their spreads known
+                    spread = max(meets.iloc[0]["time_spread"], meets.iloc[1]["time_spread"])
+                    assert np.isfinite(spread) and bool(b["tie"]) == (lead < 1 + max(spread, TIMING_NOISE))
+                else:  # single timings further apart than their noise: no tie
+                    assert str(b["tie"]) == "False"
     page = (out / "report" / "liver-block.html").read_text()
     assert LIVER["study"]["title"] in page and page.count("<h2>Load case") == 2
     assert "views-" not in page and page.count("data:image/png") == 3  # chart + one view per load case
@@ -239,8 +243,8 @@ def test_auto_reference_refines_until_its_own_estimate_meets_the_target(tmp_path
 @pytest.mark.slow
 def test_explicit_cost_columns(tmp_path):
     """µs per step, dt_crit and the wall time of one simulated second of an explicit run, from
-    the best of its repeats; the run is stable (dt below its dt_crit) and ends at rest (a cost is
-    that of a result)."""
+    its one timing (no budget answer to re-time: one model, its spread unknown); the run is stable
+    (dt below its dt_crit) and ends at rest (a cost is that of a result)."""
     from study_files import small_study
     from studies.study import Study
 
@@ -257,7 +261,7 @@ def test_explicit_cost_columns(tmp_path):
     assert math.isclose(cost["wall_per_simulated_s"], cost["time_s"] / 3000 / 1e-4, rel_tol=1e-12)
     assert math.isclose(cost["wall_per_simulated_s_stable"], cost["time_s"] / 3000 / (0.5 * cost["dt_crit_s"]),
                         rel_tol=1e-12)
-    assert cost["dt_s"] == 1e-4 < cost["dt_crit_s"] and cost["time_spread"] >= 0
+    assert cost["dt_s"] == 1e-4 < cost["dt_crit_s"] and cost["time_s"] > 0 and math.isnan(cost["time_spread"])
 
 
 @pytest.mark.slow
