@@ -57,7 +57,7 @@ from .loop import (KERNELS, PRECISIONS, SOLVER, WARM_UP_STEPS, WARM_UP_THREADS, 
                    simulate_explicit)
 from .plates import (RAMP_LAW, PlateArrays, hold_clamped, initial_state, plate_arrays, plate_reactions,
                      ramp)
-from .rest import (ELASTIC_PARTS, REST_RTOL, SETTLED_CHANGE, SETTLED_CHECKS, SETTLED_EARLIEST, Settling, force_scale,
+from .rest import (ELASTIC_PARTS, REST_RTOL, SETTLED_CHECKS, SETTLED_EARLIEST, Settling, force_scale,
                    plate_wrench_scale, rest_report, stepper_rest)
 
 LATTICE_STEPPER_NAMES = ("NODE_SHIFT", "OFFSETS", "Stencil", "StencilStage", "stencil", "numpy_step",
@@ -79,7 +79,7 @@ __all__ = [
     "KERNELS", "PRECISIONS", "SOLVER", "WARM_UP_STEPS", "WARM_UP_THREADS", "particles",
     "simulate_explicit",
     "RAMP_LAW", "PlateArrays", "hold_clamped", "initial_state", "plate_arrays", "plate_reactions", "ramp",
-    "ELASTIC_PARTS", "REST_RTOL", "SETTLED_CHANGE", "SETTLED_CHECKS", "SETTLED_EARLIEST", "Settling",
+    "ELASTIC_PARTS", "REST_RTOL", "SETTLED_CHECKS", "SETTLED_EARLIEST", "Settling",
     "force_scale", "plate_wrench_scale", "rest_report", "stepper_rest",
     *LATTICE_STEPPER_NAMES,
 ]

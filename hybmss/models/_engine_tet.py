@@ -119,7 +119,7 @@ def rest_on_tets(model, body, material, holds, *, settle: float, rtol: float | N
     held = eng.nodes.fixed.all(axis=1)
     check = max(1, int(round(1.0 / (w1 * dt))))
     n_max = int(math.ceil((T + 60.0 / w1) / dt))
-    settling = Settling(X, T, w1, settle)
+    settling = Settling(X, T, w1, settle, rtol)
     wait = eng.resolution_N > 0.0 or model.settles
     step, at_rest, err = 0, False, math.inf
     while step < n_max and not at_rest:
