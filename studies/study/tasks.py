@@ -83,6 +83,7 @@ class StudyScene:
     predictor: str | None = None  # the key of the reference whose refine-1 error predicts this one's
     predicted: float | None = field(default=None, compare=False)  # that error, once it is stored
     retime: bool = False  # a near tie's re-timing: the run timed ``repeats`` times (:func:`near_ties`)
+    warm_up: Scene | None = field(default=None, compare=False)  # the same run on the coarsest body (:func:`_single`)
 
     experiment = "study"
 
@@ -141,7 +142,8 @@ class StudyScene:
         elif solver.kind == "fem":
             res = _once(self.scene, solver)
         else:
-            res = _timed(self.scene, solver, self.repeats) if self.retime else _single(self.scene, solver)
+            res = (_timed(self.scene, solver, self.repeats) if self.retime
+                   else _single(self.scene, solver, self.warm_up))
         for name, r in res.reactions.items():
             for c, v in zip("xyz", r.force):
                 res.info[f"reaction_{name}_f{c}"] = float(v)
@@ -156,15 +158,24 @@ def _once(scene: Scene, solver: SolverSpec):
     return res
 
 
-def _single(scene: Scene, solver: SolverSpec):
+def _single(scene: Scene, solver: SolverSpec, warm_up: Scene | None = None):
     """The result of one run, timed: the run itself where this process has solved the same model
-    and solver before (:data:`WARM`: no one-time cost left to pay) or where it is its own timing
-    (:func:`first_is_timing`), else an untimed first run and one timed run after it.  ``info``:
+    and solver before (:data:`WARM`: no one-time cost left to pay), or has just solved ``warm_up``
+    with them (the same run on the study's coarsest body, untimed, its result not used: a run of
+    a minute at 2 mm is not solved twice to time it), or where it is its own timing
+    (:func:`first_is_timing`); else an untimed first run and one timed run after it.  ``info``:
     ``time_s`` (``time_median_s`` the same, ``time_spread`` nan: one sample), ``time_repeats`` 1,
     ``time_first_run`` whether the stored run is the timed one."""
     from hybmss.timing import Timing
 
     warm_key = (repr(scene.model), solver.kind, solver.kernel)
+    if warm_key not in WARM and warm_up is not None:
+        try:
+            solve_scene(warm_up, solver)
+        except Exception:  # noqa: BLE001 -- the coarser run's failure is its own row's, not this run's
+            pass
+        else:
+            WARM.add(warm_key)
     t0 = time.perf_counter()
     first = solve_scene(scene, solver)
     seconds = time.perf_counter() - t0
@@ -303,8 +314,8 @@ def study_tasks(study) -> list[Task]:
     if study.tet_bodies:
         from studies.study.tet import tet_study_tasks
 
-        return tet_study_tasks(study, lambda run, case, mat: [_model_task(study, run, case, mat, vox)
-                                                              for vox in study.voxels])
+        return tet_study_tasks(study, lambda run, case, mat: with_warm_ups([_model_task(study, run, case, mat, vox)
+                                                                            for vox in study.voxels]))
     tasks, refs = [], {}
     for case in study.load_cases:
         for mat in study.materials:
@@ -317,7 +328,27 @@ def study_tasks(study) -> list[Task]:
                     tasks.append(Task(StudyScene(scene, study.name, case.name, vox.le, run.label, study.repeats),
                                       _solver(run), study.name))
                 refs[(case.name, mat, vox.le)] = _reference_task(study, case, mat, vox, plates, loads)
-    return tasks + _with_predictors(refs)
+    return with_warm_ups(tasks) + _with_predictors(refs)
+
+
+def with_warm_ups(tasks: list[Task]) -> list[Task]:
+    """``tasks`` with each model run at a finer cell size than its study's coarsest holding the same
+    run on the coarsest body as its :attr:`StudyScene.warm_up` (:func:`_single`)."""
+    coarsest: dict = {}
+    for t in tasks:
+        s = t.scene
+        if isinstance(s, StudyScene) and not is_reference(t):
+            k = (s.load_case, s.scene.material, s.label, t.solver)
+            if k not in coarsest or s.cell_size > coarsest[k].cell_size:
+                coarsest[k] = s
+    out = []
+    for t in tasks:
+        s = t.scene
+        c = coarsest.get((s.load_case, s.scene.material, s.label, t.solver)) if isinstance(s, StudyScene) else None
+        if c is not None and c.cell_size > s.cell_size:
+            t = replace(t, scene=replace(s, warm_up=c.scene))
+        out.append(t)
+    return out
 
 
 PREDICTOR_RATIO = 2.0

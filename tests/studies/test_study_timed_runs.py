@@ -162,3 +162,45 @@ def _tie(study, tmp_path):
     return pd.DataFrame([{"load_case": "press", "E": m.E, "nu": m.nu, "rho": m.rho, "answer": "fastest",
                           "method": "a", "cell_size_m": study.voxels[0].le, "runner_up": "b",
                           "runner_up_cell_size_m": study.voxels[0].le, "lead": 1.0}])
+
+
+def test_a_cold_process_warms_up_on_the_coarsest_body_and_times_the_run_itself(monkeypatch):
+    """A model's first run in a process with a warm-up scene (the same run on the coarsest body):
+    the warm-up is solved untimed, the run itself once and timed; a warm-up that fails leaves the
+    untimed first run and a timed second one."""
+    monkeypatch.setattr(tasks, "WARM", set())
+    clock = iter(k * 2.0 for k in range(100))
+    monkeypatch.setattr(tasks, "time", SimpleNamespace(perf_counter=lambda: next(clock)))
+    solved = []
+
+    def solve(scene, solver):
+        solved.append(scene.name)
+        if scene.name == "bad":
+            raise FloatingPointError("diverged")
+        return SimpleNamespace(info={})
+
+    monkeypatch.setattr(tasks, "solve_scene", solve)
+    static = SimpleNamespace(kind="static", kernel="numba")
+    fine = SimpleNamespace(model="hybmss", name="fine")
+    res = tasks._single(fine, static, SimpleNamespace(model="hybmss", name="coarse"))
+    assert solved == ["coarse", "fine"] and res.info["time_first_run"] is True and res.info["time_s"] == 2.0
+    solved.clear()
+    tasks._single(fine, static, SimpleNamespace(model="hybmss", name="coarse"))
+    assert solved == ["fine"]  # warm: no warm-up
+    solved.clear()
+    res = tasks._single(SimpleNamespace(model="corot-hex8", name="fine"), static,
+                        SimpleNamespace(model="corot-hex8", name="bad"))
+    assert solved == ["bad", "fine", "fine"] and res.info["time_first_run"] is False
+
+
+def test_the_finer_runs_of_a_study_warm_up_on_its_coarsest_body():
+    """Each model run at a cell size finer than the coarsest holds the coarsest run's scene, which
+    does not change its key."""
+    from dataclasses import replace
+
+    all_tasks = tasks.with_warm_ups(_study_tasks())
+    warm = {(t.scene.label, t.scene.cell_size): t.scene.warm_up for t in all_tasks}
+    assert warm[("hybmss", 0.02)] is None and warm[("corot-hex8", 0.02)] is None
+    coarse = {t.scene.label: t.scene.scene for t in all_tasks if t.scene.cell_size == 0.02}
+    assert warm[("hybmss", 0.01)] is coarse["hybmss"] and warm[("corot-hex8", 0.01)] is coarse["corot-hex8"]
+    assert all(t.key() == replace(t, scene=replace(t.scene, warm_up=None)).key() for t in all_tasks)
