@@ -128,10 +128,14 @@ def test_near_ties_are_timed_again_and_only_once():
 
 
 @pytest.mark.slow
-def test_a_studys_near_tie_is_timed_again_and_decided_on_its_spreads(tmp_path):
+def test_a_studys_near_tie_is_timed_again_and_decided_on_its_spreads(tmp_path, monkeypatch):
     """The same model under two labels ties (its two runs do the same work): the study times both
-    again ``repeats`` times, and the budget answer reads the spreads of those timings."""
+    again ``repeats`` times, and the budget answer reads the spreads of those timings.  Their single
+    timings (milliseconds, on a machine the other tests load) may differ by more than the noise the
+    study assumes: here any lead counts as near."""
     import math
+
+    monkeypatch.setattr(tasks, "RETIME_NOISE", 1e6)
 
     from study_files import small_study, write
     from studies.study import Study
