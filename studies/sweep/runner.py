@@ -260,6 +260,32 @@ def _expected_cost(task: Task) -> float:
     return cells * per  # the FEM's units (8×8×48 beam: about 3,800 per second)
 
 
+def _code_of(task: Task) -> tuple:
+    """What a run compiles on its first call in a worker process: its model and solver kind (the
+    FEM: its element and law)."""
+    s = task.solver
+    if s.kind == "fem":
+        return ("fem", s.element, s.law)
+    return (str(getattr(task.scene, "model", "")), s.kind, s.kernel)
+
+
+def run_order(todo: list[tuple[str, Task]]) -> list[tuple[str, Task]]:
+    """The order runs are handed to the workers: the longest run of each model and solver
+    (:func:`_code_of`) first, longest first, then every other run longest first (a short tail).
+    On a cold cache a model's first run compiles its kernels (xpbd-nh's: 34 s on one core); the
+    two longest runs of one model handed to two workers at once compiled them twice at the same
+    time (the quick reproduction's two xpbd-nh stability runs: 38.8 s each, both workers, at its
+    start), where the second worker now compiles another model's and later loads the first's
+    from the cache."""
+    ordered = sorted(todo, key=lambda kt: _expected_cost(kt[1]), reverse=True)
+    seen, first, rest = set(), [], []
+    for kt in ordered:
+        code = _code_of(kt[1])
+        (rest if code in seen else first).append(kt)
+        seen.add(code)
+    return first + rest
+
+
 def expected_bytes(task: Task) -> float:
     """Estimated peak memory of a run (:mod:`studies.sweep.sizing`; a scene holder's own
     ``expected_bytes``, e.g. a study's adaptive reference at its finest level); 0 where there is no
@@ -483,7 +509,7 @@ class Runner:
         """The sweep's distinct runs by key (two studies may share a run), the keys new to this
         runner, the sweep's :class:`Summary` so far (runs found stored, runs skipped: they cannot
         answer, :func:`studies.sweep.rest_bound.skip_reason`, and are stored as not at rest) and the
-        runs to compute, longest first (a short tail)."""
+        runs to compute in :func:`run_order` (each model's longest first, then longest first)."""
         unique: dict[str, Task] = {}
         state: set[str] = set()  # runs some task needs whether or not they answer: never skipped
         for t, k in zip(tasks, keys):
@@ -502,8 +528,7 @@ class Runner:
             else:
                 todo.append((k, t))
         self._seen.update(unique)
-        todo.sort(key=lambda kt: _expected_cost(kt[1]), reverse=True)
-        return unique, new, s, todo
+        return unique, new, s, run_order(todo)
 
     def _interrupted(self, ex, claims: dict, store: Store, bar, s: Summary) -> None:
         """SIGINT during a sweep: the running runs abandoned, their claims released, the sweep's
