@@ -331,7 +331,8 @@ class EngineModel(ModelBase):
         body.info = {"kernel": "engine", "engine_name": self.engine, "until_rest": True}
         check = max(1, int(round(1.0 / (w1 * dt))))
         n_max = int(math.ceil((T + 60.0 / w1) / dt))
-        st = UntilRest(body, self.static_rest_rtol, T, Settling(body.nodes.X, T, w1, SETTLE, self.static_rest_rtol), self.settles)
+        settling = Settling(body.nodes.X, T, w1, SETTLE, self.static_rest_rtol)
+        st = UntilRest(body, self.static_rest_rtol, T, settling, self.settles)
         try:
             r = simulate_explicit(S1.scene, dt=dt, steps=n_max, kernel="engine", ramp_time=T, system=S1,
                                   dt_crit_value=2.0 / wmax, check_every=check, precision=self.precisions[0],

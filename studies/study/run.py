@@ -31,16 +31,16 @@ def run_study(study, out, jobs=None, runner: Runner | None = None, progress: boo
         tasks = given_predictions(tasks, {t.key(): row for t, row in zip(step, rows)})
     run_tasks(tasks, store, jobs=jobs, progress=progress, desc=study.name, runner=runner,
               expected=expectation(study))
+    tables = study.tables(out) if study.experiment is None else {}
     done: set[str] = set()
     while study.experiment is None:  # re-time the near ties (a new best may make a new pair)
-        budgets = [df for name, df in study_tables(study, out).items() if name.startswith("budget_")]
-        again = near_ties(tasks, budgets, done)
+        again = near_ties(tasks, [df for name, df in tables.items() if name.startswith("budget_")], done)
         if not again:
             break
         done |= {t.key() for t in again}
         run_tasks(again, store, jobs=jobs, progress=progress, desc=f"{study.name} (near ties timed again)",
                   runner=runner)
-    tables = study.tables(out) if study.experiment is None else {}
+        tables = study.tables(out)
     tables.update(modes_tables(study))  # [metrics] modes: natural frequencies against the FEM's
     tables.update(dynamics_tables(study))  # release = true: released transients against the FEM's
     paths = {name: str(store.write_table(f"{study.name}_{name}", df)) for name, df in tables.items()}

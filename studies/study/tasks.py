@@ -338,19 +338,23 @@ def study_tasks(study) -> list[Task]:
 def with_warm_ups(tasks: list[Task]) -> list[Task]:
     """``tasks`` with each model run at a finer cell size than its study's coarsest holding the same
     run on the coarsest body as its :attr:`StudyScene.warm_up` (:func:`_single`)."""
+    def run_of(t: Task):
+        """The run at every cell size (None: a reference, or not a study's scene)."""
+        s = t.scene
+        if not isinstance(s, StudyScene) or is_reference(t):
+            return None
+        return (s.load_case, s.scene.material, s.label, t.solver)
+
     coarsest: dict = {}
     for t in tasks:
-        s = t.scene
-        if isinstance(s, StudyScene) and not is_reference(t):
-            k = (s.load_case, s.scene.material, s.label, t.solver)
-            if k not in coarsest or s.cell_size > coarsest[k].cell_size:
-                coarsest[k] = s
+        k = run_of(t)
+        if k is not None and (k not in coarsest or t.scene.cell_size > coarsest[k].cell_size):
+            coarsest[k] = t.scene
     out = []
     for t in tasks:
-        s = t.scene
-        c = coarsest.get((s.load_case, s.scene.material, s.label, t.solver)) if isinstance(s, StudyScene) else None
-        if c is not None and c.cell_size > s.cell_size:
-            t = replace(t, scene=replace(s, warm_up=c.scene))
+        c = coarsest.get(run_of(t))
+        if c is not None and c.cell_size > t.scene.cell_size:
+            t = replace(t, scene=replace(t.scene, warm_up=c.scene))
         out.append(t)
     return out
 

@@ -12,17 +12,26 @@ from hybmss import timing
 from studies.study import tasks
 
 
-@pytest.mark.parametrize("seconds", (0.5, 3.0, 4.0, 9.9, 10.0, 30.0))
-def test_timed_runs_stop_at_the_budget_and_the_estimate_counts_them(monkeypatch, seconds):
+def scripted(monkeypatch, seconds: float, info: dict | None = None, modules=(timing, tasks)) -> list:
+    """A scripted clock of ``seconds`` a solve (the clock of ``modules``: ``hybmss.timing``'s and
+    the tasks' own) and a solve returning ``info``; returns the list of its calls."""
     clock = iter(k * seconds for k in range(100))
-    monkeypatch.setattr(timing, "time", SimpleNamespace(perf_counter=lambda: next(clock)))
+    fake = SimpleNamespace(perf_counter=lambda: next(clock))
+    for module in modules:
+        monkeypatch.setattr(module, "time", fake)
     calls = []
 
     def solve(scene, solver):
         calls.append(1)
-        return SimpleNamespace(info={})
+        return SimpleNamespace(info=dict(info or {}))
 
     monkeypatch.setattr(tasks, "solve_scene", solve)
+    return calls
+
+
+@pytest.mark.parametrize("seconds", (0.5, 3.0, 4.0, 9.9, 10.0, 30.0))
+def test_timed_runs_stop_at_the_budget_and_the_estimate_counts_them(monkeypatch, seconds):
+    calls = scripted(monkeypatch, seconds, modules=(timing,))
     res = tasks._timed(None, None, repeats=5)
     timed = res.info["time_repeats"]
     assert len(calls) == 1 + timed  # the untimed run and the timed ones
@@ -40,17 +49,7 @@ def test_timed_runs_stop_at_the_budget_and_the_estimate_counts_them(monkeypatch,
 ])
 def test_a_long_first_run_with_a_negligible_reported_one_time_cost_is_its_own_timing(monkeypatch, seconds, info,
                                                                                       again):
-    clock = iter(k * seconds for k in range(100))
-    fake = SimpleNamespace(perf_counter=lambda: next(clock))
-    monkeypatch.setattr(timing, "time", fake)
-    monkeypatch.setattr(tasks, "time", fake)
-    calls = []
-
-    def solve(scene, solver):
-        calls.append(1)
-        return SimpleNamespace(info=dict(info))
-
-    monkeypatch.setattr(tasks, "solve_scene", solve)
+    calls = scripted(monkeypatch, seconds, info)
     res = tasks._timed(None, None, repeats=5)
     assert (len(calls) > 1) == again
     assert res.info["time_first_run"] == (not again)
@@ -62,16 +61,7 @@ def test_a_long_first_run_with_a_negligible_reported_one_time_cost_is_its_own_ti
 def cold(monkeypatch):
     """A process that has solved nothing yet (tasks.WARM empty), a scripted clock of 2 s a solve."""
     monkeypatch.setattr(tasks, "WARM", set())
-    clock = iter(k * 2.0 for k in range(100))
-    monkeypatch.setattr(tasks, "time", SimpleNamespace(perf_counter=lambda: next(clock)))
-    calls = []
-
-    def solve(scene, solver):
-        calls.append(1)
-        return SimpleNamespace(info={})
-
-    monkeypatch.setattr(tasks, "solve_scene", solve)
-    return calls
+    return scripted(monkeypatch, 2.0)
 
 
 def scene_of(model: str):
