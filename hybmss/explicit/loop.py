@@ -20,7 +20,7 @@ from ..system import System, build
 from .divergence import BLOWUP_FACTOR, divergence_error
 from .limits import dt_crit
 from .plates import RAMP_LAW, initial_state, plate_reactions, ramp
-from .rest import REST_RTOL, stepper_rest
+from .rest import REST_RTOL, ResidualFloor, decay_rate, force_scale, free_residual, stepper_rest
 
 SOLVER = "mss-explicit"
 KERNELS = ("numba", "numpy", "engine")
@@ -28,6 +28,10 @@ KERNELS = ("numba", "numpy", "engine")
 of an engine a model wraps (:mod:`hybmss.models.mujoco`, :mod:`hybmss.models.newton`,
 :mod:`hybmss.models.pbd`), whose stepper runs in this loop like any other."""
 PRECISIONS = ("f64", "f32")
+FLOOR_SAMPLE_SHARE = 0.05
+"""Largest share of an explicit run's stepping time that the residual samples of its floor watch
+(:class:`hybmss.explicit.rest.ResidualFloor`) may take; past it the watch stops sampling and the
+run goes to the end of its budget (a short run has little to save)."""
 
 WARM_UP_STEPS = 100
 """Steps per kernel call of an explicit run's ``warm_up``."""
@@ -107,7 +111,8 @@ def simulate_explicit(scene: Scene, dt: float = 1e-3, steps: int = 10_000, kerne
     warm_s = _start(run, st, x, v, compile_first, warm_up)
     setup_s = time.perf_counter() - t_setup - run.dt_crit_s - warm_s
     history = _History(run.nodes, st, dt) if record_every > 0 else None
-    done, wall, cpu = _march(run, st, steps, int(record_every), history)
+    floor = _residual_floor(run, st, steps, float(ramp_time), rest_rtol)
+    done, wall, cpu = _march(run, st, steps, int(record_every), history, floor)
     timing = {"cpu_time_s": cpu, "setup_s": setup_s, "warm_up_s": warm_s, "dt_crit_s": run.dt_crit_s}
     return _final(run, st, scene, done, wall, ramp_time, rest_rtol, timing, history)
 
@@ -268,11 +273,73 @@ class _History:
             self.data.setdefault(k, []).append(val)
 
 
-def _march(run: _Run, st, steps: int, record_every: int, history: _History | None) -> tuple[int, float, float]:
+def _residual_floor(run: _Run, st, steps: int, ramp_time: float, rtol: float) -> "_FloorWatch | None":
+    """The watch of :class:`hybmss.explicit.rest.ResidualFloor` for a stepper whose rest state may
+    keep a force residual (``rest_floor``, e.g. XPBD) in a damped run long enough for a verdict;
+    ``None`` otherwise."""
+    c = float(run.system.scene.damping)
+    if not getattr(st, "rest_floor", False) or c <= 0.0:
+        return None
+    watch = _FloorWatch(c, float(ramp_time), rtol, steps * run.dt, run.dt, run.check_every)
+    return watch if watch.floor.active else None
+
+
+class _FloorWatch:
+    """A :class:`ResidualFloor` of damping ``c`` sampled every ``every`` steps (a multiple of the
+    check interval).  Its windows first assume every mode underdamped (``σ = c/2``); the first
+    time that predicts a floor, the stepper's lowest frequency decides (an eigen solve, paid only
+    by a run about to stop): if the slowest mode is overdamped, the watch starts again with its
+    slower rate, otherwise the run stops."""
+
+    def __init__(self, c: float, T: float, rtol: float, t_end: float, dt: float, check_every: int):
+        self.c, self.T, self.rtol, self.t_end, self.dt, self.check = c, T, rtol, t_end, dt, check_every
+        self.confirmed, self.off, self.sample_s = False, False, 0.0
+        self._start(0.5 * c)
+
+    def _start(self, sigma: float) -> None:
+        self.floor = ResidualFloor(self.T, sigma, self.rtol, self.t_end)
+        per = int(round(self.floor.sample_times() / self.dt)) // self.check * self.check
+        self.every = max(self.check, per)
+
+    def next_stop(self, done: int) -> int:
+        return (done // self.every + 1) * self.every
+
+    def stop(self, run: _Run, st, done: int, stepping_s: float) -> bool:
+        """Sample the residual after ``done`` steps (``stepping_s`` seconds of stepping so far);
+        True when the run is to stop.  The watch turns itself off for good once its samples cost
+        more than :data:`FLOOR_SAMPLE_SHARE` of the stepping (a short run, a cheap step)."""
+        t = done * run.dt
+        if self.off or t < self.floor.T:
+            return False
+        t0 = time.perf_counter()
+        xs, _ = st.state()
+        f = st.internal_forces(xs)
+        rel = free_residual(run.nodes, f) / force_scale(run.nodes, f, xs)
+        self.sample_s += time.perf_counter() - t0
+        if self.sample_s > FLOOR_SAMPLE_SHARE * stepping_s:
+            self.off = True
+            return False
+        if not self.floor.update(t, rel):
+            return False
+        if not self.confirmed:
+            self.confirmed = True
+            sigma = decay_rate(self.c, st.lowest_frequency())
+            if sigma < 0.5 * self.c:  # an overdamped slowest mode: longer windows, from now on
+                self._start(sigma)
+                self.floor.T = max(self.floor.T, t)
+                return False
+        st.info["stopped_residual_floor"] = {"t": t, "window_s": self.floor.window,
+                                             "relative_residual_at_end_at_least": self.floor.bound}
+        return True
+
+
+def _march(run: _Run, st, steps: int, record_every: int, history: _History | None,
+           floor: _FloorWatch | None = None) -> tuple[int, float, float]:
     """Advance ``st`` by ``steps`` steps in calls of about 0.1 s (:class:`hybmss.stepper.Chunks`),
     stopping at SIGINT/SIGTERM between calls, recording every ``record_every`` steps; a diverged
     state raises :class:`DivergenceError`.  Returns the steps done (fewer when the stepper stops
-    by its own rule), and the wall and CPU seconds of the calls."""
+    by its own rule, or when ``floor`` finds a force residual the rest test cannot pass within the
+    budget), and the wall and CPU seconds of the calls."""
     span = record_every if record_every > 0 else max(steps, 1)
     wall = cpu = 0.0
     done, stopped = 0, False
@@ -283,6 +350,8 @@ def _march(run: _Run, st, steps: int, record_every: int, history: _History | Non
             while done < end:
                 interruptible.check()
                 n = chunks.next(end - done)
+                if floor is not None:
+                    n = min(n, floor.next_stop(done) - done)
                 (k, bad), w, c = timed(st.advance, done, n, run.check_every, run.limit2)
                 chunks.took(n, w)
                 wall += w
@@ -293,6 +362,9 @@ def _march(run: _Run, st, steps: int, record_every: int, history: _History | Non
                                       run.limit, run.dt_c, run.check_every, run.model)
                 done += k
                 if k < n:  # the stepper stopped by its own rule
+                    stopped = True
+                    break
+                if floor is not None and done % floor.every == 0 and floor.stop(run, st, done, wall):
                     stopped = True
                     break
             if history is not None:

@@ -120,7 +120,14 @@ class XpbdStepper(ParticleStepper):
     ``until_rest`` the stepper stops after the ramp once no node moved more than
     ``rest_tol · le`` over a check interval (``info['stopped_at_rest']``, ``info['t_rest']``).
     ``precision``: ``'f64'`` or ``'f32'`` (numba kernel only: float32 displacements and velocities,
-    :func:`hybmss._kernels.kernel_state`).  One thread (Gauss–Seidel is sequential)."""
+    :func:`hybmss._kernels.kernel_state`).  One thread (Gauss–Seidel is sequential).
+
+    ``rest_floor``: the rest state is the fixed point of a substep, whose force residual need not
+    vanish (one sweep a substep leaves a bias that grows with the volume constraint's stiffness),
+    so the time loop watches for a residual the rest test can never pass
+    (:class:`hybmss.explicit.rest.ResidualFloor`, from :meth:`lowest_frequency`)."""
+
+    rest_floor = True
 
     def __init__(self, system: System, term: XpbdNH, dt: float, *, ramp_time: float, kernel: str = "numba",
                  precision: str = "f64", threads: int = 1, substeps: int = 10, iterations: int = 1,
@@ -147,6 +154,12 @@ class XpbdStepper(ParticleStepper):
             self._plates = plate_arrays(system)
             self._xprev, self._lamb = np.empty((3, n)), np.empty((len(term.tets), 2))
             self._B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
+
+    def lowest_frequency(self) -> float:
+        """ω₁ (rad/s) of the body at rest (:func:`frequencies`)."""
+        if getattr(self, "_w1", None) is None:
+            self._w1 = float(frequencies(self.system)[0])
+        return self._w1
 
     def _substeps(self, sub0, n, check_sub, limit2):
         """(substeps done, bad particle or −1, at rest) of ``n`` substeps from ``sub0``."""

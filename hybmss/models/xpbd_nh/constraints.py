@@ -139,16 +139,18 @@ class XpbdNH:
 
     def forces(self, x: np.ndarray) -> np.ndarray:
         """``−∇E`` (n, 3): per tetrahedron ``P = μ F + λ (J − γ) cof F``, node forces
-        ``−V P D_m⁻ᵀ`` (node 0: minus their sum)."""
+        ``−V P D_m⁻ᵀ`` (node 0: minus their sum).  ``cof F`` by columns, ``(f₁ × f₂, f₂ × f₀,
+        f₀ × f₁)`` of F's columns ``f_j``, and ``J = f₀ · (f₁ × f₂)``."""
         F = self.deformation_gradients(x)
-        J = np.linalg.det(F)
-        cof = J[:, None, None] * np.swapaxes(np.linalg.inv(F), 1, 2)
+        f0, f1, f2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
+        cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=2)
+        J = np.einsum("ti,ti->t", f0, cof[:, :, 0])
         P = self.mu * F + (self.lam * (J - self.gamma))[:, None, None] * cof
         H = -self.Vt[:, None, None] * (P @ np.swapaxes(self.Dminv, 1, 2))  # column j: node j+1
         fe = np.concatenate([-H.sum(axis=2)[:, None, :], np.swapaxes(H, 1, 2)], axis=1)  # (T, 4, 3)
-        f = np.zeros_like(np.asarray(x, dtype=float))
-        np.add.at(f, self.tets.ravel(), fe.reshape(-1, 3))
-        return f
+        x = np.asarray(x, dtype=float)
+        idx, fe = self.tets.ravel(), fe.reshape(-1, 3)
+        return np.stack([np.bincount(idx, weights=fe[:, a], minlength=len(x)) for a in range(3)], axis=1)
 
     def stiffness(self, x: np.ndarray):
         raise NotImplementedError("xpbd-nh is explicit only: it has no static tangent")
