@@ -328,8 +328,7 @@ class _FloorWatch:
                 self._start(sigma)
                 self.floor.T = max(self.floor.T, t)
                 return False
-        st.info["stopped_residual_floor"] = {"t": t, "window_s": self.floor.window,
-                                             "relative_residual_at_end_at_least": self.floor.bound}
+        st.info.update(floor_stop_t=t, floor_window_s=self.floor.window, floor_bound=self.floor.bound)
         return True
 
 

@@ -187,11 +187,10 @@ def check_result(res, what: str) -> None:
     """A result that is not what was asked (not converged, a dynamic run not at rest, non-finite
     outputs) is a failure."""
     rest = res.info.get("rest")
-    floor = res.info.get("stopped_residual_floor")
-    if isinstance(rest, dict) and not rest.get("at_rest") and isinstance(floor, dict):
+    if isinstance(rest, dict) and not rest.get("at_rest") and res.info.get("floor_stop_t") is not None:
         raise SolveFailure(f"the {what} ({res.solver}) keeps a force residual of at least "
-                           f"{floor['relative_residual_at_end_at_least']:.2g} of the force scale, above the rest "
-                           f"tolerance {rest.get('rtol', 0.0):g} (stopped at t = {floor['t']:.3g} s: no longer run "
+                           f"{res.info['floor_bound']:.2g} of the force scale, above the rest "
+                           f"tolerance {rest.get('rtol', 0.0):g} (stopped at t = {res.info['floor_stop_t']:.3g} s: no longer run "
                            "can pass): raise --substeps or --iterations")
     if isinstance(rest, dict) and not rest.get("at_rest"):
         steps = res.info.get("steps", res.iterations)

@@ -56,10 +56,9 @@ def _message(r, ok: bool) -> str:
         return ""
     text = " ".join(str(r.get("message") or "").split()) if not pd.isna(r.get("message")) else ""
     info = r.get("info") if isinstance(r.get("info"), dict) else {}
-    floor = info.get("stopped_residual_floor")
-    if not text and r["status"] == "not-converged" and isinstance(floor, dict):
-        return (f"not at rest: a force residual floor of at least {floor['relative_residual_at_end_at_least']:.2g} "
-                f"of the force scale at the end of the budget (stopped at t = {floor['t']:.3g} s of "
+    if not text and r["status"] == "not-converged" and info.get("floor_stop_t") is not None:
+        return (f"not at rest: a force residual floor of at least {info['floor_bound']:.2g} "
+                f"of the force scale at the end of the budget (stopped at t = {info['floor_stop_t']:.3g} s of "
                 f"{int(r['solver_steps']) * float(r['solver_dt']):.3g} s)")
     if not text and r["status"] == "not-converged":
         return f"not at rest after {int(r['solver_steps'])} steps" if pd.notna(r.get("solver_steps")) else "not at rest"

@@ -102,17 +102,17 @@ def explicit(nu: float, d: float, floor_watch: bool, monkeypatch):
 def test_xpbd_at_nu_0499_stops_at_its_floor_with_the_verdict_of_the_full_run(d, monkeypatch):
     early, full = explicit(0.499, d, True, monkeypatch), explicit(0.499, d, False, monkeypatch)
     assert not full.converged and not early.converged
-    stop = early.info["stopped_residual_floor"]
-    assert early.info["steps"] < 6_000 and stop["t"] == pytest.approx(early.info["t_end"])
+    assert early.info["steps"] < 6_000 and early.info["floor_stop_t"] == pytest.approx(early.info["t_end"])
     # the bound it stopped on holds at the end of the budget, and is above the tolerance
-    assert RTOL < stop["relative_residual_at_end_at_least"] <= full.info["rest"]["relative_residual"]
+    assert RTOL < early.info["floor_bound"] <= full.info["rest"]["relative_residual"]
+    assert "floor_stop_t" not in full.info
     assert "force residual" in early.info["rest"]["not_at_rest_because"]
 
 
 def test_the_watch_leaves_a_run_that_comes_to_rest_bit_for_bit(monkeypatch):
     watched, plain = explicit(0.45, 0.05, True, monkeypatch), explicit(0.45, 0.05, False, monkeypatch)
     assert watched.converged and watched.info["steps"] == 10_000
-    assert "stopped_residual_floor" not in watched.info
+    assert "floor_stop_t" not in watched.info
     assert np.array_equal(watched.u, plain.u)
 
 
@@ -135,13 +135,16 @@ def test_the_command_line_and_the_equilibria_table_name_the_floor_and_its_remedy
     from studies.cli.common import SolveFailure, check_result
     from studies.paper.equilibria import _message
 
+    from studies.sweep.runner import compute
+
     early = explicit(0.499, 0.05, True, monkeypatch)
     with pytest.raises(SolveFailure, match="raise --substeps or --iterations") as err:
         check_result(early, "explicit solve")
     assert "--steps" not in str(err.value)
-    row = pd.Series({"status": "not-converged", "message": "", "solver_steps": 10_000, "solver_dt": 1e-3,
-                     "info": early.info})
-    assert f"stopped at t = {early.info['t_end']:.3g} s of 10 s" in _message(row, False)
+    sc = SceneSpec.default("tension", mesh=(1, 1, 6), nu=0.499, deformation=0.05, model="xpbd-nh", damping=2.0)
+    row, _ = compute(Task(sc, SolverSpec("explicit", dt=1e-3, steps=10_000, ramp_time=1.0)))  # the stored row
+    assert row["status"] == "not-converged"
+    assert f"stopped at t = {early.info['t_end']:.3g} s of 10 s" in _message(pd.Series(row), False)
     plain = explicit(0.499, 0.05, False, monkeypatch)
     with pytest.raises(SolveFailure, match="raise --steps or --damping"):
         check_result(plain, "explicit solve")
