@@ -63,3 +63,13 @@ def test_the_verdict_prices_no_explicit_run_without_result():
     assert b["value"].isna().all() and (b["state"] == "failed (diverged)").all()
     a = r[r["method"] == "a"]
     assert a["value"].iloc[0] == pytest.approx(25.0) and a["state"].iloc[0] == "ok"
+
+
+def test_the_verdict_prices_the_stepping_not_the_compilation():
+    """A run whose elapsed time holds 3 s of kernel compilation on a cold cache (elapsed 3.5 s, of
+    which the time loop took 0.5 s for 10,000 steps) costs what its stepping costs: 50 µs a step."""
+    row = {"solver": "mss-explicit", "nu": 0.25, "experiment": "compression", "mesh": "2x2x2", "variant": "a",
+           "status": "ok", "solver_steps": 10_000, "steps": 10_000, "elapsed_s": 3.5, "wall_time_s": 0.5,
+           "info": {"dt_crit": 4e-3}}
+    c = verdict.explicit_cost(_results([row])).set_index("variant")
+    assert c.loc["a", "us_per_step"] == pytest.approx(50.0) and c.loc["a", "cost"] == pytest.approx(0.025)
