@@ -73,3 +73,7 @@ def test_the_verdict_prices_the_stepping_not_the_compilation():
            "info": {"dt_crit": 4e-3}}
     c = verdict.explicit_cost(_results([row])).set_index("variant")
     assert c.loc["a", "us_per_step"] == pytest.approx(50.0) and c.loc["a", "cost"] == pytest.approx(0.025)
+    # two runs of the same kernel at other loads: the best time per step prices it
+    slow = {**row, "elapsed_s": 1.0, "wall_time_s": 0.8}
+    c = verdict.explicit_cost(_results([slow, row, slow])).set_index("variant")
+    assert c.loc["a", "us_per_step"] == pytest.approx(50.0)
