@@ -19,3 +19,15 @@ def test_each_models_longest_run_comes_first_then_longest_first():
     # a's explicit run shares a's kernels: it waits with the rest, not beside a's longest run
     assert order == ["a-static-10.0", "c-static-7.0", "hybmss-fem-6.0", "b-static-5.0",
                      "a-static-9.0", "a-explicit-8.0", "c-static-1.0", "hybmss-fem-0.5"]
+
+
+def test_a_run_waits_while_the_first_run_of_its_code_compiles_unless_nothing_else_fits():
+    from collections import deque
+
+    from studies.sweep.runner import _code_of, next_fitting
+
+    pending = deque([_task("xpbd-nh", 9.0, "explicit"), _task("xpbd-nh", 8.0), _task("b", 1.0)])
+    warming = frozenset({_code_of(pending[0][1])})
+    assert next_fitting(pending, [1.0], {}, 10.0, warming)[0] == "b-static-1.0"
+    assert next_fitting(pending, [1.0], {}, 10.0, warming)[0] == "xpbd-nh-explicit-9.0"  # nothing else
+    assert next_fitting(deque([_task("c", 2.0)]), [], {}, 10.0, warming)[0] == "c-static-2.0"
