@@ -263,8 +263,11 @@ def _expected_cost(task: Task) -> float:
 def _code_of(task: Task) -> tuple:
     """What a run compiles on its first call in a worker process: its model, whatever the solver
     (a model's solvers share its kernels: xpbd-nh's static answer relaxes the very substep its
-    explicit run takes), or the FEM's element and law."""
-    s = task.solver
+    explicit run takes), or the FEM's element and law; ``None`` for a task without a solver (a
+    stand-in)."""
+    s = getattr(task, "solver", None)
+    if s is None:
+        return None
     if s.kind == "fem":
         return ("fem", s.element, s.law)
     return (str(getattr(task.scene, "model", "")),)
@@ -601,7 +604,7 @@ class Runner:
                     continue
                 claims[k] = claim
                 code = _code_of(t)
-                if code not in seen:
+                if code is not None and code not in seen:
                     seen.add(code)
                     warming[code] = k
                 ex.submit(k, t)
