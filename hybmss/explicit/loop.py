@@ -349,6 +349,8 @@ def _march(run: _Run, st, steps: int, record_every: int, history: _History | Non
             while done < end:
                 interruptible.check()
                 n = chunks.next(end - done)
+                if floor is not None and floor.off:  # too costly for this run: plain chunks from here
+                    floor = None
                 if floor is not None:
                     n = min(n, floor.next_stop(done) - done)
                 (k, bad), w, c = timed(st.advance, done, n, run.check_every, run.limit2)

@@ -144,6 +144,7 @@ class XpbdStepper(ParticleStepper):
         self.rest_disp = rest_tol * system.scene.body.le
         self.winv = inverse_masses(system)
         self.accel = external_acceleration(system)
+        self._w1 = None  # ω₁, computed on first use (lowest_frequency)
         self.info.update({"substeps": substeps, "iterations": iterations, "h": self.h, "coupled": self.coupled,
                           "until_rest": bool(until_rest), "stopped_at_rest": False, "t_rest": None,
                           "rest_tol": rest_tol, "tet_split": "two complementary 5-tet splits at half weight"})
@@ -157,7 +158,7 @@ class XpbdStepper(ParticleStepper):
 
     def lowest_frequency(self) -> float:
         """ω₁ (rad/s) of the body at rest (:func:`frequencies`)."""
-        if getattr(self, "_w1", None) is None:
+        if self._w1 is None:
             self._w1 = float(frequencies(self.system)[0])
         return self._w1
 
