@@ -73,8 +73,12 @@ def test_assembly_equals_skfem_forms(element, order):
     vb = Basis(fm.mesh, ElementVector(elem), intorder=order)
     Kmu = BilinearForm(lambda u, v, w: 2 * ddot(sym_grad(u), sym_grad(v))).assemble(vb)
     Klam = BilinearForm(lambda u, v, w: div(u) * div(v)).assemble(vb)
+    assert space.uniform_dN is not None and space._uniform_weights is not None  # the uniform path
     Kl, Km = space.elasticity_parts()
     scale = abs(Kmu).max()
+    Kl_g, Km_g = space._general_elasticity_parts()  # the per-element path gives the same matrices
+    assert abs(Kl_g - Klam).max() <= 1e-13 * scale
+    assert abs(Km_g - Kmu).max() <= 1e-13 * scale
     assert abs(Kl - Klam).max() <= 1e-13 * scale
     assert abs(Km - Kmu).max() <= 1e-13 * scale
     lam, mu = 1.7, 0.6
