@@ -33,6 +33,10 @@ FLOOR_SAMPLE_SHARE = 0.05
 (:class:`hybmss.explicit.rest.ResidualFloor`) may take; past it the watch stops sampling and the
 run goes to the end of its budget (a short run has little to save)."""
 
+REST_SAMPLE_S = 0.25
+"""Simulated seconds between the rest tests of a run with ``until_rest`` (after the ramp).  The
+interval doubles whenever the tests cost more than :data:`FLOOR_SAMPLE_SHARE` of the stepping."""
+
 WARM_UP_STEPS = 100
 """Steps per kernel call of an explicit run's ``warm_up``."""
 WARM_UP_THREADS = 0.1
@@ -48,7 +52,8 @@ def simulate_explicit(scene: Scene, dt: float = 1e-3, steps: int = 10_000, kerne
                       *, x0: np.ndarray | None = None, v0: np.ndarray | None = None,
                       dt_crit_value: float | None = None, compute_dt_crit: bool = True, check_every: int = 10,
                       precision: str = "f64", damping: float | None = None, rest_rtol: float = REST_RTOL,
-                      compile_first: bool = True, warm_up: float = 0.0, stepper=None) -> Result:
+                      compile_first: bool = True, warm_up: float = 0.0, stepper=None,
+                      until_rest: bool = False) -> Result:
     """Integrate ``scene`` for ``steps`` steps of ``dt`` with the stepper of its model: the one
     explicit time loop of every model (module docstring; the protocol: :mod:`hybmss.stepper`).
 
@@ -78,6 +83,14 @@ def simulate_explicit(scene: Scene, dt: float = 1e-3, steps: int = 10_000, kerne
     - ``check_every``: steps between divergence checks (and always at the last step): a
       non-finite position or a displacement > 10× the largest body edge raises
       :class:`DivergenceError` naming the step, the particle and the likely cause.
+    - ``until_rest``: a damped run whose stepper can ``settle`` (its rest state the fixed point of
+      its own step, e.g. XPBD: :meth:`hybmss.models.xpbd_nh.XpbdStepper.settle`) stops stepping
+      once its state passes the rest test (:func:`hybmss.explicit.rest.rest_report` with
+      ``rest_rtol``, tested every :data:`REST_SAMPLE_S` of simulated time after the ramp) and is
+      moved to that fixed point, the state the rest of the run tends to (``info['rest_stop_t']``,
+      ``info['settle']``); if the stepper refuses (no fixed point found, or one too far away: another
+      equilibrium) or the fixed point is not at rest by the same test, the run goes on from where
+      it stopped (``info['settle_refused_t']``).  No effect on other steppers or without damping.
     - ``stepper``: a stepper built for ``system`` and ``dt`` (default: the model's,
       ``scene.model.spec.stepper``, or the lattice's when it has none: :func:`hybmss.models.lattice_stepper`), e.g. with
       options of its own.
@@ -111,8 +124,9 @@ def simulate_explicit(scene: Scene, dt: float = 1e-3, steps: int = 10_000, kerne
     warm_s = _start(run, st, x, v, compile_first, warm_up)
     setup_s = time.perf_counter() - t_setup - run.dt_crit_s - warm_s
     history = _History(run.nodes, st, dt) if record_every > 0 else None
-    floor = _residual_floor(run, st, steps, float(ramp_time), rest_rtol)
-    done, wall, cpu = _march(run, st, steps, int(record_every), history, floor)
+    watches = [w for w in (_residual_floor(run, st, steps, float(ramp_time), rest_rtol),
+                           _rest_watch(run, st, until_rest, float(ramp_time), rest_rtol)) if w is not None]
+    done, wall, cpu = _march(run, st, steps, int(record_every), history, watches)
     timing = {"cpu_time_s": cpu, "setup_s": setup_s, "warm_up_s": warm_s, "dt_crit_s": run.dt_crit_s}
     return _final(run, st, scene, done, wall, ramp_time, rest_rtol, timing, history)
 
@@ -284,6 +298,56 @@ def _residual_floor(run: _Run, st, steps: int, ramp_time: float, rtol: float) ->
     return watch if watch.floor.active else None
 
 
+def _rest_watch(run: _Run, st, until_rest: bool, ramp_time: float, rtol: float) -> "_RestWatch | None":
+    """The watch that finishes a damped run at rest (``until_rest``) for a stepper that can
+    ``settle``; ``None`` otherwise."""
+    if not until_rest or float(run.system.scene.damping) <= 0.0 or not hasattr(st, "settle"):
+        return None
+    return _RestWatch(ramp_time, rtol, run.dt, run.check_every)
+
+
+class _RestWatch:
+    """Tests the state by the rest verdict (:func:`hybmss.explicit.rest.stepper_rest`) every
+    ``every`` steps once the ramp is complete; at the first pass the stepper settles to the fixed
+    point of its step, and the run stops if that state passes the same test (otherwise the state
+    before is loaded again, the watch turns off and the run goes on).  Its interval doubles while
+    the tests cost more than :data:`FLOOR_SAMPLE_SHARE` of the stepping."""
+
+    def __init__(self, T: float, rtol: float, dt: float, check_every: int):
+        self.T, self.rtol = T, rtol
+        self.every = max(check_every, int(round(REST_SAMPLE_S / dt)) // check_every * check_every)
+        self.sample_s, self.off = 0.0, False
+
+    def next_stop(self, done: int) -> int:
+        return (done // self.every + 1) * self.every
+
+    def _rest(self, run: _Run, st, s: float) -> tuple[bool, np.ndarray, np.ndarray]:
+        xs, vs = st.state()
+        rest = stepper_rest(run.nodes, st, st.internal_forces(xs), st.energy(xs, vs), s, self.rtol, xs)
+        return bool(rest["at_rest"]), xs, vs
+
+    def stop(self, run: _Run, st, done: int, stepping_s: float) -> bool:
+        t = done * run.dt
+        s = ramp(t, self.T)
+        if s < 1.0:
+            return False
+        t0 = time.perf_counter()
+        at_rest, xs, vs = self._rest(run, st, s)
+        self.sample_s += time.perf_counter() - t0
+        if self.sample_s > FLOOR_SAMPLE_SHARE * stepping_s:
+            self.every *= 2
+        if not at_rest:
+            return False
+        self.off = True  # one settling per run, whatever it gives
+        settled = st.settle()
+        if settled is not None and not settled.get("refused") and self._rest(run, st, s)[0]:
+            st.info.update(rest_stop_t=t, settle=settled)
+            return True
+        st.load(xs, vs)
+        st.info.update(settle_refused_t=t, settle=settled)
+        return False
+
+
 class _FloorWatch:
     """A :class:`ResidualFloor` of damping ``c`` sampled every ``every`` steps (a multiple of the
     check interval).  Its windows first assume every mode underdamped (``σ = c/2``); the first
@@ -333,29 +397,30 @@ class _FloorWatch:
 
 
 def _march(run: _Run, st, steps: int, record_every: int, history: _History | None,
-           floor: _FloorWatch | None = None) -> tuple[int, float, float]:
+           watches: list | None = None) -> tuple[int, float, float]:
     """Advance ``st`` by ``steps`` steps in calls of about 0.1 s (:class:`hybmss.stepper.Chunks`),
     stopping at SIGINT/SIGTERM between calls, recording every ``record_every`` steps; a diverged
     state raises :class:`DivergenceError`.  Returns the steps done (fewer when the stepper stops
-    by its own rule, or when ``floor`` finds a force residual the rest test cannot pass within the
-    budget), and the wall and CPU seconds of the calls."""
+    by its own rule, or when a watch stops the run: :class:`_FloorWatch`, a force residual the rest
+    test cannot pass within the budget; :class:`_RestWatch`, a state at rest settled to its fixed
+    point), and the wall and CPU seconds of the calls.  A watch that turned itself off is dropped."""
     span = record_every if record_every > 0 else max(steps, 1)
     wall = cpu = 0.0
     done, stopped = 0, False
     chunks = Chunks(run.check_every)
+    watches = list(watches or ())
     with interruptible():
         while done < steps and not stopped:
             end = min(done + span, steps)  # a span: up to the next record; checks counted from its start
             while done < end:
                 interruptible.check()
                 n = chunks.next(end - done)
-                if floor is not None and floor.off:  # too costly for this run: plain chunks from here
-                    floor = None
-                if floor is not None:
-                    n = min(n, floor.next_stop(done) - done)
-                (k, bad), w, c = timed(st.advance, done, n, run.check_every, run.limit2)
-                chunks.took(n, w)
-                wall += w
+                watches = [w for w in watches if not w.off]
+                for w in watches:
+                    n = min(n, w.next_stop(done) - done)
+                (k, bad), w_s, c = timed(st.advance, done, n, run.check_every, run.limit2)
+                chunks.took(n, w_s)
+                wall += w_s
                 cpu += c
                 if bad >= 0:
                     xs, _ = st.state()
@@ -365,7 +430,7 @@ def _march(run: _Run, st, steps: int, record_every: int, history: _History | Non
                 if k < n:  # the stepper stopped by its own rule
                     stopped = True
                     break
-                if floor is not None and done % floor.every == 0 and floor.stop(run, st, done, wall):
+                if any(done % w.every == 0 and w.stop(run, st, done, wall) for w in watches):
                     stopped = True
                     break
             if history is not None:

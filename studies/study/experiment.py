@@ -60,7 +60,7 @@ MODEL_KEYS = ("role", "name", "engines", "params", "defaults_only", "skip_quick"
 MESH_POLICIES = ("own", "file")
 """``[[model]] meshes``: ``own``, a model whose study part gives it meshes of its own runs on them
 (the default); ``file``, every model runs on the file's meshes."""
-SOLVER_KEYS = {"static": ("kind",), "explicit": ("kind", "dt", "steps", "ramp_time", "damping", "kernel"),
+SOLVER_KEYS = {"static": ("kind",), "explicit": ("kind", "dt", "steps", "ramp_time", "damping", "kernel", "until_rest"),
                "implicit": ("kind", "dt", "steps", "ramp_time", "damping")}
 REFERENCE_KEYS = ("element", "law", "refine", "large_laws", "large_above", "law_up_to")
 TOP_KEYS = ("study", "body", "material", "load", "model", "reference", "table")
@@ -228,7 +228,8 @@ def _check_solver(path, key: str, solver) -> str:
                            ("steps", lambda v: _is_int(v) and v >= 1, "an integer >= 1"),
                            ("ramp_time", lambda v: _is_number(v) and v >= 0, "a number >= 0 (s)"),
                            ("damping", lambda v: _is_number(v) and v >= 0, "a number >= 0 (1/s)"),
-                           ("kernel", lambda v: v in ("numba", "numpy"), "numba or numpy")):
+                           ("kernel", lambda v: v in ("numba", "numpy"), "numba or numpy"),
+                           ("until_rest", lambda v: isinstance(v, bool), "true or false")):
         if k in solver and not ok(solver[k]):
             _fail(path, f"{key}.{k}", solver[k], allowed)
     return kind

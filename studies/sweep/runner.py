@@ -46,6 +46,8 @@ SOLVER_KINDS = ("static", "explicit", "implicit", "fem")
 class SolverSpec:
     """How to solve a scene.  MSS: ``static`` (Newton), ``explicit`` (symplectic Euler,
     ``dt``, ``steps``, ``ramp_time``, ``kernel``), ``implicit`` (backward Euler to rest).
+    ``until_rest``: an explicit run of a stepper whose rest state is the fixed point of its own step
+    (xpbd-nh) ends there once it has come to rest (:func:`hybmss.explicit.simulate_explicit`).
     FEM: ``fem`` with ``element`` (hex1, hex2, mixed, auto), ``law`` (linear, neo-hookean, svk)
     and ``refine`` (cells split into refine³).  ``repeat`` > 0 numbers a repeat of the same run
     (its own stored run, for a timing's spread: :mod:`studies.sweep.cost`); 0, the run itself, leaves
@@ -60,6 +62,7 @@ class SolverSpec:
     ramp_time: float = 1.0
     kernel: str = "numba"
     repeat: int = 0
+    until_rest: bool = False
 
     def __post_init__(self):
         if self.kind not in SOLVER_KINDS:
@@ -83,6 +86,8 @@ class SolverSpec:
         else:
             out = {"kind": "explicit", "dt": self.dt, "steps": self.steps, "ramp_time": self.ramp_time,
                    "kernel": self.kernel}
+            if self.until_rest:
+                out["until_rest"] = True
         return {**out, "repeat": self.repeat} if self.repeat else out
 
     @property

@@ -8,6 +8,7 @@ solver, used by the runner and by the command line alike:
 - ``implicit``: backward Euler, ``M (v_{n+1} − v_n)/dt = f(x_{n+1})``, to rest;
 - ``explicit``: symplectic Euler, ``v_{n+1} = v_n + dt M⁻¹ f(x_n)``, ``x_{n+1} = x_n + dt v_{n+1}``,
   in the kernel's precision: an engine's own (Newton's is float32), the lattice kernels' float64;
+  with ``until_rest``, a run whose rest state is the fixed point of its step ends there once at rest;
 - ``fem``: the finite-element reference (:func:`fem_reference.solve.solve`).
 
 :func:`measure` reads what SPEC §8 compares off a result: the volume change ``V/V0 − 1``, the
@@ -49,7 +50,8 @@ def solve_scene(scene, s, static_options=None):
         from hybmss.explicit import simulate_explicit
 
         return simulate_explicit(scene, dt=s.dt, steps=s.steps, kernel=s.kernel, ramp_time=s.ramp_time,
-                                 precision=explicit_precision(scene.model.spec, s.kernel))
+                                 precision=explicit_precision(scene.model.spec, s.kernel),
+                                 until_rest=bool(getattr(s, "until_rest", False)))
     from fem_reference.solve import solve as fem_solve
 
     return fem_solve(scene, element=s.element, law=s.law, refine=s.refine)

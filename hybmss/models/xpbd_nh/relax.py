@@ -57,7 +57,7 @@ def rounding_floor(system: System, over: float) -> float:
 
 def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: float, ramp_time: float,
                  max_time: float, check_time: float, rest_tol: float, iterations: int = 1, coupled: bool = True,
-                 kernel: str = "numba", damping_h: float | None = None) -> Result:
+                 kernel: str = "numba", damping_h: float | None = None, x0: np.ndarray | None = None) -> Result:
     """The rest state of the XPBD substep ``h`` (damping ``damping_h``, default ``damping``),
     reached by a damped iteration in pseudo-time steps ``H ≥ h``::
 
@@ -72,7 +72,9 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
     iteration *is* that run (``v = (x − x_prev)/h``).  For soft constraints (``h ω ≪ 1``, the
     accuracy rule) ``P_h(z) − z ≈ −h² W ∇E``, so the iteration is the damped dynamics in steps H:
     the rest state is reached in ``h/H`` of the substeps.  Stops at rest (no node moved more than
-    ``rest_tol · le`` over ``check_time`` of pseudo-time after the ramp) or at ``max_time``."""
+    ``rest_tol · le`` over ``check_time`` of pseudo-time after the ramp) or at ``max_time``.
+    ``x0``: the start (default the reference positions), its prescribed components at the ramp's
+    start (a start already under the whole load: ``ramp_time`` 0)."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kernel!r}")
     if not (0.0 < h <= H):
@@ -88,7 +90,7 @@ def relax_static(system: System, term: XpbdNH, h: float, H: float, damping: floa
                      n_max=int(math.ceil(max_time / H)), check=max(1, int(round(check_time / H))),
                      rest_after=int(math.ceil(ramp_time / H)), rest_disp=rest_disp, limit2=limit * limit,
                      iterations=iterations, coupled=coupled)
-    x, _ = initial_state(system, None, None, ramp_time)
+    x, _ = initial_state(system, x0, None, ramp_time)
     winv = inverse_masses(system)
     gdisp = np.zeros((system.n, 3))
     accel = external_acceleration(system)
