@@ -90,7 +90,7 @@ def simulate_explicit(scene: Scene, dt: float = 1e-3, steps: int = 10_000, kerne
       moved to that fixed point, the state the rest of the run tends to (``info['rest_stop_t']``,
       ``info['settle']``); if the stepper refuses (no fixed point found, or one too far away: another
       equilibrium) or the fixed point is not at rest by the same test, the run goes on from where
-      it stopped (``info['settle_refused_t']``).  No effect on other steppers or without damping.
+      it stopped (``info['settle_refused_t']``, ``info['settle']['why']``).  No effect on other steppers or without damping.
     - ``stepper``: a stepper built for ``system`` and ``dt`` (default: the model's,
       ``scene.model.spec.stepper``, or the lattice's when it has none: :func:`hybmss.models.lattice_stepper`), e.g. with
       options of its own.
@@ -339,11 +339,13 @@ class _RestWatch:
         if not at_rest:
             return False
         self.off = True  # one settling per run, whatever it gives
-        settled = st.settle()
-        if settled is not None and not settled.get("refused") and self._rest(run, st, s)[0]:
-            st.info.update(rest_stop_t=t, settle=settled)
-            return True
-        st.load(xs, vs)
+        settled = st.settle()  # the stepper's state is its fixed point unless it refused
+        if not settled["refused"]:
+            if self._rest(run, st, s)[0]:
+                st.info.update(rest_stop_t=t, settle=settled)
+                return True
+            st.load(xs, vs)
+            settled = dict(settled, refused=True, why="its fixed point is not at rest")
         st.info.update(settle_refused_t=t, settle=settled)
         return False
 

@@ -171,14 +171,15 @@ class XpbdStepper(ParticleStepper):
             self._w1 = float(frequencies(self.system)[0])
         return self._w1
 
-    def settle(self) -> dict | None:
+    def settle(self) -> dict:
         """Move a damped run that is at rest (the time loop's ``until_rest``) to the state it tends
         to: the fixed point of this very substep (``h``, the scene's damping c), reached from the
         current state by :func:`relax_static` in pseudo-time steps ``H = max(h, RELAX_H_OMEGA/ω_max)``
         with the relaxation's own damping 2 ω₁ (the fixed point depends on neither), until no node
         moves more than :data:`REST_TOL` · le · :func:`rest_scale` over :data:`RELAX_CHECK_FRAMES`
-        frames ``1/ω_max``.  Loads that state at rest and returns the relaxation's figures, or
-        returns None and leaves the state as it was if the relaxation did not stop so.  The
+        frames ``1/ω_max``.  Loads that state at rest and returns the relaxation's figures with
+        ``refused`` False; leaves the state as it was and returns ``refused`` True (and ``why``) if
+        the relaxation did not stop so or moved farther than :data:`SETTLE_MAX_MOVE`.  The
         remaining transient of the run decays as ``e^{−σ t}`` towards that point: on the 4×4×24
         beam under gravity (E = 10 MPa), the state of the whole 10 s protocol run is 2e-6 of the
         largest displacement from it."""
@@ -189,16 +190,17 @@ class XpbdStepper(ParticleStepper):
         r = relax_static(S, self.term, self.h, H, 2.0 * w1, 0.0, 40.0 / w1, RELAX_CHECK_FRAMES / wmax,
                          REST_TOL * rest_scale(S), iterations=self.iterations, coupled=self.coupled,
                          kernel=self.kernel, damping_h=float(S.scene.damping), x0=x)
-        if not r.info["rest"]:
-            return None
         x_new = r.X + r.u
         move = float(np.abs(x_new - x).max() / max(np.abs(x - S.X).max(), np.finfo(float).tiny))
         out = {"settle_steps": int(r.info["steps"]), "settle_H": H, "settle_wall_s": float(r.wall_time_s),
-               "settle_move": move}
+               "settle_move": move, "refused": True}
+        if not r.info["rest"]:
+            return dict(out, why="the relaxation did not come to rest")
         if move > SETTLE_MAX_MOVE:
-            return dict(out, refused=True)
+            return dict(out, why=f"its fixed point is {move:.3g} of the largest displacement away "
+                                 f"(more than {SETTLE_MAX_MOVE:g}: another equilibrium)")
         self.load(x_new, np.zeros_like(x))
-        return out
+        return dict(out, refused=False)
 
     def _substeps(self, sub0, n, check_sub, limit2):
         """(substeps done, bad particle or −1, at rest) of ``n`` substeps from ``sub0``."""
