@@ -128,6 +128,28 @@ def test_irregular_scenes_build():
         assert S.n > 0 and (~S.fixed).any(), name
 
 
+def test_irregular_runs_take_the_numpy_twin_only_where_the_stencil_would_be_compiled_for_them():
+    """Part (e): the harness's lattice on a tiny body runs on the NumPy twin (a stencil kernel is
+    compiled per lattice size, seconds against milliseconds of stepping), with the stencil
+    kernel's answer to rounding; a model whose Numba kernel does not depend on the size keeps it,
+    and so does a lattice above :data:`stability.TINY_LATTICE_NODES`."""
+    from hybmss.explicit import simulate_explicit
+
+    scenes = stability.irregular_scenes(quick=True, nu=0.3, model="hybmss")
+    cell, builder, _ = scenes["single cell"]
+    assert stability.irregular_kernel(cell, builder) == "numpy"
+    assert stability.irregular_kernel(*scenes["jittered 10% le"][:2]) == "numpy"
+    for model in ("hybmss-fd", "hybmss-cf"):
+        assert stability.irregular_kernel(stability.irregular_scenes(True, 0.3, model)["L-shape"][0], None) == "numpy"
+    for model in ("xpbd-nh", "corot-hex8"):
+        assert stability.irregular_kernel(stability.irregular_scenes(True, 0.3, model)["single cell"][0], None) == "numba"
+    big = SceneSpec.default("compression", mesh=(6, 6, 6), nu=0.3, model="hybmss").build()
+    assert stability.irregular_kernel(big, None) == "numba"
+    runs = [simulate_explicit(cell, dt=1e-3, steps=300, ramp_time=0.2, kernel=k) for k in ("numpy", "numba")]
+    scale = np.abs(runs[1].u).max()
+    assert scale > 1e-3 and np.abs(runs[0].u - runs[1].u).max() <= 1e-12 * scale
+
+
 @pytest.mark.slow
 def test_performance_quick_table():
     df, bw = performance.run_performance(quick=True, steps=20, repeats=1, threads=(1,), min_span=0.0,
