@@ -3,7 +3,7 @@
 - the nested-dissection order of the direct factorizations is a permutation of the unknowns and
   gives the solution of SuperLU's own order (linear Hex2 and mixed u–p solves);
 - the tangent's sparsity pattern built from the scalar pattern equals the one built from every
-  vector entry;
+  vector entry, and the compiled one equals both;
 - Newton with reused factorizations (chord steps), loosely converged intermediate load steps and
   the reordered factorizations reaches the equilibrium of the plain scheme (a fresh tangent at
   every iteration, every step to the full tolerance, minimum degree order) to 1e-8.
@@ -75,12 +75,17 @@ def test_reordered_linear_solve_same_answer(element, nu):
 
 
 @pytest.mark.parametrize("element", ["hex1", "hex2"])
-def test_block_pattern_equals_vector_pattern(element):
+def test_block_pattern_equals_vector_pattern(element, monkeypatch):
+    import fem_reference.space as space_module
+
     space = Space.create(build_mesh(Body.box(3, 2, 2, 0.5), 1), element)
     V = (3 * space.edofs[:, :, None] + np.arange(3)).astype(np.int64)
     plain = space._pattern(V[:, None, :, :, None], V[None, :, :, None, :])
     for x, y in zip(plain, space._block_pattern()):
         assert np.array_equal(x, y)
+    monkeypatch.setattr(space_module, "COMPILED_PATTERN_KEYS", 0)  # the compiled path on this mesh
+    for x, y in zip(space._block_pattern(), space._uniform_pattern):  # compiled against its NumPy twin
+        assert x.dtype == y.dtype and np.array_equal(x, y)
 
 
 CASES = {
