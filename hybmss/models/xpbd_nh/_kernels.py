@@ -245,7 +245,7 @@ pattern (:func:`_tet_lanes`); a test derives the patterns from
 :func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra`."""
 
 
-@njit(**_OPTS)
+@njit(inline="always")
 def _gram_add(a11, a12, a22, w, g, h):
     """The Gram sums ``a11, a12, a22`` advanced by one corner's ``w g g``, ``w g h``, ``w h h``."""
     return a11 + w * g * g, a12 + w * g * h, a22 + w * h * h
@@ -270,17 +270,17 @@ def _dot(k: int, pattern: int):
     else:
         def dot(a0, a1, a2, d0, d1, d2):
             return a2 * d2
-    return njit(**_OPTS)(dot)
+    return njit(inline="always")(dot)
 
 
-@njit(**_OPTS)
+@njit(inline="always")
 def _entries(Dm, t):
     """The nine entries of ``Dm[t]`` by rows."""
     return (Dm[t, 0, 0], Dm[t, 0, 1], Dm[t, 0, 2], Dm[t, 1, 0], Dm[t, 1, 1], Dm[t, 1, 2],
             Dm[t, 2, 0], Dm[t, 2, 1], Dm[t, 2, 2])
 
 
-@njit(**_OPTS)
+@njit(inline="always")
 def _squares(F00, F01, F02, F10, F11, F12, F20, F21, F22):
     """``tr(FᵀF)``, summed entry after entry from 0 in the order of rows."""
     s2 = 0.0
@@ -296,7 +296,7 @@ def _squares(F00, F01, F02, F10, F11, F12, F20, F21, F22):
     return s2
 
 
-@njit(**_OPTS)
+@njit(inline="always")
 def _move_corner(B, p, l, wx, wy, wz, gx, gy, gz, hx, hy, hz, d1, d2):
     """A corner's position rows ``p``, ``p + L``, ``p + 2L`` of lane ``l`` moved by
     ``W (∇C_D d1 + ∇C_H d2)``."""
@@ -310,7 +310,7 @@ def _row_lanes(dot0, dot1, dot2):
     """Row a of ``F = D_s D_m⁻¹`` of lane ``l`` from the rows ``p0..p3`` of component a of the
     tetrahedron's corners (products with ``D_m⁻¹`` by ``dot*`` of :func:`_dot`)."""
 
-    @njit(**_OPTS)
+    @njit(inline="always")
     def row(B, p0, p1, p2, p3, l, d00, d01, d02, d10, d11, d12, d20, d21, d22):
         x0 = B[p0 + l]
         e1 = B[p1 + l] - x0
@@ -326,7 +326,7 @@ def _component_lanes(dot0, dot1, dot2):
     """One component a of a tetrahedron's constraint gradients (products with ``D_m⁻¹`` by
     ``dot*`` of :func:`_dot`)."""
 
-    @njit(**_OPTS)
+    @njit(inline="always")
     def component(f0, f1, f2, p0, p1, p2, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
                   w0, w1, w2, w3, a11, a12, a22):
         """As in :func:`project_all`: C_D's (``g``) and C_H's (``h``) gradients at corners 1..3
@@ -356,16 +356,15 @@ def _tet_lanes(pattern: int):
     entries (:func:`_dot`), so that the eight corner tetrahedra of a cell make 3 of every 9 (the
     8×8×48 beam's sweep: 0.70 → 0.60 ms on Zen 3, the same bits).  One function per pattern,
     made here, since a branch on the pattern inside one function made Numba's compilation 25×
-    longer.  Its parts are ordinary compiled functions that LLVM inlines: inlining them in Numba's
-    IR (``inline="always"``) gave the same bits and a sweep no faster (8×8×48 beam: 1.10 ms
-    against 1.00 ms), but took 24 of the 34 s that :func:`project_cells` took to compile.  Each of
-    the ten calls of :func:`_cell_lanes` passes its corners as literals, so that each is compiled
-    with its own constant rows: with the corners read from an array the sweep took 2.0 ms."""
+    longer; its parts are inlined (Numba's ``inline="always"``, before LLVM sees the code).  That
+    inlining is most of the 34 s :func:`project_cells` takes to compile; left to LLVM, the same
+    functions compiled in 10 s and gave the same bits, but a step of the 8×8×48 beam took 1.06–1.10×
+    as long (minimum and median of 30 alternations in one process), so the inlining stays."""
     dot0, dot1, dot2 = (_dot(k, pattern) for k in range(3))
     row = _row_lanes(dot0, dot1, dot2)
     component = _component_lanes(dot0, dot1, dot2)
 
-    @njit(**_OPTS)
+    @njit(inline="always")
     def tet(B, c0, c1, c2, c3, Dm, t, aD, aH, gamma, one):
         """Coupled projection of tetrahedron ``t`` (local corners c0..c3) of every lane's cell, on the
         lane buffer ``B`` (:data:`SLOTS` rows of :data:`LANES`): exactly the arithmetic of the
@@ -419,7 +418,7 @@ def _tet_lanes(pattern: int):
 _tet_dense, _tet_diagonal, _tet_swapped = (_tet_lanes(p) for p in range(3))
 
 
-@njit(**_OPTS)
+@njit(inline="always")
 def _cell_lanes(B, Dm, aD, aH, gamma, one):
     """The ten tetrahedra of every lane's cell in sweep order (:data:`SWEEP_TETS`, literal)."""
     _tet_dense(B, 0, 3, 6, 5, Dm, 0, aD[0], aH[0], gamma, one)
