@@ -358,8 +358,10 @@ def _tet_lanes(pattern: int):
     made here, since a branch on the pattern inside one function made Numba's compilation 25×
     longer; its parts are inlined (Numba's ``inline="always"``, before LLVM sees the code).  That
     inlining is most of the 34 s :func:`project_cells` takes to compile; left to LLVM, the same
-    functions compiled in 10 s and gave the same bits, but a step of the 8×8×48 beam took 1.06–1.10×
-    as long (minimum and median of 30 alternations in one process), so the inlining stays."""
+    functions compiled in 10 s (the same bits in a sweep of the 8×8×48 beam, though a reproduction
+    with them moved xpbd-nh's explicit values in the shear and torsion tables by up to 3.5e-4), but
+    a step of that beam took 1.06–1.10× as long (minimum and median of 30 alternations in one
+    process), so the inlining stays."""
     dot0, dot1, dot2 = (_dot(k, pattern) for k in range(3))
     row = _row_lanes(dot0, dot1, dot2)
     component = _component_lanes(dot0, dot1, dot2)
