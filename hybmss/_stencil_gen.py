@@ -588,12 +588,17 @@ def kernel_module(cfg: Config):
     imported; Numba caches its machine code beside it)."""
     key = cfg.key()
     mod = _MODULES.get(key)
-    if mod is not None:
-        return mod
+    if mod is None:
+        mod = _MODULES[key] = import_generated(f"hybmss_stencil_{key}", source(cfg))
+    return mod
+
+
+def import_generated(name: str, src: str):
+    """The module ``name`` of source ``src``, written to :func:`cache_dir` (atomically, unless the
+    file there already holds ``src``) and imported from there, so that Numba's cache of its
+    functions (``cache=True``) lies beside it.  ``name`` must change with ``src`` (a hash of it)."""
     d = cache_dir()
-    name = f"hybmss_stencil_{key}"
     path = os.path.join(d, name + ".py")
-    src = source(cfg)
     try:
         with open(path, encoding="utf-8") as fh:
             same = fh.read() == src
@@ -608,7 +613,6 @@ def kernel_module(cfg: Config):
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
     spec.loader.exec_module(mod)
-    _MODULES[key] = mod
     return mod
 
 

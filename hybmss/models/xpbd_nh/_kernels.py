@@ -25,19 +25,21 @@ instruction on AVX2/AVX-512), and the batches follow a level order in which ever
 sharing a node keeps its order (:func:`cell_levels`).  The sweep is then the tetrahedron-by-
 tetrahedron one to the last bit (a test), 3.4–3.9× faster (10³ cube, 8×8×48 beam); it also
 leaves out the products with the zero entries of the corner tetrahedra's ``D_m⁻¹``
-(:data:`SWEEP_PATTERNS`, :func:`_tet_lanes`), 14 % more.
+(:data:`SWEEP_PATTERNS`, :func:`lanes_source`), 14 % more.
 
 The readable twin is :func:`hybmss.models.xpbd_nh.constraints.numpy_substep` (same order, plain Python).
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
 from numba import njit
 
-from ..._kernels import apply_plates, cofactor3, find_bad, plate_scratch, ramp
+from ..._kernels import apply_plates, find_bad, plate_scratch, ramp
+from ..._stencil_gen import import_generated
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath=False, nogil=True)
 
@@ -224,254 +226,172 @@ def project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations
 
 # ------------------------------------------------------------------------------ cells in SIMD lanes
 LANES = 4
-"""Cells projected side by side (one SIMD lane each) by :func:`project_cells`: one AVX2 register of
-doubles.  Eight (two registers) hold twice the values live through a tetrahedron's projection and
-spill them: on the 8×8×48 beam at ν = 0.499 (Zen 3) a sweep took 0.78 ms with 8 lanes and 0.69 ms
-with 4, the same bits."""
+"""Cells projected side by side (one SIMD lane each): one AVX2 register of doubles.  Eight (two
+registers) hold twice the values live through a tetrahedron's projection and spill them: on the
+8×8×48 beam at ν = 0.499 (Zen 3) a sweep took 0.78 ms with 8 lanes and 0.69 ms with 4, the same
+bits."""
 
 SLOTS = 48
 """Rows of the lane buffer: the 8 corners' positions (3 each), then their inverse masses."""
 
 SWEEP_TETS = ((0, 3, 6, 5), (1, 0, 5, 3), (2, 3, 6, 0), (4, 5, 0, 6), (7, 6, 3, 5),
-             (1, 2, 4, 7), (0, 1, 2, 4), (3, 2, 1, 7), (5, 4, 7, 1), (6, 7, 4, 2))
+              (1, 2, 4, 7), (0, 1, 2, 4), (3, 2, 1, 7), (5, 4, 7, 1), (6, 7, 4, 2))
 """Local corners of a cell's ten tetrahedra in sweep order, positively oriented: the literal
 twin of :func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra` (a test keeps them equal)."""
 
 SWEEP_PATTERNS = (0, 2, 2, 2, 2, 0, 1, 1, 1, 1)
 """Which entries of each tetrahedron's ``D_m⁻¹`` (sweep order) are non-zero: 0 all (the central
 tetrahedra, on face diagonals); 1 the diagonal (corner tetrahedra with their edges along x, y, z);
-2 ``d00, d12, d21`` (edges along x, z, y).  :func:`_cell_lanes` calls the projection of each
-pattern (:func:`_tet_lanes`); a test derives the patterns from
+2 ``d00, d12, d21`` (edges along x, z, y).  A test derives the patterns from
 :func:`hybmss.models.xpbd_nh.constraints.cell_tetrahedra`."""
 
+# The lane sweep is written out as source (:func:`lanes_source`) and compiled as one function.
+# Written as functions that Numba inlines (``inline="always"``), the same arithmetic took 34 s to
+# compile, most of it the inlining (each call site runs the callee through Numba's front end
+# again); left to LLVM to inline, 10 s, but a step of the 8×8×48 beam took 1.06–1.10× as long.
+# Written out: 12.7 s, the same bits (a test), and a step as fast as with Numba's inlining
+# (minimum of 30 and 40 alternations in one process: 1.011× and 1.008×; medians 0.97× and 1.00×).
 
-@njit(inline="always")
-def _gram_add(a11, a12, a22, w, g, h):
-    """The Gram sums ``a11, a12, a22`` advanced by one corner's ``w g g``, ``w g h``, ``w h h``."""
-    return a11 + w * g * g, a12 + w * g * h, a22 + w * h * h
 
-
-def _dot(k: int, pattern: int):
-    """``(a0, a1, a2, d0, d1, d2) -> a0 d0 + a1 d1 + a2 d2`` for row or column ``k`` of a ``D_m⁻¹``
-    of zero pattern ``pattern`` (:data:`SWEEP_PATTERNS`), without the terms that pattern makes
-    zero.  The same bits: for finite ``a``, ``a · 0`` is ±0, and adding ±0 to the other terms
-    changes at most the sign of an exact zero, which no later operation of the projection tells
-    apart."""
+def _dot(k: int, pattern: int, a: tuple, d: tuple) -> str:
+    """``a0 d0 + a1 d1 + a2 d2`` for row or column ``k`` of a ``D_m⁻¹`` of zero pattern ``pattern``,
+    without the terms that pattern makes zero.  The same bits: for finite ``a``, ``a · 0`` is ±0,
+    and adding ±0 to the other terms changes at most the sign of an exact zero, which no later
+    operation of the projection tells apart."""
     nz = None if pattern == 0 else (k if pattern == 1 or k == 0 else 3 - k)
     if nz is None:
-        def dot(a0, a1, a2, d0, d1, d2):
-            return a0 * d0 + a1 * d1 + a2 * d2
-    elif nz == 0:
-        def dot(a0, a1, a2, d0, d1, d2):
-            return a0 * d0
-    elif nz == 1:
-        def dot(a0, a1, a2, d0, d1, d2):
-            return a1 * d1
-    else:
-        def dot(a0, a1, a2, d0, d1, d2):
-            return a2 * d2
-    return njit(inline="always")(dot)
+        return f"{a[0]} * {d[0]} + {a[1]} * {d[1]} + {a[2]} * {d[2]}"
+    return f"{a[nz]} * {d[nz]}"
 
 
-@njit(inline="always")
-def _entries(Dm, t):
-    """The nine entries of ``Dm[t]`` by rows."""
-    return (Dm[t, 0, 0], Dm[t, 0, 1], Dm[t, 0, 2], Dm[t, 1, 0], Dm[t, 1, 1], Dm[t, 1, 2],
-            Dm[t, 2, 0], Dm[t, 2, 1], Dm[t, 2, 2])
-
-
-@njit(inline="always")
-def _squares(F00, F01, F02, F10, F11, F12, F20, F21, F22):
-    """``tr(FᵀF)``, summed entry after entry from 0 in the order of rows."""
-    s2 = 0.0
-    s2 += F00 * F00
-    s2 += F01 * F01
-    s2 += F02 * F02
-    s2 += F10 * F10
-    s2 += F11 * F11
-    s2 += F12 * F12
-    s2 += F20 * F20
-    s2 += F21 * F21
-    s2 += F22 * F22
-    return s2
-
-
-@njit(inline="always")
-def _move_corner(B, p, l, wx, wy, wz, gx, gy, gz, hx, hy, hz, d1, d2):
-    """A corner's position rows ``p``, ``p + L``, ``p + 2L`` of lane ``l`` moved by
-    ``W (∇C_D d1 + ∇C_H d2)``."""
+def _tetrahedron(out: list, ind: str, t: int, corners: tuple, pattern: int) -> None:
+    """The projection of tetrahedron ``t`` of every lane's cell (the coupled branch of
+    ``project_all`` for one iteration, multipliers at 0), appended to ``out``.  ``one``: 1 on
+    displacements (``F = I + D_u D_m⁻¹``), 0 on positions (adding 0 to F's diagonal, ≈ 1, leaves
+    it unchanged: one loop serves both states)."""
     L = LANES
-    B[p + l] += wx * (gx * d1 + hx * d2)
-    B[p + L + l] += wy * (gy * d1 + hy * d2)
-    B[p + 2 * L + l] += wz * (gz * d1 + hz * d2)
+    p = [3 * c * L for c in corners]  # row of component x of each corner's position
+    q = [v + 24 * L for v in p]  # and of its inverse mass
+    D = [[f"d{i}{j}" for j in range(3)] for i in range(3)]
+
+    def line(text: str, extra: int = 0):
+        out.append(ind + "    " * extra + text)
+
+    line(f"# tetrahedron {t}: corners {corners}, pattern {pattern}")
+    line(", ".join(D[0] + D[1] + D[2]) + " = " + ", ".join(f"Dm[{t}, {i}, {j}]" for i in range(3) for j in range(3)))
+    line(f"aDt = aD[{t}]")
+    line(f"aHt = aH[{t}]")
+    line(f"for l in range({L}):")
+    for a in range(3):  # F = D_s D_m⁻¹, row a from the edges of component a
+        r = [v + a * L for v in p]
+        line(f"x0 = B[{r[0]} + l]", 1)
+        line(f"e1 = B[{r[1]} + l] - x0", 1)
+        line(f"e2 = B[{r[2]} + l] - x0", 1)
+        line(f"e3 = B[{r[3]} + l] - x0", 1)
+        for b in range(3):
+            line(f"F{a}{b} = " + _dot(b, pattern, ("e1", "e2", "e3"), (D[0][b], D[1][b], D[2][b])), 1)
+    for a in range(3):
+        line(f"F{a}{a} += one", 1)
+    line("s2 = 0.0", 1)
+    for a in range(3):
+        for b in range(3):
+            line(f"s2 += F{a}{b} * F{a}{b}", 1)
+    line("CD = math.sqrt(s2)", 1)
+    line("ic = 1.0 / CD", 1)
+    for i in range(3):  # cof F (hybmss._kernels.cofactor3)
+        for j in range(3):
+            i1, i2, j1, j2 = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
+            line(f"P{i}{j} = F{i1}{j1} * F{i2}{j2} - F{i1}{j2} * F{i2}{j1}", 1)
+    line("CH = F00 * P00 + F01 * P01 + F02 * P02 - gamma", 1)
+    for a, comp in enumerate("xyz"):  # the gradients of C_D (g) and C_H (h) at the corners
+        line(f"w0{comp}, w1{comp}, w2{comp}, w3{comp} = " + ", ".join(f"B[{v + a * L} + l]" for v in q), 1)
+    sums = ("aDt", "0.0", "aHt")
+    for a, comp in enumerate("xyz"):
+        f = (f"F{a}0", f"F{a}1", f"F{a}2")
+        P = (f"P{a}0", f"P{a}1", f"P{a}2")
+        for j in range(3):
+            line(f"g{j + 1}{comp} = ({_dot(j, pattern, f, tuple(D[j]))}) * ic", 1)
+            line(f"h{j + 1}{comp} = {_dot(j, pattern, P, tuple(D[j]))}", 1)
+        line(f"g0{comp} = -(((0.0 + g1{comp}) + g2{comp}) + g3{comp})", 1)
+        line(f"h0{comp} = -(((0.0 + h1{comp}) + h2{comp}) + h3{comp})", 1)
+        for k in range(4):  # the Gram sums, corner after corner
+            w, g, h = f"w{k}{comp}", f"g{k}{comp}", f"h{k}{comp}"
+            line(f"a11, a12, a22 = {sums[0]} + {w} * {g} * {g}, {sums[1]} + {w} * {g} * {h}, "
+                 f"{sums[2]} + {w} * {h} * {h}", 1)
+            sums = ("a11", "a12", "a22")
+    line("b1 = -CD - aDt * 0.0", 1)  # multipliers start the substep at 0: b = −C − α̃ · 0
+    line("b2 = -CH - aHt * 0.0", 1)
+    line("idet = 1.0 / (a11 * a22 - a12 * a12)", 1)
+    line("d1 = (a22 * b1 - a12 * b2) * idet", 1)
+    line("d2 = (a11 * b2 - a12 * b1) * idet", 1)
+    for k in range(4):  # each corner moved by W (∇C_D d1 + ∇C_H d2)
+        for a, comp in enumerate("xyz"):
+            line(f"B[{p[k] + a * L} + l] += w{k}{comp} * (g{k}{comp} * d1 + h{k}{comp} * d2)", 1)
 
 
-def _row_lanes(dot0, dot1, dot2):
-    """Row a of ``F = D_s D_m⁻¹`` of lane ``l`` from the rows ``p0..p3`` of component a of the
-    tetrahedron's corners (products with ``D_m⁻¹`` by ``dot*`` of :func:`_dot`)."""
-
-    @njit(inline="always")
-    def row(B, p0, p1, p2, p3, l, d00, d01, d02, d10, d11, d12, d20, d21, d22):
-        x0 = B[p0 + l]
-        e1 = B[p1 + l] - x0
-        e2 = B[p2 + l] - x0
-        e3 = B[p3 + l] - x0
-        return (dot0(e1, e2, e3, d00, d10, d20), dot1(e1, e2, e3, d01, d11, d21),
-                dot2(e1, e2, e3, d02, d12, d22))
-
-    return row
-
-
-def _component_lanes(dot0, dot1, dot2):
-    """One component a of a tetrahedron's constraint gradients (products with ``D_m⁻¹`` by
-    ``dot*`` of :func:`_dot`)."""
-
-    @njit(inline="always")
-    def component(f0, f1, f2, p0, p1, p2, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
-                  w0, w1, w2, w3, a11, a12, a22):
-        """As in :func:`project_all`: C_D's (``g``) and C_H's (``h``) gradients at corners 1..3
-        from row a of F (``f*``) and of cof F (``p*``), corner 0 minus their sum; and the Gram
-        sums ``a11, a12, a22`` advanced by the corners' ``w g g``, ``w g h``, ``w h h`` (``w*``
-        their inverse masses), corner after corner."""
-        g1 = dot0(f0, f1, f2, d00, d01, d02) * ic
-        h1 = dot0(p0, p1, p2, d00, d01, d02)
-        g2 = dot1(f0, f1, f2, d10, d11, d12) * ic
-        h2 = dot1(p0, p1, p2, d10, d11, d12)
-        g3 = dot2(f0, f1, f2, d20, d21, d22) * ic
-        h3 = dot2(p0, p1, p2, d20, d21, d22)
-        g0 = -(((0.0 + g1) + g2) + g3)
-        h0 = -(((0.0 + h1) + h2) + h3)
-        a11, a12, a22 = _gram_add(a11, a12, a22, w0, g0, h0)
-        a11, a12, a22 = _gram_add(a11, a12, a22, w1, g1, h1)
-        a11, a12, a22 = _gram_add(a11, a12, a22, w2, g2, h2)
-        a11, a12, a22 = _gram_add(a11, a12, a22, w3, g3, h3)
-        return g0, g1, g2, g3, h0, h1, h2, h3, a11, a12, a22
-
-    return component
-
-
-def _tet_lanes(pattern: int):
-    """The lane projection of a tetrahedron whose ``D_m⁻¹`` has the zero pattern ``pattern``
-    (:data:`SWEEP_PATTERNS`): its products with ``D_m⁻¹`` (for F and the gradients) skip the zero
-    entries (:func:`_dot`), so that the eight corner tetrahedra of a cell make 3 of every 9 (the
-    8×8×48 beam's sweep: 0.70 → 0.60 ms on Zen 3, the same bits).  One function per pattern,
-    made here, since a branch on the pattern inside one function made Numba's compilation 25×
-    longer; its parts are inlined (Numba's ``inline="always"``, before LLVM sees the code).  That
-    inlining is most of the 34 s :func:`project_cells` takes to compile; left to LLVM, the same
-    functions compiled in 10 s (the same bits in a sweep of the 8×8×48 beam, though a reproduction
-    with them moved xpbd-nh's explicit values in the shear and torsion tables by up to 3.5e-4), but
-    a step of that beam took 1.06–1.10× as long (minimum and median of 30 alternations in one
-    process), so the inlining stays."""
-    dot0, dot1, dot2 = (_dot(k, pattern) for k in range(3))
-    row = _row_lanes(dot0, dot1, dot2)
-    component = _component_lanes(dot0, dot1, dot2)
-
-    @njit(inline="always")
-    def tet(B, c0, c1, c2, c3, Dm, t, aD, aH, gamma, one):
-        """Coupled projection of tetrahedron ``t`` (local corners c0..c3) of every lane's cell, on the
-        lane buffer ``B`` (:data:`SLOTS` rows of :data:`LANES`): exactly the arithmetic of the
-        coupled branch of :func:`project_all`, operation by operation, for one iteration.  ``one``: 1
-        on displacements (``F = I + D_u D_m⁻¹``), 0 on positions (adding 0 to F's diagonal, ≈ 1,
-        leaves it unchanged: one loop serves both states)."""
-        L = LANES
-        d00, d01, d02, d10, d11, d12, d20, d21, d22 = _entries(Dm, t)
-        p0, p1, p2, p3 = 3 * c0 * L, 3 * c1 * L, 3 * c2 * L, 3 * c3 * L
-        q0, q1, q2, q3 = p0 + 24 * L, p1 + 24 * L, p2 + 24 * L, p3 + 24 * L
-        for l in range(L):
-            # F = D_s D_m⁻¹, row a from the edges of component a
-            F00, F01, F02 = row(B, p0, p1, p2, p3, l, d00, d01, d02, d10, d11, d12, d20, d21, d22)
-            F10, F11, F12 = row(B, p0 + L, p1 + L, p2 + L, p3 + L, l, d00, d01, d02, d10, d11, d12, d20, d21, d22)
-            F20, F21, F22 = row(B, p0 + 2 * L, p1 + 2 * L, p2 + 2 * L, p3 + 2 * L, l,
-                                d00, d01, d02, d10, d11, d12, d20, d21, d22)
-            F00 += one
-            F11 += one
-            F22 += one
-            CD = math.sqrt(_squares(F00, F01, F02, F10, F11, F12, F20, F21, F22))
-            ic = 1.0 / CD
-            P00, P01, P02, P10, P11, P12, P20, P21, P22 = cofactor3(F00, F01, F02, F10, F11, F12, F20, F21, F22)
-            CH = F00 * P00 + F01 * P01 + F02 * P02 - gamma
-            # per component: gradients of C_D (g*) and C_H (h*) at the corners, their Gram sums
-            w0x, w1x, w2x, w3x = B[q0 + l], B[q1 + l], B[q2 + l], B[q3 + l]
-            w0y, w1y, w2y, w3y = B[q0 + L + l], B[q1 + L + l], B[q2 + L + l], B[q3 + L + l]
-            w0z, w1z, w2z, w3z = B[q0 + 2 * L + l], B[q1 + 2 * L + l], B[q2 + 2 * L + l], B[q3 + 2 * L + l]
-            g0x, g1x, g2x, g3x, h0x, h1x, h2x, h3x, a11, a12, a22 = component(
-                F00, F01, F02, P00, P01, P02, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
-                w0x, w1x, w2x, w3x, aD, 0.0, aH)
-            g0y, g1y, g2y, g3y, h0y, h1y, h2y, h3y, a11, a12, a22 = component(
-                F10, F11, F12, P10, P11, P12, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
-                w0y, w1y, w2y, w3y, a11, a12, a22)
-            g0z, g1z, g2z, g3z, h0z, h1z, h2z, h3z, a11, a12, a22 = component(
-                F20, F21, F22, P20, P21, P22, d00, d01, d02, d10, d11, d12, d20, d21, d22, ic,
-                w0z, w1z, w2z, w3z, a11, a12, a22)
-            # multipliers start the substep at 0: b = −C − α̃ · 0
-            b1 = -CD - aD * 0.0
-            b2 = -CH - aH * 0.0
-            idet = 1.0 / (a11 * a22 - a12 * a12)
-            d1 = (a22 * b1 - a12 * b2) * idet
-            d2 = (a11 * b2 - a12 * b1) * idet
-            _move_corner(B, p0, l, w0x, w0y, w0z, g0x, g0y, g0z, h0x, h0y, h0z, d1, d2)
-            _move_corner(B, p1, l, w1x, w1y, w1z, g1x, g1y, g1z, h1x, h1y, h1z, d1, d2)
-            _move_corner(B, p2, l, w2x, w2y, w2z, g2x, g2y, g2z, h2x, h2y, h2z, d1, d2)
-            _move_corner(B, p3, l, w3x, w3y, w3z, g3x, g3y, g3z, h3x, h3y, h3z, d1, d2)
-
-    return tet
+def lanes_source() -> str:
+    """Python source of the module holding :func:`project_cells` (the docstring of the module)."""
+    L = LANES
+    out = [
+        '"""Generated by hybmss.models.xpbd_nh._kernels.lanes_source: the lane sweep of xpbd-nh."""',
+        "import math",
+        "import numpy as np",
+        "from numba import njit",
+        "",
+        "",
+        "@njit(cache=True, error_model='numpy', fastmath=False, nogil=True)",
+        "def project_cells(x, posmode, winv, bnodes, bcount, Dm, Vt, mu, lam, gamma, h, B):",
+        f'    """{PROJECT_CELLS_DOC}"""',
+        "    ih2 = 1.0 / (h * h)",
+        "    imu = 1.0 / mu",
+        "    ilam = 1.0 / lam",
+        "    aD = np.empty(10)",
+        "    aH = np.empty(10)",
+        "    for t in range(10):",
+        "        iv = ih2 / Vt[t]",
+        "        aD[t] = imu * iv",
+        "        aH[t] = ilam * iv",
+        "    one = 0.0 if posmode else 1.0",
+        "    for b in range(bnodes.shape[0]):",
+        "        for c in range(8):",
+        f"            for l in range({L}):",
+        "                q = bnodes[b, c, l]",
+        f"                B[3 * c * {L} + l] = x[0, q]",
+        f"                B[(3 * c + 1) * {L} + l] = x[1, q]",
+        f"                B[(3 * c + 2) * {L} + l] = x[2, q]",
+        f"                B[(24 + 3 * c) * {L} + l] = winv[0, q]",
+        f"                B[(25 + 3 * c) * {L} + l] = winv[1, q]",
+        f"                B[(26 + 3 * c) * {L} + l] = winv[2, q]",
+    ]
+    for t, (corners, pattern) in enumerate(zip(SWEEP_TETS, SWEEP_PATTERNS)):
+        _tetrahedron(out, "        ", t, corners, pattern)
+    out += [
+        "        for c in range(8):",
+        "            for l in range(bcount[b]):",
+        "                q = bnodes[b, c, l]",
+        f"                x[0, q] = B[3 * c * {L} + l]",
+        f"                x[1, q] = B[(3 * c + 1) * {L} + l]",
+        f"                x[2, q] = B[(3 * c + 2) * {L} + l]",
+    ]
+    return "\n".join(out) + "\n"
 
 
-_tet_dense, _tet_diagonal, _tet_swapped = (_tet_lanes(p) for p in range(3))
-
-
-@njit(inline="always")
-def _cell_lanes(B, Dm, aD, aH, gamma, one):
-    """The ten tetrahedra of every lane's cell in sweep order (:data:`SWEEP_TETS`, literal)."""
-    _tet_dense(B, 0, 3, 6, 5, Dm, 0, aD[0], aH[0], gamma, one)
-    _tet_swapped(B, 1, 0, 5, 3, Dm, 1, aD[1], aH[1], gamma, one)
-    _tet_swapped(B, 2, 3, 6, 0, Dm, 2, aD[2], aH[2], gamma, one)
-    _tet_swapped(B, 4, 5, 0, 6, Dm, 3, aD[3], aH[3], gamma, one)
-    _tet_swapped(B, 7, 6, 3, 5, Dm, 4, aD[4], aH[4], gamma, one)
-    _tet_dense(B, 1, 2, 4, 7, Dm, 5, aD[5], aH[5], gamma, one)
-    _tet_diagonal(B, 0, 1, 2, 4, Dm, 6, aD[6], aH[6], gamma, one)
-    _tet_diagonal(B, 3, 2, 1, 7, Dm, 7, aD[7], aH[7], gamma, one)
-    _tet_diagonal(B, 5, 4, 7, 1, Dm, 8, aD[8], aH[8], gamma, one)
-    _tet_diagonal(B, 6, 7, 4, 2, Dm, 9, aD[9], aH[9], gamma, one)
-
-
-@njit(**_OPTS)
-def project_cells(x, posmode, winv, bnodes, bcount, Dm, Vt, mu, lam, gamma, h, B):
-    """One coupled Gauss–Seidel sweep (:func:`project_all`, ``iterations = 1``), bit for bit, with
+PROJECT_CELLS_DOC = """One coupled Gauss–Seidel sweep (:func:`project_all`, ``iterations = 1``), bit for bit, with
     the cells of a batch in SIMD lanes.  ``bnodes`` (nb, 8, LANES): the corner nodes of the cells
     of each batch (lanes past ``bcount[b]`` repeat a cell of it and are not written back); the
     cells of a batch share no node and the batches follow :func:`cell_batches`, so every pair of
     tetrahedra that share a node is projected in the order of :func:`project_all`.  ``Dm``
     (10, 3, 3), ``Vt`` (10,): one cell's tetrahedra (the same in every cell); ``B`` a scratch of
-    ``SLOTS · LANES``."""
-    ih2 = 1.0 / (h * h)
-    imu = 1.0 / mu
-    ilam = 1.0 / lam
-    aD = np.empty(10)
-    aH = np.empty(10)
-    for t in range(10):
-        iv = ih2 / Vt[t]
-        aD[t] = imu * iv
-        aH[t] = ilam * iv
-    one = 0.0 if posmode else 1.0
-    L = LANES
-    for b in range(bnodes.shape[0]):
-        for c in range(8):
-            for l in range(L):
-                q = bnodes[b, c, l]
-                B[3 * c * L + l] = x[0, q]
-                B[(3 * c + 1) * L + l] = x[1, q]
-                B[(3 * c + 2) * L + l] = x[2, q]
-                B[(24 + 3 * c) * L + l] = winv[0, q]
-                B[(25 + 3 * c) * L + l] = winv[1, q]
-                B[(26 + 3 * c) * L + l] = winv[2, q]
-        _cell_lanes(B, Dm, aD, aH, gamma, one)
-        for c in range(8):
-            for l in range(bcount[b]):
-                q = bnodes[b, c, l]
-                x[0, q] = B[3 * c * L + l]
-                x[1, q] = B[(3 * c + 1) * L + l]
-                x[2, q] = B[(3 * c + 2) * L + l]
+    ``SLOTS · LANES``.  Generated (:func:`lanes_source`)."""
+
+
+def _lanes_module():
+    """The generated module of :func:`project_cells`, from the kernel cache (its name hashes its source)."""
+    src = lanes_source()
+    return import_generated("hybmss_xpbd_lanes_" + hashlib.sha1(src.encode()).hexdigest()[:20], src)
+
+
+project_cells = _lanes_module().project_cells
 
 
 @njit(**_OPTS)
