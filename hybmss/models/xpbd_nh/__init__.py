@@ -207,7 +207,8 @@ class XpbdStepper(ParticleStepper):
         term, S = self.term, self.system
         if self.kernel == "numba":
             bnodes, bcount = term.batches()
-            done, bad, rest = _kernels_xpbd.run(
+            run = _kernels_xpbd.stepping(bnodes, self.iterations, self.coupled)[0]
+            done, bad, rest = run(
                 self._W, self._posmode, self._Xg, self._wg, term.tets, term.Dminv, term.Vt, term.mu, term.lam,
                 term.gamma, self._gacc, self.accel is not None, self.h, self.damp, self.ramp_time,
                 *self._plates.args(), np.int64(sub0), np.int64(n), np.int64(self.iterations), bool(self.coupled),

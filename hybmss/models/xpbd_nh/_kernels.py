@@ -426,130 +426,153 @@ def moved_since(x, xcheck):
     return moved
 
 
-@njit(**_OPTS)
-def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
-        pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, sub0, nsub, iterations,
-        coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb, bnodes, bcount, B):
-    """Advance ``nsub`` substeps from global substep ``sub0``.  Every ``check_every`` substeps: a
-    diverged node stops the run; after substep ``rest_after`` (the end of the ramp; −1: never) the
-    run also stops once no node moved more than ``rest_disp`` over the last ``check_every``
-    substeps.  ``W``: the state of :func:`hybmss._kernels.particle_state`.  Returns (substeps
-    done, bad node or −1, 1 if at rest else 0).
+def uses_cells(bnodes: np.ndarray, iterations: int, coupled: bool) -> bool:
+    """Whether a sweep is :func:`project_cells` (a lattice body's cells in batches, one coupled
+    iteration) rather than :func:`project_all`."""
+    return bnodes.shape[0] > 0 and iterations == 1 and bool(coupled)
 
-    ``posmode``: ``W`` holds positions (float64).  Else it holds float32 displacements from ``X``
-    and velocities: each substep runs on a float64 copy of the state and is rounded back at its
-    end, so that the velocity ``(x − x_prev)/h`` is not the rounding of x divided by h (which
-    would feed ~ulp(u)/h of noise into the motion every substep).  ``xprev`` (3, n) float64."""
-    n = X.shape[1]
-    Wk = np.empty(W.shape[0])
-    for i in range(W.shape[0]):
-        Wk[i] = W[i]
-    x = Wk[:3 * n].reshape((3, n))
-    v = Wk[3 * n:].reshape((3, n))
-    R, u_old, u_new = plate_scratch(pl_ptr)
-    xcheck = x.copy()
-    done = nsub
-    bad = -1
-    rest = 0
-    for k in range(nsub):
-        step = sub0 + k
-        for d in range(3):
-            for q in range(n):
-                if has_gravity:
-                    v[d, q] = (v[d, q] + h * gacc[d, q]) * damp
+
+def _kernels(cells: bool):
+    """``run`` and ``relax`` with the sweep :func:`project_cells` (``cells``) or
+    :func:`project_all`: ``cells`` is a constant of each, so each compiles the one sweep it calls
+    (the other, compiled and linked into it for nothing, cost 6 s of a process's first run).
+    Choose them with :func:`uses_cells` (:func:`stepping`)."""
+
+    @njit(**_OPTS)
+    def run(W, posmode, X, winv, tets, Dminv, Vt, mu, lam, gamma, gacc, has_gravity, h, damp, ramp_time, pl_nodes,
+            pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, sub0, nsub, iterations,
+            coupled, check_every, limit2, rest_after, rest_disp, xprev, lamb, bnodes, bcount, B):
+        """Advance ``nsub`` substeps from global substep ``sub0``.  Every ``check_every`` substeps: a
+        diverged node stops the run; after substep ``rest_after`` (the end of the ramp; −1: never) the
+        run also stops once no node moved more than ``rest_disp`` over the last ``check_every``
+        substeps.  ``W``: the state of :func:`hybmss._kernels.particle_state`.  Returns (substeps
+        done, bad node or −1, 1 if at rest else 0).
+
+        ``posmode``: ``W`` holds positions (float64).  Else it holds float32 displacements from ``X``
+        and velocities: each substep runs on a float64 copy of the state and is rounded back at its
+        end, so that the velocity ``(x − x_prev)/h`` is not the rounding of x divided by h (which
+        would feed ~ulp(u)/h of noise into the motion every substep).  ``xprev`` (3, n) float64."""
+        n = X.shape[1]
+        Wk = np.empty(W.shape[0])
+        for i in range(W.shape[0]):
+            Wk[i] = W[i]
+        x = Wk[:3 * n].reshape((3, n))
+        v = Wk[3 * n:].reshape((3, n))
+        R, u_old, u_new = plate_scratch(pl_ptr)
+        xcheck = x.copy()
+        done = nsub
+        bad = -1
+        rest = 0
+        for k in range(nsub):
+            step = sub0 + k
+            for d in range(3):
+                for q in range(n):
+                    if has_gravity:
+                        v[d, q] = (v[d, q] + h * gacc[d, q]) * damp
+                    else:
+                        v[d, q] = v[d, q] * damp
+                    xprev[d, q] = x[d, q]
+                    x[d, q] += h * v[d, q]
+            if pl_ptr.shape[0] > 1:
+                apply_plates(Wk, np.int64(0), 3 * n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                             pl_center, pl_angle, ramp(step * h, ramp_time), ramp((step + 1) * h, ramp_time), h, R,
+                             u_old, u_new, 0, n)
+            if cells:
+                project_cells(x, posmode, winv, bnodes, bcount, Dminv, Vt, mu, lam, gamma, h, B)
+            else:
+                project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
+            for d in range(3):
+                for q in range(n):
+                    v[d, q] = (x[d, q] - xprev[d, q]) / h
+            if not posmode:  # the stored state is float32
+                for i in range(W.shape[0]):
+                    W[i] = Wk[i]
+                    Wk[i] = W[i]
+            if (k + 1) % check_every == 0 or k == nsub - 1:
+                bad = find_bad(Wk, np.int64(0), n, n, posmode, X, limit2)
+                if bad >= 0:
+                    done = k + 1
+                    break
+                if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0:
+                    if moved_since(x, xcheck) <= rest_disp:
+                        done = k + 1
+                        rest = 1
+                        break
                 else:
-                    v[d, q] = v[d, q] * damp
-                xprev[d, q] = x[d, q]
-                x[d, q] += h * v[d, q]
-        if pl_ptr.shape[0] > 1:
-            apply_plates(Wk, np.int64(0), 3 * n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
-                         pl_center, pl_angle, ramp(step * h, ramp_time), ramp((step + 1) * h, ramp_time), h, R,
-                         u_old, u_new, 0, n)
-        if bnodes.shape[0] > 0 and iterations == 1 and coupled:
-            project_cells(x, posmode, winv, bnodes, bcount, Dminv, Vt, mu, lam, gamma, h, B)
-        else:
-            project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
-        for d in range(3):
-            for q in range(n):
-                v[d, q] = (x[d, q] - xprev[d, q]) / h
-        if not posmode:  # the stored state is float32
+                    xcheck[:, :] = x
+        if posmode:
             for i in range(W.shape[0]):
                 W[i] = Wk[i]
-                Wk[i] = W[i]
-        if (k + 1) % check_every == 0 or k == nsub - 1:
-            bad = find_bad(Wk, np.int64(0), n, n, posmode, X, limit2)
-            if bad >= 0:
-                done = k + 1
-                break
-            if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0:
-                if moved_since(x, xcheck) <= rest_disp:
-                    done = k + 1
-                    rest = 1
-                    break
+        return done, bad, rest
+
+
+    @njit(**_OPTS)
+    def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, over, beta, H, ramp_time, pl_nodes,
+              pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, k0, nk, iterations, coupled,
+              check_every, limit2, rest_after, rest_disp, xprev, y, lamb, bnodes, bcount, B):
+        """``nk`` iterations, from iteration ``k0``, of the relaxation to the rest state of the substep
+        ``h`` (:func:`hybmss.models.xpbd_nh.relax.relax_static`), float64 positions ``W[:3n]``::
+
+            y = x + β (x − x_prev);  z = y + gdisp  (gdisp = damp h² g on free components)
+            prescribed components of z at the load s((k + 1) H);  p = project_h(z)
+            x_new = y + over · (p − y)  on free components (p on prescribed ones)
+
+        A fixed point (x = x_prev) has ``project_h(x + gdisp) = x``: the rest state of the XPBD
+        substep, whatever ``over`` and ``β``.  Checks as in :func:`run`, every ``check_every``
+        iterations.  ``W`` (6n,): positions, then a scratch for the plates' velocities.  Returns
+        (iterations done, bad node or −1, 1 if at rest else 0)."""
+        n = X.shape[1]
+        x = W[:3 * n].reshape((3, n))
+        # positions, as run-time values: a literal True or 0 would compile the callees (the sweep
+        # takes 22 s) a second time, for this caller alone
+        posmode = np.bool_(True)
+        base = np.int64(0)
+        R, u_old, u_new = plate_scratch(pl_ptr)
+        xcheck = x.copy()
+        done = nk
+        bad = -1
+        rest = 0
+        for k in range(nk):
+            it = k0 + k
+            for d in range(3):
+                for q in range(n):
+                    yq = x[d, q] + beta * (x[d, q] - xprev[d, q])
+                    xprev[d, q] = x[d, q]
+                    y[d, q] = yq
+                    x[d, q] = yq + gdisp[d, q] if has_gravity else yq
+            if pl_ptr.shape[0] > 1:
+                apply_plates(W, base, 3 * n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
+                             pl_center, pl_angle, ramp(it * H, ramp_time), ramp((it + 1) * H, ramp_time), H, R,
+                             u_old, u_new, 0, n)
+            if cells:
+                project_cells(x, posmode, winv, bnodes, bcount, Dminv, Vt, mu, lam, gamma, h, B)
             else:
-                xcheck[:, :] = x
-    if posmode:
-        for i in range(W.shape[0]):
-            W[i] = Wk[i]
-    return done, bad, rest
-
-
-@njit(**_OPTS)
-def relax(W, X, winv, tets, Dminv, Vt, mu, lam, gamma, gdisp, has_gravity, h, over, beta, H, ramp_time, pl_nodes,
-          pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis, pl_center, pl_angle, k0, nk, iterations, coupled,
-          check_every, limit2, rest_after, rest_disp, xprev, y, lamb, bnodes, bcount, B):
-    """``nk`` iterations, from iteration ``k0``, of the relaxation to the rest state of the substep
-    ``h`` (:func:`hybmss.models.xpbd_nh.relax.relax_static`), float64 positions ``W[:3n]``::
-
-        y = x + β (x − x_prev);  z = y + gdisp  (gdisp = damp h² g on free components)
-        prescribed components of z at the load s((k + 1) H);  p = project_h(z)
-        x_new = y + over · (p − y)  on free components (p on prescribed ones)
-
-    A fixed point (x = x_prev) has ``project_h(x + gdisp) = x``: the rest state of the XPBD
-    substep, whatever ``over`` and ``β``.  Checks as in :func:`run`, every ``check_every``
-    iterations.  ``W`` (6n,): positions, then a scratch for the plates' velocities.  Returns
-    (iterations done, bad node or −1, 1 if at rest else 0)."""
-    n = X.shape[1]
-    x = W[:3 * n].reshape((3, n))
-    # positions, as run-time values: a literal True or 0 would compile the callees (the sweep
-    # takes 22 s) a second time, for this caller alone
-    posmode = np.bool_(True)
-    base = np.int64(0)
-    R, u_old, u_new = plate_scratch(pl_ptr)
-    xcheck = x.copy()
-    done = nk
-    bad = -1
-    rest = 0
-    for k in range(nk):
-        it = k0 + k
-        for d in range(3):
-            for q in range(n):
-                yq = x[d, q] + beta * (x[d, q] - xprev[d, q])
-                xprev[d, q] = x[d, q]
-                y[d, q] = yq
-                x[d, q] = yq + gdisp[d, q] if has_gravity else yq
-        if pl_ptr.shape[0] > 1:
-            apply_plates(W, base, 3 * n, n, posmode, X, pl_nodes, pl_U1, pl_ptr, pl_mask, pl_kind, pl_disp, pl_axis,
-                         pl_center, pl_angle, ramp(it * H, ramp_time), ramp((it + 1) * H, ramp_time), H, R,
-                         u_old, u_new, 0, n)
-        if bnodes.shape[0] > 0 and iterations == 1 and coupled:
-            project_cells(x, posmode, winv, bnodes, bcount, Dminv, Vt, mu, lam, gamma, h, B)
-        else:
-            project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
-        for d in range(3):
-            for q in range(n):
-                if winv[d, q] != 0.0:
-                    x[d, q] = y[d, q] + over * (x[d, q] - y[d, q])
-        if (k + 1) % check_every == 0 or k == nk - 1:
-            bad = find_bad(W, base, n, n, posmode, X, limit2)
-            if bad >= 0:
-                done = k + 1
-                break
-            if rest_after >= 0 and it + 1 >= rest_after and (k + 1) % check_every == 0:
-                if moved_since(x, xcheck) <= rest_disp:
+                project_all(x, posmode, winv, tets, Dminv, Vt, mu, lam, gamma, h, iterations, coupled, lamb)
+            for d in range(3):
+                for q in range(n):
+                    if winv[d, q] != 0.0:
+                        x[d, q] = y[d, q] + over * (x[d, q] - y[d, q])
+            if (k + 1) % check_every == 0 or k == nk - 1:
+                bad = find_bad(W, base, n, n, posmode, X, limit2)
+                if bad >= 0:
                     done = k + 1
-                    rest = 1
                     break
-            else:
-                xcheck[:, :] = x
-    return done, bad, rest
+                if rest_after >= 0 and it + 1 >= rest_after and (k + 1) % check_every == 0:
+                    if moved_since(x, xcheck) <= rest_disp:
+                        done = k + 1
+                        rest = 1
+                        break
+                else:
+                    xcheck[:, :] = x
+        return done, bad, rest
+
+    return run, relax
+
+
+_STEPPING = {cells: _kernels(cells) for cells in (True, False)}
+
+
+def stepping(bnodes: np.ndarray, iterations: int, coupled: bool):
+    """``(run, relax)`` for a body's batches ``bnodes`` and a sweep of ``iterations`` iterations,
+    ``coupled`` or not (:func:`uses_cells`)."""
+    return _STEPPING[uses_cells(bnodes, iterations, coupled)]

@@ -139,7 +139,7 @@ class _Relaxation:
 def _relax_numba(system: System, term: XpbdNH, x: np.ndarray, winv: np.ndarray, gdisp: np.ndarray, loaded: bool,
                  it: _Relaxation):
     """``(x, x_prev, steps done, bad particle or −1, at rest)`` of the iteration by the Numba
-    kernel :func:`hybmss.models.xpbd_nh._kernels.relax`, in calls of whole check intervals."""
+    kernel ``relax`` of :func:`hybmss.models.xpbd_nh._kernels.stepping`, in calls of whole check intervals."""
     n = system.n
     W = np.zeros(6 * n)
     xg = W[:3 * n].reshape(3, n)
@@ -152,6 +152,7 @@ def _relax_numba(system: System, term: XpbdNH, x: np.ndarray, winv: np.ndarray, 
     lamb = np.empty((len(term.tets), 2))
     bnodes, bcount = term.batches()
     B = np.empty(_kernels_xpbd.SLOTS * _kernels_xpbd.LANES)
+    relax = _kernels_xpbd.stepping(bnodes, it.iterations, it.coupled)[1]
     chunks = Chunks(it.check)
     done, bad, rest = 0, -1, False
     with interruptible():  # calls of whole check intervals (~0.1 s): a signal stops it between them
@@ -159,7 +160,7 @@ def _relax_numba(system: System, term: XpbdNH, x: np.ndarray, winv: np.ndarray, 
             interruptible.check()
             n_call = chunks.next(it.n_max - done)
             (k, bad, rest), w, _ = timed(
-                _kernels_xpbd.relax, W, *args, np.int64(done), np.int64(n_call), np.int64(it.iterations),
+                relax, W, *args, np.int64(done), np.int64(n_call), np.int64(it.iterations),
                 bool(it.coupled), np.int64(it.check), float(it.limit2), np.int64(it.rest_after),
                 float(it.rest_disp), xprev, y, lamb, bnodes, bcount, B)
             chunks.took(n_call, w)
