@@ -4,6 +4,8 @@
   gives the solution of SuperLU's own order (linear Hex2 and mixed u–p solves);
 - the tangent's sparsity pattern built from the scalar pattern equals the one built from every
   vector entry, and the compiled one equals both;
+- the linear stiffness ``λ K_λ + μ K_μ`` summed on the parts' shared pattern is SciPy's sum,
+  array for array (entries that cancel left out);
 - Newton with reused factorizations (chord steps), loosely converged intermediate load steps and
   the reordered factorizations reaches the equilibrium of the plain scheme (a fresh tangent at
   every iteration, every step to the full tolerance, minimum degree order) to 1e-8.
@@ -16,7 +18,7 @@ import scipy.sparse as sp
 from fem_reference.dirichlet import plate_dirichlet
 from fem_reference.hyperelastic import Hyperelasticity
 from fem_reference.linalg import OrderedLU, dof_order, nested_dissection
-from fem_reference.linear import LinearElasticity
+from fem_reference.linear import LinearElasticity, _weighted_sum
 from fem_reference.mesh import build_mesh
 from fem_reference.space import Space
 from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
@@ -25,6 +27,19 @@ from hybmss.scene import Body, Material, Motion, Plate, Region, Scene
 def _box_scene(body, nu, motion, gravity=(0.0, 0.0, 0.0), E=1e4):
     return Scene(body, Material(E, nu, 1000.0), gravity=gravity,
                  plates=(Plate("bottom", Region("z-")),) + ((Plate("top", Region("z+"), motion),) if motion else ()))
+
+
+@pytest.mark.parametrize("element", ["hex1", "hex2", "mixed"])
+def test_stiffness_sum_on_the_shared_pattern_is_scipys(element):
+    L = LinearElasticity(build_mesh(Body.box(2, 2, 3, 0.5), 1), element)
+    A, B = L.parts
+    for lam, mu in ((0.0, 1.0), (3.0, 1.0), (1.0, 0.0)):
+        K, ref = _weighted_sum(lam, A, mu, B), (lam * A + mu * B).sorted_indices()
+        for name in ("indptr", "indices", "data"):
+            assert np.array_equal(getattr(K, name), getattr(ref, name))
+    # a pattern of its own: SciPy's sum
+    C = sp.identity(A.shape[0], format="csr")
+    assert np.array_equal(_weighted_sum(2.0, A, 1.0, C).toarray(), (2.0 * A + C).toarray())
 
 
 def test_dof_order_expands_nodes():
