@@ -62,13 +62,18 @@ CUBES = ((10, 10, 10), (15, 15, 15), (20, 20, 20), (30, 30, 30))
 BEAMS = ((4, 4, 24), (8, 8, 48), (10, 10, 60), (16, 16, 96))
 QUICK_CUBES = ((4, 4, 4),)
 QUICK_BEAMS = ((2, 2, 12),)
-"""The meshes of ``--quick``: one of each body.  Each mesh costs its own kernels (4 variants × 2
-thread counts, :func:`compile_kernels`): with two of each body the quick study compiled 24 kernels
+"""The meshes of ``--quick``: one of each body.  Each mesh costs its own kernels (per variant and
+thread count, :func:`compile_kernels`): with two of each body the quick study compiled 24 kernels
 in 38.9 s of its 48.8 s (cold cache, 2 workers), the timing itself 8.5 s; the reproduction's
 scaling against the mesh is the full study's."""
 NU_OTHER = 0.3
 NU_QUARTER = 0.25
 THREADS = (1, 2)
+QUICK_THREADS = (1,)
+"""The thread counts of ``--quick``: one.  Its lattices have two blocks of 64 nodes, so on two
+threads each thread would recompute the other's block as its halo: a figure of the barrier, not
+of the kernel.  Its two-thread kernels were 8 of the 10 it compiled (about 40 s of CPU on 2
+workers, cold, of a quick study of 29 s); the one-thread ones are those the quick runs compiled."""
 BEAM_E = 1e7
 CUBE_DT = 1e-3
 WORD = 8  # bytes (float64)
@@ -363,11 +368,13 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
-                    threads=THREADS, progress: bool = False, min_span: float = MIN_SPAN,
+                    threads=None, progress: bool = False, min_span: float = MIN_SPAN,
                     bandwidth_MB: int | None = None, cubes=None, beams=None,
                     workers: int | None = None) -> tuple[pd.DataFrame, dict]:
     """Time every mesh (``cubes``/``beams`` replace the default lists; the kernels compiled first
-    on ``workers`` processes, :func:`compile_kernels`); returns (table, bandwidth)."""
+    on ``workers`` processes, :func:`compile_kernels`; ``threads`` replaces :data:`THREADS`, or
+    :data:`QUICK_THREADS` with ``quick``); returns (table, bandwidth)."""
+    threads = tuple(threads) if threads is not None else (QUICK_THREADS if quick else THREADS)
     cubes = tuple(cubes) if cubes is not None else (QUICK_CUBES if quick else CUBES)
     beams = tuple(beams) if beams is not None else (QUICK_BEAMS if quick else BEAMS)
     steps = steps or (200 if quick else 1000)
