@@ -6,6 +6,7 @@
   vector entry, and the compiled one equals both;
 - the linear stiffness ``λ K_λ + μ K_μ`` summed on the parts' shared pattern is SciPy's sum,
   array for array (entries that cancel left out);
+- the linear solver chosen without counting the free block's entries is the one chosen with them;
 - Newton with reused factorizations (chord steps), loosely converged intermediate load steps and
   the reordered factorizations reaches the equilibrium of the plain scheme (a fresh tangent at
   every iteration, every step to the full tolerance, minimum degree order) to 1e-8.
@@ -40,6 +41,23 @@ def test_stiffness_sum_on_the_shared_pattern_is_scipys(element):
     # a pattern of its own: SciPy's sum
     C = sp.identity(A.shape[0], format="csr")
     assert np.array_equal(_weighted_sum(2.0, A, 1.0, C).toarray(), (2.0 * A + C).toarray())
+
+
+def test_solver_choice_without_counting_is_the_choice_with_counting(monkeypatch):
+    import fem_reference.linalg as L
+
+    A, B = LinearElasticity(build_mesh(Body.box(2, 2, 3, 0.5), 1), "hex2").parts
+    K = A + B
+    free = np.ones(K.shape[0], dtype=bool)
+    free[: K.shape[0] // 3] = False
+    sub = L._submatrix_nnz(K, free)
+    assert sub < K.nnz
+    for limit in (sub - 1, sub, (sub + K.nnz) // 2, K.nnz, K.nnz + 1):  # around both counts
+        monkeypatch.setattr(L, "DIRECT_MAX_NNZ", limit)
+        monkeypatch.setattr(L, "DIRECT_MAX_NNZ_CHOLMOD", limit)
+        for method in ("auto", "direct", "amg"):
+            for separator in (None, 10, 10**6):
+                assert L._spd_kind(method, K, free, separator) == L._choose_spd(method, sub, separator)
 
 
 def test_dof_order_expands_nodes():
