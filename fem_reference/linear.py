@@ -103,8 +103,7 @@ def _weighted_sum(a: float, A: sp.csr_matrix, b: float, B: sp.csr_matrix) -> sp.
     """``a A + b B``, the same matrix as SciPy's sum (entries that sum to exactly 0 left out): when
     ``A`` and ``B`` share their pattern (the parts of :meth:`LinearElasticity.parts`), a sum of
     their data arrays (the 8×8×48 beam in Hex2: about 0.1 s instead of 2.1 s)."""
-    if A.indptr is B.indptr and A.indices is B.indices or (
-            np.array_equal(A.indptr, B.indptr) and np.array_equal(A.indices, B.indices)):
+    if np.array_equal(A.indptr, B.indptr) and np.array_equal(A.indices, B.indices):
         K = sp.csr_matrix((a * A.data + b * B.data, A.indices.copy(), A.indptr.copy()), shape=A.shape)
         K.eliminate_zeros()
         return K

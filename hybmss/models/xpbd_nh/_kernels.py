@@ -426,6 +426,22 @@ def moved_since(x, xcheck):
     return moved
 
 
+@njit(**_OPTS)
+def checked(W, base, posmode, X, limit2, x, xcheck, resting, rest_disp):
+    """The check of :func:`run` and ``relax`` every ``check_every`` substeps (iterations): ``(bad
+    node or −1, 1 if at rest else 0)``.  A diverged node first; then, once ``resting`` (past the
+    end of the ramp, at a whole check interval), at rest when no node of ``x`` (3, n) moved more
+    than ``rest_disp`` since ``xcheck``; ``xcheck`` takes ``x``'s values either way."""
+    n = X.shape[1]
+    bad = find_bad(W, base, n, n, posmode, X, limit2)
+    if bad >= 0:
+        return bad, 0
+    if resting:
+        return -1, 1 if moved_since(x, xcheck) <= rest_disp else 0
+    xcheck[:, :] = x
+    return -1, 0
+
+
 def uses_cells(bnodes: np.ndarray, iterations: int, coupled: bool) -> bool:
     """Whether a sweep is :func:`project_cells` (a lattice body's cells in batches, one coupled
     iteration) rather than :func:`project_all`."""
@@ -489,17 +505,11 @@ def _kernels(cells: bool):
                     W[i] = Wk[i]
                     Wk[i] = W[i]
             if (k + 1) % check_every == 0 or k == nsub - 1:
-                bad = find_bad(Wk, np.int64(0), n, n, posmode, X, limit2)
-                if bad >= 0:
+                resting = rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0
+                bad, rest = checked(Wk, np.int64(0), posmode, X, limit2, x, xcheck, resting, rest_disp)
+                if bad >= 0 or rest:
                     done = k + 1
                     break
-                if rest_after >= 0 and step + 1 >= rest_after and (k + 1) % check_every == 0:
-                    if moved_since(x, xcheck) <= rest_disp:
-                        done = k + 1
-                        rest = 1
-                        break
-                else:
-                    xcheck[:, :] = x
         if posmode:
             for i in range(W.shape[0]):
                 W[i] = Wk[i]
@@ -553,17 +563,11 @@ def _kernels(cells: bool):
                     if winv[d, q] != 0.0:
                         x[d, q] = y[d, q] + over * (x[d, q] - y[d, q])
             if (k + 1) % check_every == 0 or k == nk - 1:
-                bad = find_bad(W, base, n, n, posmode, X, limit2)
-                if bad >= 0:
+                resting = rest_after >= 0 and it + 1 >= rest_after and (k + 1) % check_every == 0
+                bad, rest = checked(W, base, posmode, X, limit2, x, xcheck, resting, rest_disp)
+                if bad >= 0 or rest:
                     done = k + 1
                     break
-                if rest_after >= 0 and it + 1 >= rest_after and (k + 1) % check_every == 0:
-                    if moved_since(x, xcheck) <= rest_disp:
-                        done = k + 1
-                        rest = 1
-                        break
-                else:
-                    xcheck[:, :] = x
         return done, bad, rest
 
     return run, relax
