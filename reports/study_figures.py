@@ -137,8 +137,18 @@ def performance(df: pd.DataFrame, path: Path) -> Figure | None:
         save_figure(plt, fig, path)
     return Figure("fig_performance", "Time per explicit step against the number of volumes (Figs 11, 12)", Path(path),
                   f"From tables/performance.csv: {tcol} of the timed runs divided by the step count, in ms per step "
-                  "(numba stencil kernel; solid 1 thread, dashed 2 threads). Hollow circles: hybmss at ν = 1/4 "
+                  f"(numba stencil kernel{_thread_styles(threads)}). Hollow circles: hybmss at ν = 1/4 "
                   "(κ = 0, no volume term). Stars: the publication's time per step (10,000 steps of the 10³ cube).")
+
+
+def _thread_styles(threads: list) -> str:
+    """The line style of each thread count timed (those of :func:`performance`'s lines), for a caption."""
+    counts = [int(th) for th in threads if th is not None]
+    words = [f"{int(th)} thread{'s' if th != 1 else ''}" for th in counts]
+    if len(words) == 1:
+        return f"; {words[0]}"
+    return "".join(f"{'; ' if i == 0 else ', '}{style} {w}"
+                   for i, (style, w) in enumerate(zip(("solid", "dashed", "dotted", "dash-dotted"), words)))
 
 
 def pareto(df: pd.DataFrame, path: Path) -> Figure | None:

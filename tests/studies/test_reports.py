@@ -892,3 +892,15 @@ def test_the_report_reads_the_derived_tables_as_the_studies_store_them(results, 
     cant = stored.table("baudet_cantilever")
     assert set(cmp.loc[cmp["experiment"] == "cantilever", "model"]) == set(cant["model"])
     assert cmp["b09_mean_pct"].notna().any()
+
+
+@pytest.mark.parametrize("threads", [(1,), (1, 2)])
+def test_performance_caption_names_the_thread_counts_timed(threads, tmp_path):
+    """The quick study times one thread: its figure's caption must not describe a dashed line it lacks."""
+    from reports.study_figures import performance
+
+    rows = [{"scene": "compression", "variant": v, "nu": 0.3, "threads": th, "volumes": n, "steps": 100,
+             "best_s": 1e-4 * n / th} for v in ("hybmss", "hybmss-fd") for th in threads for n in (64, 512)]
+    caption = performance(pd.DataFrame(rows), tmp_path / "perf.png").caption
+    assert ("dashed 2 threads" in caption) == (2 in threads)
+    assert ("1 thread" in caption) and ("solid" in caption) == (len(threads) > 1)
