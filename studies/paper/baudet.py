@@ -298,5 +298,5 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     for name, table in file_study_tables(STUDY, vol, rows, quick, store=store).items():
         store.write_table(name, table)
     fn = partial(_table, progress=progress)
-    for name, df in zip(TABLES, map_stored(store, "baudet_tables", fn, [(n, quick) for n in TABLES], jobs)):
+    for name, df in zip(TABLES, map_stored(store, "baudet_tables", fn, [(n, quick) for n in TABLES], jobs, runner)):
         store.write_table(name, df)

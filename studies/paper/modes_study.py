@@ -94,7 +94,7 @@ def run(store, quick: bool = False, jobs: int | None = None, progress: bool = Tr
     from studies.sweep.executors import map_local
 
     work = [(body, quick, nu) for body in BODIES for nu in NUS]
-    done = dict(zip(work, map_local(_pair_job, work, jobs)))
+    done = dict(zip(work, map_local(_pair_job, work, jobs, runner)))
     tables, pairs = {}, []
     for body in BODIES:
         rows = pd.DataFrame([r for nu in NUS for r in done[(body, quick, nu)]])

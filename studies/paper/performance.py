@@ -185,13 +185,15 @@ def _compile_one(job: tuple) -> tuple:
     return job
 
 
-def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = None, progress: bool = False) -> int:
+def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = None, progress: bool = False,
+                    runner=None) -> int:
     """Compile the generated kernel of every configuration the timings will run, ``workers``
     processes at a time, before any is timed: each (mesh, offsets, terms, threads) has its own
     kernel (:mod:`hybmss._stencil_gen`), about 3 s of compilation on one thread and 6 s on two
     (the 10³ cube at ν = 0.499), most of it Numba's type inference of the step bodies.  The
     timings then load them from the cache.  A kernel already in the cache (:func:`kernel_cached`)
-    is not loaded again here.  ``jobs``: (kind, mesh, dt); returns the kernels compiled."""
+    is not loaded again here.  ``jobs``: (kind, mesh, dt); ``runner``: whose session's workers
+    compile (:func:`studies.sweep.executors.map_local`); returns the kernels compiled."""
     from hybmss.explicit import stencil
     from hybmss.system import build
 
@@ -210,7 +212,7 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
     if progress:
         print(f"performance: compiling {len(todo)} kernels", flush=True)
     # the longest (two threads, large meshes) first, so that no worker is left with one at the end
-    map_local(_compile_one, sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1])))), workers)
+    map_local(_compile_one, sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1])))), workers, runner)
     return len(todo)
 
 
@@ -370,9 +372,9 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 def run_performance(quick: bool = False, steps: int | None = None, repeats: int | None = None,
                     threads=None, progress: bool = False, min_span: float = MIN_SPAN,
                     bandwidth_MB: int | None = None, cubes=None, beams=None,
-                    workers: int | None = None) -> tuple[pd.DataFrame, dict]:
+                    workers: int | None = None, runner=None) -> tuple[pd.DataFrame, dict]:
     """Time every mesh (``cubes``/``beams`` replace the default lists; the kernels compiled first
-    on ``workers`` processes, :func:`compile_kernels`; ``threads`` replaces :data:`THREADS`, or
+    on ``workers`` processes or ``runner``'s, :func:`compile_kernels`; ``threads`` replaces :data:`THREADS`, or
     :data:`QUICK_THREADS` with ``quick``); returns (table, bandwidth)."""
     threads = tuple(threads) if threads is not None else (QUICK_THREADS if quick else THREADS)
     cubes = tuple(cubes) if cubes is not None else (QUICK_CUBES if quick else CUBES)
@@ -384,7 +386,7 @@ def run_performance(quick: bool = False, steps: int | None = None, repeats: int 
     dt_b = beam_dt(beams) if beams else CUBE_DT
     rows = []
     jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
-    compile_kernels(jobs, threads, workers, progress)
+    compile_kernels(jobs, threads, workers, progress, runner)
     for kind, mesh, dt in jobs:
         if progress:
             print(f"performance: {kind} {'x'.join(map(str, mesh))}", flush=True)
@@ -405,8 +407,9 @@ def format_table(df: pd.DataFrame) -> str:
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True,
         runner=None) -> pd.DataFrame:
-    """Study driver (``EXTRA_STUDIES``): always serial in this process (timings), whatever ``runner``."""
-    df, bw = run_performance(quick=quick, progress=progress, workers=jobs)
+    """Study driver (``EXTRA_STUDIES``): the kernels compiled on ``runner``'s workers (or ``jobs``
+    processes), the timings serial in this process."""
+    df, bw = run_performance(quick=quick, progress=progress, workers=jobs, runner=runner)
     store.write_table("performance", df)
     store.write_table("performance_summary", summary(df))
     store.write_table("bandwidth", pd.DataFrame([bw]))

@@ -22,7 +22,7 @@ from importlib import resources
 from pathlib import Path
 
 from studies.sweep.outcomes import expected_finding
-from studies.sweep.runner import SolverSpec, Task, run_tasks
+from studies.sweep.runner import Runner, SolverSpec, Task, run_tasks
 from studies.sweep.store import Store
 from studies.study.experiment import configurations, experiment_tasks, file_tables, validate_experiment
 
@@ -182,7 +182,11 @@ def tasks_for(names=None, quick: bool = False) -> list[Task]:
 def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, progress: bool = True,
                 runner=None):
     """Run (or resume) the named studies into the results folder ``out`` and write the tables.
-    ``runner`` (a :class:`studies.sweep.runner.Runner`) chooses where runs are computed."""
+    ``runner`` (a :class:`studies.sweep.runner.Runner`) chooses where runs are computed; without
+    one, a runner of ``jobs`` local workers kept for every study (its session)."""
+    if runner is None:
+        with Runner(jobs=jobs, progress=progress) as own:
+            return run_studies(out, names, quick, jobs, progress, own)
     from studies.paper.claims import write_claims
     from studies.paper.stored import write_derived
     from studies.paper.tables import write_tables
@@ -208,7 +212,7 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
             pooled += module.tasks(quick)
     rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
                      runner=runner, expected=expected_finding)[:n_listed] if pooled else []
-    write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None)
+    write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None, runner)
     for name in names:
         if name in drivers:
             module, func = drivers[name].split(":")

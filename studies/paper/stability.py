@@ -190,17 +190,18 @@ def _dt_row(job: tuple) -> dict:
 
 
 def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = None,
-             workers: int | None = None, store: Store | None = None) -> pd.DataFrame:
+             workers: int | None = None, store: Store | None = None, runner=None) -> pd.DataFrame:
     """Part (a): one bisection per ν and variant, ``workers`` processes at a time (each is
     deterministic: the table does not depend on how they are spread), each kept in ``store``
-    when one is given (:func:`studies.sweep.executors.map_stored`: a rerun computes only the missing)."""
+    when one is given (:func:`studies.sweep.executors.map_stored`: a rerun computes only the missing;
+    ``runner``: whose session's workers compute)."""
     from studies.sweep.executors import map_stored
 
     mesh = (2, 2, 2) if quick else (4, 4, 4)
     steps = steps or (2000 if quick else 10_000)
     jobs = [(nu, model, mesh, steps) for nu in nus
             for model in (variants if variants is not None else stability_models())]
-    return pd.DataFrame(map_stored(store, "dt_stability", _dt_row, jobs, workers))
+    return pd.DataFrame(map_stored(store, "dt_stability", _dt_row, jobs, workers, runner))
 
 
 # ------------------------------------------------------------------------------ (b, c) extreme
@@ -461,13 +462,14 @@ def irregular_scenes(quick: bool = False, nu: float = 0.25, model: str | None = 
     return out
 
 
-def irregular_table(quick: bool = False, workers: int | None = None, store: Store | None = None) -> pd.DataFrame:
+def irregular_table(quick: bool = False, workers: int | None = None, store: Store | None = None,
+                    runner=None) -> pd.DataFrame:
     """Part (e): the rows of each ν computed ``workers`` processes at a time, kept in ``store``
     when one is given (as in :func:`dt_table`)."""
     from studies.sweep.executors import map_stored
 
     nus = (0.0, 0.499) if quick else NU_EXTREME
-    parts = map_stored(store, "stability_irregular", _irregular_rows, [(quick, nu) for nu in nus], workers)
+    parts = map_stored(store, "stability_irregular", _irregular_rows, [(quick, nu) for nu in nus], workers, runner)
     return pd.DataFrame([r for rows in parts for r in rows])
 
 
@@ -658,10 +660,10 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
             tables[name] = table(store, ts, rows)
             store.write_table(name, tables[name])
         elif part == "a":
-            tables["dt_stability"] = dt_table(quick, workers=jobs, store=store)
+            tables["dt_stability"] = dt_table(quick, workers=jobs, store=store, runner=runner)
             store.write_table("dt_stability", tables["dt_stability"])
         elif part == "e":
-            tables["stability_irregular"] = irregular_table(quick, workers=jobs, store=store)
+            tables["stability_irregular"] = irregular_table(quick, workers=jobs, store=store, runner=runner)
             store.write_table("stability_irregular", tables["stability_irregular"])
         if part in "ce":
             tables["stability"] = _combined(store)

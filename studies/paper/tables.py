@@ -283,16 +283,18 @@ def _moduli_row(job: tuple) -> dict:
             "model": model.name, **{k: v for k, v in model.to_dict().items() if k != "name"}}
 
 
-def moduli_table(nus=MODULI_NUS, store: Store | None = None, workers: int | None = None) -> pd.DataFrame:
+def moduli_table(nus=MODULI_NUS, store: Store | None = None, workers: int | None = None,
+                 runner=None) -> pd.DataFrame:
     """Effective moduli of every model of the studies with each parameter set it is compared in
     (:func:`moduli_variants`), rows by ν then variant; measured on ``workers`` processes, each
     row kept in ``store`` as computation ``moduli`` (:func:`studies.sweep.executors.map_stored`:
-    not measured again while the code is the same; ``None``: measured each time)."""
+    not measured again while the code is the same; ``None``: measured each time; ``runner``: whose
+    session's workers measure)."""
     from studies.sweep.executors import map_stored
 
     variants = moduli_variants(nus)
     jobs = [(model.to_dict(), float(nu)) for nu in nus for model in variants]
-    return pd.DataFrame(map_stored(store, "moduli", _moduli_row, jobs, workers))
+    return pd.DataFrame(map_stored(store, "moduli", _moduli_row, jobs, workers, runner))
 
 
 def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -374,8 +376,9 @@ def models_table() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write_tables(store: Store, keys=None) -> dict:
-    """Build every table from the stored runs (and the cheap moduli tests); returns them.
+def write_tables(store: Store, keys=None, runner=None) -> dict:
+    """Build every table from the stored runs (and the cheap moduli tests, on ``runner``'s workers
+    when it has a session's, :func:`moduli_table`); returns them.
     ``keys``: only the runs of these keys (the studies' tasks; None: every stored run), so that
     the tables do not change with what other studies stored in the same folder."""
     df = runs_frame(store, keys)
@@ -397,7 +400,7 @@ def write_tables(store: Store, keys=None) -> dict:
         tables["reference_laws"] = reference_laws_table(df)
         tables["study_variants"] = study_variants_table(df)
         tables["bending_curves"], tables["euler_bernoulli"] = bending_curves(df, store)
-    tables["moduli"] = moduli_table(store=store)
+    tables["moduli"] = moduli_table(store=store, runner=runner)
     tables["published_models"] = publication.published_models()
     tables["lattice_counts"] = lattice_counts_table()
     for name, t in tables.items():

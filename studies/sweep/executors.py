@@ -103,28 +103,65 @@ def worker_context():
     return ctx
 
 
+class Workers:
+    """``jobs`` worker processes of this machine (:func:`worker_context`), started at their first
+    use and kept for every later sweep and map given them: what a worker loaded for one run (its
+    imports, the compiled kernels, an engine's start-up, 4 s for Newton's Warp) serves the next.
+    A :class:`studies.sweep.runner.Runner` used as a context manager keeps one for its session
+    (:meth:`~studies.sweep.runner.Runner.local_workers`).  :meth:`kill` (a failure, Ctrl-C) ends
+    them at once; the next use starts new ones."""
+
+    def __init__(self, jobs: int):
+        self.jobs = jobs
+        self._pool: ProcessPoolExecutor | None = None
+        self._before: set = set()
+        self.procs: list = []
+
+    def submit(self, fn: Callable, *args):
+        """``fn(*args)`` on a worker: its future."""
+        if self._pool is None:
+            self._before = set(multiprocessing.active_children())
+            self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=worker_context(),
+                                             initializer=ignore_interrupt)
+            self.procs = []
+        fut = self._pool.submit(fn, *args)
+        # workers are started as work is submitted, up to ``jobs``
+        self.procs += [p for p in multiprocessing.active_children() if p not in self._before and p not in self.procs]
+        return fut
+
+    def kill(self) -> None:
+        """Drop the queued work and kill the workers (their running work is abandoned)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            kill_processes(self.procs)
+        self._pool, self.procs = None, []
+
+    def close(self) -> None:
+        """Let the workers finish and end them."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+        self._pool, self.procs = None, []
+
+
 class LocalPool:
-    """A pool of ``jobs`` worker processes on this machine (:func:`worker_context`)."""
+    """A pool of ``jobs`` worker processes on this machine: ``workers`` (:class:`Workers`, kept
+    by their owner after the sweep), or its own, ended with the sweep."""
 
     dashboard = None
     shares_memory = True
     """Its runs share this machine's memory (the runner starts those that fit together)."""
 
-    def __init__(self, fn: Callable, jobs: int):
+    def __init__(self, fn: Callable, jobs: int, workers: Workers | None = None):
         self.fn, self.jobs = fn, jobs
-        self._before = set(multiprocessing.active_children())
-        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=worker_context(),
-                                        initializer=ignore_interrupt)
-        self.procs: list = []
+        self.own = workers is None
+        self.workers = Workers(jobs) if workers is None else workers
         self.futures: dict = {}
 
     def capacity(self) -> int:
         return self.jobs
 
     def submit(self, key: str, task) -> None:
-        self.futures[self.pool.submit(self.fn, task, key)] = key
-        # workers are started as runs are submitted, up to ``jobs``
-        self.procs += [p for p in multiprocessing.active_children() if p not in self._before and p not in self.procs]
+        self.futures[self.workers.submit(self.fn, task, key)] = key
 
     def wait_one(self):
         done, _ = wait(list(self.futures), return_when=FIRST_COMPLETED)
@@ -140,38 +177,45 @@ class LocalPool:
     def abandon(self) -> None:
         """Drop queued runs and kill the workers (their running runs are abandoned)."""
         self.futures.clear()
-        self.pool.shutdown(wait=False, cancel_futures=True)
-        kill_processes(self.procs)
+        self.workers.kill()
 
     def close(self) -> None:
-        self.pool.shutdown(wait=True)
+        if self.own:
+            self.workers.close()
 
 
-def map_local(fn: Callable, items: list, workers: int | None = None) -> list:
+def map_local(fn: Callable, items: list, workers: int | None = None, runner=None) -> list:
     """``[fn(i) for i in items]`` on up to ``workers`` processes of this machine (all cores by
     default; :func:`worker_context`), in order: for the work of a study that is not a stored run
     (compiling kernels; :func:`map_stored` keeps the results).  ``fn`` must be importable (a
-    module-level function).  Ctrl-C (or an exception in ``fn``) kills the workers at once."""
+    module-level function).  Ctrl-C (or an exception in ``fn``) kills the workers at once.
+    ``runner``: a :class:`studies.sweep.runner.Runner` whose session's workers compute instead
+    (:meth:`~studies.sweep.runner.Runner.local_workers`; none: processes of this call's own)."""
     items = list(items)
     out: list = [None] * len(items)
 
     def keep(i, result):
         out[i] = result
 
-    _map(fn, items, list(range(len(items))), workers, keep)
+    _map(fn, items, list(range(len(items))), workers, keep, _shared(runner))
     return out
 
 
-def map_stored(store, name: str, fn: Callable, items: list, workers: int | None = None) -> list:
+def _shared(runner) -> Workers | None:
+    return runner.local_workers() if runner is not None else None
+
+
+def map_stored(store, name: str, fn: Callable, items: list, workers: int | None = None, runner=None) -> list:
     """:func:`map_local` for the results a study computes outside runs (a bisection, a table of
     its own): the result of each item is kept in ``store`` (a :class:`studies.sweep.store.Store`) as
     computation ``name`` as soon as it is done (:meth:`~studies.sweep.store.Store.save_computed`, keyed by
     the item and the code version), and an item whose result is stored is not computed again, so
     an interrupted study resumes and a finished one costs nothing when run again.  A damaged
     stored result is moved aside and computed again.  Results come back as stored (the same
-    values, NumPy scalars made plain, tuples lists).  ``store`` None: :func:`map_local`."""
+    values, NumPy scalars made plain, tuples lists).  ``store`` None: :func:`map_local`;
+    ``runner``: as there."""
     if store is None:
-        return map_local(fn, items, workers)
+        return map_local(fn, items, workers, runner)
     items = list(items)
     store.remove_orphans()
     keys = [store.computed_key(name, item) for item in items]
@@ -192,21 +236,23 @@ def map_stored(store, name: str, fn: Callable, items: list, workers: int | None 
     def keep(i, result):
         out[i] = store.save_computed(name, keys[i], result)
 
-    _map(fn, items, todo, workers, keep)
+    _map(fn, items, todo, workers, keep, _shared(runner))
     return out
 
 
-def _map(fn: Callable, items: list, todo: list, workers: int | None, done: Callable) -> None:
+def _map(fn: Callable, items: list, todo: list, workers: int | None, done: Callable,
+         shared: Workers | None = None) -> None:
     """``done(i, fn(items[i]))`` for each ``i`` of ``todo``, on up to ``workers`` processes (in this
-    one for a single worker), each as soon as it finishes.  On an exception or Ctrl-C the queued
-    items are dropped and the workers killed before it is raised."""
+    one for a single worker), or on the ``shared`` workers, each as soon as it finishes.  On an
+    exception or Ctrl-C the queued items are dropped and the workers killed before it is raised."""
+    if not todo:
+        return
     n = min(workers or os.cpu_count() or 1, len(todo))
-    if n <= 1:
+    if shared is None and n <= 1:
         for i in todo:
             done(i, fn(items[i]))
         return
-    before = set(multiprocessing.active_children())
-    pool = ProcessPoolExecutor(max_workers=n, mp_context=worker_context(), initializer=ignore_interrupt)
+    pool = Workers(n) if shared is None else shared
     try:
         futures = {pool.submit(fn, items[i]): i for i in todo}
         pending = set(futures)
@@ -220,15 +266,17 @@ def _map(fn: Callable, items: list, todo: list, workers: int | None, done: Calla
                                      "results are kept)") from None
                 done(futures[fut], result)
     except BaseException:
-        procs = [p for p in multiprocessing.active_children() if p not in before]
-        pool.shutdown(wait=False, cancel_futures=True)
-        kill_processes(procs)
+        pool.kill()
         raise
-    pool.shutdown(wait=True)
+    if shared is None:
+        pool.close()
 
 
-def local_executor(fn: Callable, jobs: int | None, todo: int):
-    """The executor of a sweep of ``todo`` runs on this machine: in this process for one job,
-    else a pool of ``jobs`` workers (all cores by default)."""
+def local_executor(fn: Callable, jobs: int | None, todo: int, workers: Workers | None = None):
+    """The executor of a sweep of ``todo`` runs on this machine: the ``workers`` given (kept after
+    the sweep), else in this process for one job, else a pool of ``jobs`` workers (all cores by
+    default) of the sweep's own."""
+    if workers is not None:
+        return LocalPool(fn, min(workers.jobs, max(todo, 1)), workers)
     n = min(jobs or os.cpu_count() or 1, max(todo, 1))
     return InProcess(fn) if n == 1 else LocalPool(fn, n)

@@ -33,7 +33,7 @@ import numpy as np
 from hybmss.scene import nearly_incompressible
 
 from studies.sweep.scenes import SceneSpec
-from studies.sweep.executors import EXECUTORS, SweepError, WorkerDied, local_executor
+from studies.sweep.executors import EXECUTORS, SweepError, WorkerDied, Workers, local_executor
 from studies.sweep.rest_bound import skip_reason, skipped_row
 from studies.sweep.outcomes import expected_not_at_rest, finding, non_finite, warning_lines
 from studies.sweep.solving import measure, solve_scene
@@ -424,8 +424,10 @@ class Runner:
     single-threaded workers).  Whatever computes, this process stores every result.
 
     Arguments are checked here, before any work (``ValueError`` naming the parameter, its value
-    and what is allowed).  Use it as a context manager to keep one Dask cluster for several
-    sweeps; :attr:`summary` adds up what every sweep did."""
+    and what is allowed).  Use it as a context manager to keep one Dask cluster, or one set of
+    local worker processes (:meth:`local_workers`), for several sweeps and the maps of the
+    studies' own work (:func:`studies.sweep.executors.map_stored`); :attr:`summary` adds up what
+    every sweep did."""
 
     def __init__(self, executor: str = "local", jobs: int | None = None, scheduler: str | None = None,
                  progress: bool = True):
@@ -451,9 +453,12 @@ class Runner:
         self.summary = Summary()
         self._seen: set[str] = set()  # keys of earlier sweeps of this runner: counted once in the summary
         self._dask = None
+        self._session = False
+        self._workers: Workers | None = None
 
-    # -------------------------------------------------------------- dask session
+    # -------------------------------------------------------------- session
     def __enter__(self):
+        self._session = True
         if self.executor == "dask" and self._dask is None:
             from studies.sweep.dask_cluster import DaskCluster  # optional dependency, imported when asked for
 
@@ -469,6 +474,24 @@ class Runner:
         if self._dask is not None:
             self._dask.close()
             self._dask = None
+        if self._workers is not None:
+            self._workers.close()
+            self._workers = None
+        self._session = False
+
+    def local_workers(self) -> Workers | None:
+        """The local worker processes of this session (``with runner:``), started at first use and
+        ended with it; None outside a session, with one job or with the Dask executor.  A later
+        sweep thus finds loaded in its workers what the earlier ones compiled and imported, and the
+        maps of a study's own work (moduli, bisections) start no processes of their own."""
+        if self.executor != "local" or not self._session:
+            return None
+        n = self.jobs or os.cpu_count() or 1
+        if n <= 1:
+            return None
+        if self._workers is None:
+            self._workers = Workers(n)
+        return self._workers
 
     def _write(self, msg: str) -> None:
         from tqdm import tqdm
@@ -497,7 +520,8 @@ class Runner:
         unstored: dict = {}
         try:
             if todo:
-                ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo))
+                ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo),
+                                                                                      self.local_workers())
                 self._sweep(ex, todo, store, s, bar, claims, unstored)
         except KeyboardInterrupt:
             self._interrupted(ex, claims, store, bar, s)
