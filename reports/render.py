@@ -65,6 +65,24 @@ def hex_grid(X: np.ndarray, u: np.ndarray, cells: np.ndarray, scalars: np.ndarra
     return grid
 
 
+OFF_SCREEN_WINDOW = "vtkEGLRenderWindow"
+"""VTK's render window without a display.  VTK's wheels choose their window at run time, X first:
+without ``DISPLAY`` the X window fails, prints a warning on the standard error ("bad X server
+connection") and VTK then falls back to EGL.  Asked for EGL directly, it prints nothing."""
+
+
+def off_screen_plotter(**kwargs):
+    """``pyvista.Plotter(off_screen=True, **kwargs)`` on EGL when there is no display (and the
+    user has not chosen a window with ``VTK_DEFAULT_OPENGL_WINDOW``)."""
+    import os
+
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", OFF_SCREEN_WINDOW)
+    import pyvista as pv
+
+    return pv.Plotter(off_screen=True, **kwargs)
+
+
 class PanelRenderer:
     """One small off-screen pyvista plotter reused for every panel."""
 
@@ -72,7 +90,7 @@ class PanelRenderer:
         import pyvista as pv
 
         self._pv = pv
-        self.plotter = pv.Plotter(off_screen=True, window_size=list(size))
+        self.plotter = off_screen_plotter(window_size=list(size))
         self.plotter.set_background("white")
 
     def close(self):

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from . import palette
-from .render import _view, hex_grid
+from .render import _view, hex_grid, off_screen_plotter
 from studies.study import Study, metrics as study_metrics, outcome as study_outcome, tables as study_tables, tet_scores
 
 from .study_modes import dynamics_html, modes_html
@@ -197,7 +197,7 @@ def render_views(case: str, picks, runs: list[dict], path: Path) -> str | None:
     fem = hex_grid(a_f["X"], a_f["u"], a_f["cells"])
     boxes = [(g.points.min(axis=0), g.points.max(axis=0)) for g in (fem, *grids)]
     view = _view(boxes, False, VIEW_SIZE)
-    p = pv.Plotter(off_screen=True, shape=(1, 3), window_size=[3 * VIEW_SIZE[0], VIEW_SIZE[1]])
+    p = off_screen_plotter(shape=(1, 3), window_size=[3 * VIEW_SIZE[0], VIEW_SIZE[1]])
     p.set_background("white")
     titles = ["FEM reference: |u| (m)", f"best: {chosen[0]['task'].scene.label}",
               f"worst: {chosen[1]['task'].scene.label}"]
