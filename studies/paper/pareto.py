@@ -352,6 +352,21 @@ def unlimited_frame(spec: SceneSpec) -> tuple[float, float, int]:
     return dc, frame, int(getattr(stepper, "substeps", 1))
 
 
+def unlimited_frames(pairs, rows, runner=None) -> dict:
+    """:func:`unlimited_frame` of every explicit candidate of a model without an explicit limit
+    (xpbd-nh: an eigen solve each, 60 of them in ``make reproduce-paper``), computed on the
+    workers of ``runner``'s session (:func:`studies.sweep.executors.map_local`); none without such
+    workers (:func:`pareto_frame` then computes each where it is needed, in this process)."""
+    if runner is None or runner.local_workers() is None:
+        return {}
+    from studies.sweep.executors import map_local
+
+    scenes = list(dict.fromkeys(
+        t.scene for (m, t), r in zip(pairs, rows)
+        if m["role"] == "candidate" and t.solver.kind == "explicit" and not models.get(t.scene.model).explicit_limit))
+    return dict(zip(scenes, map_local(unlimited_frame, scenes, runner=runner)))
+
+
 def timing_columns(solver: SolverSpec, row: dict, repeats: list[dict], frame=None) -> dict:
     """Static, implicit and FEM: ``time_s`` (best of the run and its repeats), ``time_median_s``,
     ``time_spread``, ``time_repeats``.  Explicit: ``time_s`` the protocol run's wall time (one
@@ -401,12 +416,16 @@ NO_RESULT_COSTS = ("elapsed_s", "time_s", "time_median_s", "time_spread", "us_pe
 """The measured costs a candidate that reached no result does not show (NaN): a cost of no result."""
 
 
-def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | None = None
-                 ) -> tuple[pd.DataFrame, pd.DataFrame]:
+def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | None = None,
+                 measured: dict | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Tidy table of candidates with errors and costs, and the reference table (one row per config).
     ``frames``: :func:`unlimited_frame` of each scene already computed (an eigen-solve each), kept
-    by the caller across calls and filled here."""
+    by the caller across calls and filled here.  ``measured``: likewise the errors of each stored
+    run against its configuration's reference (keyed by the runs' keys, which name their results:
+    a repeat adds timings, never changes an error), so that the driver's later calls, after
+    repeats, read no arrays again."""
     frames = {} if frames is None else frames
+    measured = {} if measured is None else measured
 
     def frame_of(scene):
         if scene not in frames:
@@ -424,16 +443,20 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | 
     out, refs = [], []
     for cfg, items in groups.items():
         spec = specs[cfg]
-        pts = shared_points(spec)
         ref = next((m, t, r) for m, t, r in items if m["role"] == "reference")
         part = next((m, t, r) for m, t, r in items if m["role"] == "partner")
         ref_ok = ref[2]["status"] == "ok"
-        u_ref = sample(store.arrays(ref[2]["key"])["X"], store.arrays(ref[2]["key"])["u"], pts) if ref_ok else None
-        ref_err = np.nan
-        if ref_ok and part[2]["status"] == "ok":
-            a = store.arrays(part[2]["key"])
-            u_p = sample(a["X"], a["u"], pts)
-            ref_err = float(np.linalg.norm(u_ref - u_p) / np.linalg.norm(u_ref) / (2 ** ORDER_ASSUMED - 1))
+        ref_key = (cfg, ref[2]["key"], part[2]["key"])
+        if ref_key not in measured:
+            pts = shared_points(spec)
+            u_ref = sample(store.arrays(ref[2]["key"])["X"], store.arrays(ref[2]["key"])["u"], pts) if ref_ok else None
+            ref_err = np.nan
+            if ref_ok and part[2]["status"] == "ok":
+                a = store.arrays(part[2]["key"])
+                u_p = sample(a["X"], a["u"], pts)
+                ref_err = float(np.linalg.norm(u_ref - u_p) / np.linalg.norm(u_ref) / (2 ** ORDER_ASSUMED - 1))
+            measured[ref_key] = (pts, u_ref, ref_err)
+        pts, u_ref, ref_err = measured[ref_key]
         fname, f_ref = force_of(spec, ref[2]) if ref_ok else ("", np.nan)
         e_ref = float(ref[2].get("volume_change", np.nan)) if ref_ok else np.nan
         scale = strain_scale(spec)
@@ -464,15 +487,19 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | 
             if not rec["at_rest"]:  # no time to a solution, nor a cost of one
                 rec.update({k: np.nan for k in NO_RESULT_COSTS})
             if rec["at_rest"] and ref_ok:
-                a = store.arrays(row["key"])
-                u = sample(a["X"], a["u"], pts)
-                rec["error_field"] = float(np.linalg.norm(u - u_ref) / np.linalg.norm(u_ref))
-                _, f = force_of(spec, row)
-                e = float(row.get("volume_change", np.nan))
-                rec.update(force_value=f, volume_change=e, error_force=relative_error(f, f_ref),
-                           error_volume=abs(e - e_ref) / scale)
-                vols = a.get("cell_volumes")
-                rec["inverted_cells"] = int(np.count_nonzero(vols <= 0)) if vols is not None else 0
+                run_key = (ref_key, row["key"])
+                if run_key not in measured:
+                    a = store.arrays(row["key"])
+                    u = sample(a["X"], a["u"], pts)
+                    _, f = force_of(spec, row)
+                    e = float(row.get("volume_change", np.nan))
+                    vols = a.get("cell_volumes")
+                    measured[run_key] = dict(
+                        error_field=float(np.linalg.norm(u - u_ref) / np.linalg.norm(u_ref)),
+                        force_value=f, volume_change=e, error_force=relative_error(f, f_ref),
+                        error_volume=abs(e - e_ref) / scale,
+                        inverted_cells=int(np.count_nonzero(vols <= 0)) if vols is not None else 0)
+                rec.update(measured[run_key])
             rec["error_u"] = rec["error_field"]
             out.append(rec)
     df = pd.DataFrame(out)
@@ -487,14 +514,25 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | 
     return df, pd.DataFrame(refs)
 
 
-def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
+def _digest(df: pd.DataFrame) -> tuple:
+    """The values of ``df`` (its index included), exactly, as a hashable key."""
+    return (tuple(df.columns), tuple(df.index),
+            tuple((str(v.dtype), v.tobytes()) if v.dtype != object else tuple(map(repr, v)) for v in
+                  (df[c].to_numpy() for c in df.columns)))
+
+
+def budget_table(df: pd.DataFrame, budgets=BUDGETS, answers: dict | None = None) -> pd.DataFrame:
     """For each configuration, error measure (:data:`MEASURES`) and cost (:data:`COST_KINDS`): the
     budget answer of :func:`studies.sweep.cost.budget_answer` (the fastest method within each budget, its
     runner-up, the lead and whether it is a tie; the methods that meet no budget).  A method is a
     model with a solver, or a FEM element with its law; its cheapest resolution within a budget
     stands for it (``mesh``).  Static cost: ``time_s`` with ``time_spread``; explicit:
-    ``cost_explicit_s`` (s per simulated second at the stable step) with ``explicit_spread``."""
+    ``cost_explicit_s`` (s per simulated second at the stable step) with ``explicit_spread``.
+    ``answers``: the answers of earlier calls, kept by the caller and filled here, keyed by the
+    rows each was made of (the driver's calls after repeats answer again only where a repeat
+    changed a time)."""
     spreads = {"static": "time_spread", "explicit": "explicit_spread"}
+    answers = {} if answers is None else answers
     out = []
     for cfg, g in df.groupby("config", sort=False):
         for kind, col in COST_KINDS.items():
@@ -505,10 +543,15 @@ def budget_table(df: pd.DataFrame, budgets=BUDGETS) -> pd.DataFrame:
                 err = f"error_{m}"
                 if err not in sub:
                     continue
-                a = cost.budget_answer(sub, budgets, error=err, cost=col, spread=spreads[kind], method="method",
-                                       keep=("mesh",), failure="failure" if "failure" in sub else None)
-                # a lead beyond the noise is no tie, measured spread or not (:func:`near_ties`)
-                a.loc[a["tie"].isna() & (a["lead"] >= 1.0 + NOISE), "tie"] = False
+                used = [c for c in ("method", "mesh", err, col, spreads[kind], "failure") if c in sub]
+                key = (cfg, kind, m, tuple(budgets), _digest(sub[used]))
+                if key not in answers:
+                    a = cost.budget_answer(sub, budgets, error=err, cost=col, spread=spreads[kind], method="method",
+                                           keep=("mesh",), failure="failure" if "failure" in sub else None)
+                    # a lead beyond the noise is no tie, measured spread or not (:func:`near_ties`)
+                    a.loc[a["tie"].isna() & (a["lead"] >= 1.0 + NOISE), "tie"] = False
+                    answers[key] = a
+                a = answers[key].copy()
                 a.insert(0, "cost_kind", kind)
                 a.insert(0, "measure", m)
                 a.insert(0, "nu", g["nu"].iloc[0])
@@ -542,10 +585,11 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     pairs = all_tasks(quick, experiments, nus, level)
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto",
                      runner=runner, expected=expected_finding)
-    lv, timed, frames = level_name(quick, level), set(), {}
+    lv, timed, measured, answers = level_name(quick, level), set(), {}, {}
+    frames = unlimited_frames(pairs, rows, runner)
     while True:  # repeats only where two candidates are within noise (a new best may make a new pair)
-        df, refs = pareto_frame(store, pairs, rows, quick, frames)
-        budget = budget_table(df)
+        df, refs = pareto_frame(store, pairs, rows, quick, frames, measured)
+        budget = budget_table(df, answers=answers)
         want = near_ties(budget) - timed
         if not want:
             break

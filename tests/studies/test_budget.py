@@ -52,6 +52,28 @@ def test_budget_table_lead_and_ties_from_known_timings():
     assert list(b.loc[b["answer"] == "meets no budget", "method"]) == ["d"]
 
 
+def test_budget_answers_kept_across_calls_follow_a_changed_time():
+    """The driver keeps the budget answers of its earlier calls (``answers``): a call after repeats
+    must answer anew where a time changed (b becomes the fastest at 5 %) and equal a fresh call
+    everywhere, NaN errors included."""
+    recs = [{"config": "c1", "experiment": "shear", "nu": 0.25, "kind": "static", "method": m, "mesh": "4x4x4",
+             "time_s": t, "time_spread": 0.01, "error_field": e, "error_force": np.nan, "error_volume": np.nan,
+             "failure": ""}
+            for m, t, e in (("a", 1.0, 0.03), ("b", 1.5, 0.015), ("c", 3.0, 0.001))]
+    df = pd.DataFrame(recs)
+    answers = {}
+    first = pareto.budget_table(df, budgets=(0.02, 0.05), answers=answers)
+    pd.testing.assert_frame_equal(first, pareto.budget_table(df, budgets=(0.02, 0.05)))
+    assert len(answers) == 3  # one per measure; a second call with the same rows adds none
+    pd.testing.assert_frame_equal(pareto.budget_table(df, budgets=(0.02, 0.05), answers=answers), first)
+    assert len(answers) == 3
+    faster = df.assign(time_s=np.where(df["method"] == "b", 0.5, df["time_s"]))
+    kept = pareto.budget_table(faster, budgets=(0.02, 0.05), answers=answers)
+    pd.testing.assert_frame_equal(kept, pareto.budget_table(faster, budgets=(0.02, 0.05)))
+    at = kept[(kept["measure"] == "field") & (kept["answer"] == "fastest")].set_index("budget")
+    assert at.loc[0.05, "method"] == "b" and at.loc[0.05, "runner_up"] == "a"
+
+
 def test_explicit_cost_at_the_stable_step_from_known_timings():
     """Three short runs of 100 steps took 2.0, 2.4, 2.2 ms: 20 µs per step at best, spread
     (22 − 20)/20 = 0.1; dt_crit = 4 ms -> dt = 2 ms -> 500 steps per simulated second = 10 ms."""
@@ -79,11 +101,59 @@ def test_the_frame_of_a_model_without_explicit_limit():
     assert frame == pytest.approx(dc / 2) and substeps == 10
 
 
+def test_frames_computed_on_the_session_workers_equal_those_computed_here():
+    """:func:`pareto.unlimited_frames` (the session's workers) gives each xpbd-nh explicit
+    candidate the frame :func:`pareto.unlimited_frame` computes in this process, and none to a
+    model with an explicit limit or a static candidate; without a session's workers, none."""
+    from studies.sweep.runner import Runner
+
+    explicit = SolverSpec("explicit", dt=1e-3, steps=100)
+    scenes = [SceneSpec.default("compression", mesh=(2, 2, 2), nu=nu, model="xpbd-nh") for nu in (0.0, 0.499)]
+    scenes.append(SceneSpec.default("tension", mesh=(1, 1, 6), nu=0.25, model="xpbd-nh"))
+    pairs = [({"role": "candidate"}, Task(s, explicit)) for s in scenes]
+    pairs += [({"role": "candidate"}, Task(scenes[0], STATIC)), ({"role": "reference"}, Task(scenes[1], explicit)),
+              ({"role": "candidate"}, Task(SceneSpec.default("compression", mesh=(2, 2, 2), model="hybmss"), explicit))]
+    rows = [{}] * len(pairs)
+    assert pareto.unlimited_frames(pairs, rows) == {}
+    with Runner("local", 2, progress=False) as runner:
+        frames = pareto.unlimited_frames(pairs, rows, runner)
+    assert list(frames) == scenes
+    for s in scenes:
+        assert frames[s] == pareto.unlimited_frame(s)
+    assert frames[scenes[0]][0] != frames[scenes[1]][0]  # each scene its own dt_crit
+
+
 # ------------------------------------------------------------------------------ quick study at ν = 0.499
+QUICK_0499 = dict(experiments=("compression",), nus=(0.499,))
+
+
 @pytest.fixture(scope="module")
-def incompressible(tmp_path_factory):
+def incompressible_store(tmp_path_factory):
     store = Store(tmp_path_factory.mktemp("pareto-0.499"))
-    return pareto.run(store, quick=True, jobs=2, progress=False, experiments=("compression",), nus=(0.499,))
+    return store, pareto.run(store, quick=True, jobs=2, progress=False, **QUICK_0499)
+
+
+@pytest.fixture(scope="module")
+def incompressible(incompressible_store):
+    return incompressible_store[1]
+
+
+@pytest.mark.slow
+def test_errors_kept_across_calls_are_those_read_afresh(incompressible_store):
+    """The driver keeps each run's errors across its calls (``measured``): a second call with them
+    gives the table a call without them gives, every candidate its own errors."""
+    from studies.sweep.runner import run_tasks
+
+    store, tables = incompressible_store
+    pairs = pareto.all_tasks(True, **QUICK_0499)
+    rows = run_tasks([t for _, t in pairs], store, jobs=1, progress=False)
+    measured = {}
+    first, _ = pareto.pareto_frame(store, pairs, rows, True, measured=measured)
+    again, _ = pareto.pareto_frame(store, pairs, rows, True, measured=measured)
+    fresh, _ = pareto.pareto_frame(store, pairs, rows, True)
+    pd.testing.assert_frame_equal(again, fresh)
+    pd.testing.assert_frame_equal(first, fresh)
+    assert fresh["error_field"].nunique() > 3
 
 
 @pytest.mark.slow
