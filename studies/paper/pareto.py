@@ -352,7 +352,7 @@ def unlimited_frame(spec: SceneSpec) -> tuple[float, float, int]:
     return dc, frame, int(getattr(stepper, "substeps", 1))
 
 
-def unlimited_frames(pairs, rows, runner=None) -> dict:
+def unlimited_frames(pairs, runner=None) -> dict:
     """:func:`unlimited_frame` of every explicit candidate of a model without an explicit limit
     (xpbd-nh: an eigen solve each, 60 of them in ``make reproduce-paper``), computed on the
     workers of ``runner``'s session (:func:`studies.sweep.executors.map_local`); none without such
@@ -362,7 +362,7 @@ def unlimited_frames(pairs, rows, runner=None) -> dict:
     from studies.sweep.executors import map_local
 
     scenes = list(dict.fromkeys(
-        t.scene for (m, t), r in zip(pairs, rows)
+        t.scene for m, t in pairs
         if m["role"] == "candidate" and t.solver.kind == "explicit" and not models.get(t.scene.model).explicit_limit))
     return dict(zip(scenes, map_local(unlimited_frame, scenes, runner=runner)))
 
@@ -449,7 +449,8 @@ def pareto_frame(store: Store, pairs, rows, quick: bool = False, frames: dict | 
         ref_key = (cfg, ref[2]["key"], part[2]["key"])
         if ref_key not in measured:
             pts = shared_points(spec)
-            u_ref = sample(store.arrays(ref[2]["key"])["X"], store.arrays(ref[2]["key"])["u"], pts) if ref_ok else None
+            a_ref = store.arrays(ref[2]["key"]) if ref_ok else None
+            u_ref = sample(a_ref["X"], a_ref["u"], pts) if ref_ok else None
             ref_err = np.nan
             if ref_ok and part[2]["status"] == "ok":
                 a = store.arrays(part[2]["key"])
@@ -586,7 +587,7 @@ def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bo
     rows = run_tasks([t for _, t in pairs], store, jobs=jobs, progress=progress, desc="pareto",
                      runner=runner, expected=expected_finding)
     lv, timed, measured, answers = level_name(quick, level), set(), {}, {}
-    frames = unlimited_frames(pairs, rows, runner)
+    frames = unlimited_frames(pairs, runner)
     while True:  # repeats only where two candidates are within noise (a new best may make a new pair)
         df, refs = pareto_frame(store, pairs, rows, quick, frames, measured)
         budget = budget_table(df, answers=answers)

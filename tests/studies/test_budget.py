@@ -113,10 +113,9 @@ def test_frames_computed_on_the_session_workers_equal_those_computed_here():
     pairs = [({"role": "candidate"}, Task(s, explicit)) for s in scenes]
     pairs += [({"role": "candidate"}, Task(scenes[0], STATIC)), ({"role": "reference"}, Task(scenes[1], explicit)),
               ({"role": "candidate"}, Task(SceneSpec.default("compression", mesh=(2, 2, 2), model="hybmss"), explicit))]
-    rows = [{}] * len(pairs)
-    assert pareto.unlimited_frames(pairs, rows) == {}
+    assert pareto.unlimited_frames(pairs) == {}
     with Runner("local", 2, progress=False) as runner:
-        frames = pareto.unlimited_frames(pairs, rows, runner)
+        frames = pareto.unlimited_frames(pairs, runner)
     assert list(frames) == scenes
     for s in scenes:
         assert frames[s] == pareto.unlimited_frame(s)
