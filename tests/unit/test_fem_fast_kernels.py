@@ -129,6 +129,31 @@ def test_whole_load_step_kept_while_converging_fast(monkeypatch):
         assert np.abs(sol.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
 
 
+def test_growth_stays_below_a_failed_increment():
+    """The 5³ Hex1 cube twisted 45° at ν = 0.499: after the increment 0.2 -> 0.6 fails, the
+    increments that converge fast double again, but only up to below the failed size, so no
+    increment of 0.4 is tried again (the rule before tried 0.6 -> 1.0 and failed once more: 46
+    Newton iterations against 40).  The answer is the one of ten equal increments."""
+    from hybmss.experiments import SceneSpec
+
+    sc = SceneSpec.default("torsion", mesh=(5, 5, 5), nu=0.499, angle_deg=45.0).build()
+    hy = Hyperelasticity(build_mesh(sc.body, 1), "hex1", "neo-hookean")
+    dirichlet = plate_dirichlet(sc, hy.space)
+    sol, log = hy.solve(sc.material, dirichlet, sc.gravity, method="direct")
+    ref, _ = hy.solve(sc.material, dirichlet, sc.gravity, steps=10, method="direct", adaptive=False)
+    assert any(b - a < 0.99 for a, b in log.rejected)  # a grown increment failed (not the whole load)
+    attempts = sorted([(a, b, False) for a, b in log.rejected]
+                      + [(a, b, True) for a, b in zip([0.0] + [s for s, _, _ in log.steps[:-1]],
+                                                      [s for s, _, _ in log.steps])],
+                      key=lambda t: (t[0], -t[1]))  # from one state: the larger (failed) tried first
+    failed = np.inf
+    for a, b, ok in attempts:
+        assert b - a < failed * (1 - 1e-9), (a, b, failed)
+        if not ok:
+            failed = min(failed, b - a)
+    assert np.abs(sol.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
+
+
 def test_mixed_pressure_cg_inexact_far_from_solution(monkeypatch):
     """The mixed element's pressure CG (SchurSolve) inside Newton stops at the forcing term
     0.1 ‖R‖/‖f‖ instead of SCHUR_RTOL at every iteration: fewer CG iterations (each a pair of
