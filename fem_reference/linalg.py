@@ -27,7 +27,9 @@ a Newton iteration after the first solves its tangent by CG preconditioned with 
 while that takes at most :data:`REUSE_MAXITER` iterations, and factorizes afresh past them (Hex2
 neo-Hookean, 20 % tension of the 8×8×48 beam: 12 CG iterations in all instead of two more
 factorizations, 31.1 → 18.7 s of CPU).
-A matrix that is not positive definite (a pivot ≤ 0) falls back to SuperLU's symmetric-mode LU.
+A displacement tangent that is not positive definite (a pivot ≤ 0) is factorized shifted,
+``K + μ·mean|diag K|·I`` with the smallest μ of :data:`TANGENT_SHIFTS` that is (a descent
+direction of the potential energy); only if none is does it fall back to SuperLU's symmetric-mode LU.
 The saddle point stays on SuperLU: CHOLMOD's supernodal kernel is ``L Lᵀ`` only, and its simplicial
 ``L D Lᵀ`` was 4× slower than SuperLU on the mixed 10×10×10 cube.
 
@@ -78,6 +80,13 @@ REUSE_MAXITER = 12
 """Newton iterations after the first solve their tangent by CG preconditioned with the last CHOLMOD
 factor of the same pattern; past this many CG iterations the tangent is factorized afresh (a
 factorization costs about 50 preconditioned iterations on the publication's meshes)."""
+
+TANGENT_SHIFTS = (1e-3, 1e-2, 1e-1, 1.0)
+"""Shifts μ (of the mean diagonal) tried, smallest first, on a displacement tangent that is not
+positive definite (:func:`_shifted_factor`) before SuperLU's LDLᵀ of the tangent itself.  Far from
+equilibrium a near-incompressible body's tangent has hundreds of negative pivots (571 of 10,752 on
+the 15³ Hex1 cube twisted 45° at ν = 0.499), and SuperLU factorizes in 20× CHOLMOD's time
+(0.42 s against 0.022 s there; 10.7 s against 2 s on the 8×8×48 Hex2 beam)."""
 
 SCHUR_RTOL = 1e-13
 """Relative tolerance of the CG on the pressure Schur complement (:class:`SchurSolve`) of a
@@ -223,6 +232,7 @@ class CholmodFactor:
         cols = np.repeat(np.arange(nf), np.diff(colptr))
         self._A = cvxopt.spmatrix(K.data[self.source], local[K.indices[self.source]].astype(np.int64), cols,
                                   (nf, nf))
+        self.diagonal = np.flatnonzero(K.indices[self.source] == rows[self.source])  # its diagonal entries
         if perm is None:
             self._F = cholmod.symbolic(self._A, uplo="L")
         else:
@@ -232,8 +242,12 @@ class CholmodFactor:
         return (K.shape[0] == len(self.free) and np.array_equal(free, self.free)
                 and np.array_equal(K.indptr, self.indptr) and np.array_equal(K.indices, self.indices))
 
-    def factorize(self, K: sp.csr_matrix) -> "CholmodFactor":
-        self._A.V = cvxopt.matrix(K.data[self.source])
+    def factorize(self, K: sp.csr_matrix, shift: float = 0.0) -> "CholmodFactor":
+        """The factor of the free block of ``K`` (plus ``shift`` on its diagonal)."""
+        data = K.data[self.source]
+        if shift:
+            data[self.diagonal] += shift
+        self._A.V = cvxopt.matrix(data)
         cholmod.numeric(self._A, self._F)
         return self
 
@@ -401,8 +415,9 @@ def solve_spd(
 def _spd_cholmod(K, f, u, free, perm, rtol: float, cache: dict | None):
     """CHOLMOD's solve of the free block of ``K`` (``u``: the prescribed values, zero elsewhere):
     ``(x, method, iterations)``, by CG on the last factor of the same pattern when it converges
-    within :data:`REUSE_MAXITER`, else by a fresh factorization; ``None`` when the matrix is not
-    positive definite."""
+    within :data:`REUSE_MAXITER`, else by a fresh factorization, of the matrix or, when it is not
+    positive definite, of its smallest shift that is (:func:`_shifted_factor`, method
+    ``"cholmod-shifted"``); ``None`` when none is."""
     fac = cache.get("cholmod") if cache is not None else None
     if fac is None or not fac.matches(K, free):
         fac = CholmodFactor(K, free, perm)
@@ -413,17 +428,33 @@ def _spd_cholmod(K, f, u, free, perm, rtol: float, cache: dict | None):
         x = _pcg_on_factor(K, f, u, free, fac, rtol)  # the last factor of this pattern as preconditioner
         if x is not None:
             return x[0], "cholmod-pcg", x[1]
+    method = "cholmod"
     try:
         lu = fac.factorize(K)
-    except ArithmeticError:  # not positive definite: SuperLU's LU with diagonal pivots
-        lu = None
+    except ArithmeticError:  # not positive definite: the smallest shift that is (else SuperLU's LDLᵀ)
+        lu = _shifted_factor(K, free, fac)
+        method = "cholmod-shifted"
     if cache is not None:
-        cache["factored"] = lu is not None
+        cache["factored"] = method == "cholmod"  # a later tangent's CG takes only a tangent's factor
     if lu is None:
         return None
     if cache is not None:
         cache["lu"] = lu
-    return lu.solve(f[free] - (K @ u)[free]), "cholmod", 1
+    return lu.solve(f[free] - (K @ u)[free]), method, 1
+
+
+def _shifted_factor(K, free, fac: CholmodFactor) -> CholmodFactor | None:
+    """The factor of ``K_ff + μ·mean|diag K_ff|·I`` with the smallest μ of :data:`TANGENT_SHIFTS`
+    that is positive definite, None if none is.  Its step is a descent direction of the potential
+    energy (the line search's merit), where the indefinite tangent's need not be."""
+    diag = K.data[fac.source[fac.diagonal]]
+    scale = float(np.abs(diag).mean()) if len(diag) else 0.0
+    for mu in TANGENT_SHIFTS:
+        try:
+            return fac.factorize(K, mu * scale)
+        except ArithmeticError:
+            continue
+    return None
 
 
 def _spd_amg(K, f, D, uD, free, nullspace, rtol: float, cache: dict | None):

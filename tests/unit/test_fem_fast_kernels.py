@@ -154,6 +154,57 @@ def test_growth_stays_below_a_failed_increment():
     assert np.abs(sol.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
 
 
+def test_indefinite_tangent_factorized_with_smallest_definite_shift():
+    """A symmetric matrix with negative eigenvalues (a 3D Laplacian less a multiple of I): the
+    direct solve factorizes ``K_ff + μ·mean|diag K_ff|·I`` with the smallest μ of TANGENT_SHIFTS
+    whose dense eigenvalues (numpy, independently) are all positive, and solves with it."""
+    import scipy.sparse as sp
+
+    from fem_reference import linalg
+
+    n1 = 6
+    lap = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n1, n1))
+    eye = sp.identity(n1)
+    K = (sp.kron(sp.kron(lap, eye), eye) + sp.kron(sp.kron(eye, lap), eye) + sp.kron(sp.kron(eye, eye), lap))
+    K = sp.csr_matrix(K - 0.8 * sp.identity(n1 ** 3))
+    K.sort_indices()
+    free = np.ones(K.shape[0], dtype=bool)
+    free[:5] = False
+    Kff = K.toarray()[free][:, free]
+    scale = np.abs(np.diag(Kff)).mean()
+    assert np.linalg.eigvalsh(Kff).min() < 0
+    mu = next(m for m in linalg.TANGENT_SHIFTS if np.linalg.eigvalsh(Kff + m * scale * np.eye(len(Kff))).min() > 0)
+    assert mu > linalg.TANGENT_SHIFTS[0]  # the smallest shift is not enough: the search is tested
+    rng = np.random.default_rng(1)
+    f, u = rng.standard_normal(K.shape[0]), np.zeros(K.shape[0])
+    u[~free] = rng.standard_normal(5)
+    x, method, _ = linalg._spd_cholmod(K, f, u, free, None, 1e-12, {})
+    expected = np.linalg.solve(Kff + mu * scale * np.eye(len(Kff)), f[free] - (K @ u)[free])
+    assert method == "cholmod-shifted"
+    assert np.abs(x - expected).max() <= 1e-10 * np.abs(expected).max()
+
+
+def test_near_incompressible_twist_without_superlu(monkeypatch):
+    """The 10³ Hex1 cube twisted 45° at ν = 0.499: far from equilibrium its tangents have negative
+    pivots; they are factorized shifted by CHOLMOD (no SuperLU LDLᵀ), and the equilibrium is the
+    one of ten equal increments."""
+    from fem_reference import linalg
+    from hybmss.experiments import SceneSpec
+
+    sc = SceneSpec.default("torsion", mesh=(10, 10, 10), nu=0.499, angle_deg=45.0).build()
+    hy = Hyperelasticity(build_mesh(sc.body, 1), "hex1", "neo-hookean")
+    dirichlet = plate_dirichlet(sc, hy.space)
+    ref, _ = hy.solve(sc.material, dirichlet, sc.gravity, steps=10, method="direct", adaptive=False)
+    superlu, shifted = [], []
+    monkeypatch.setattr(linalg, "OrderedLU", lambda *a, **k: superlu.append(1) or pytest.fail("SuperLU"))
+    factorize = linalg.CholmodFactor.factorize
+    monkeypatch.setattr(linalg.CholmodFactor, "factorize",
+                        lambda self, K, shift=0.0: (shifted.append(shift) if shift else None) or factorize(self, K, shift))
+    sol, _ = hy.solve(sc.material, dirichlet, sc.gravity, method="direct")
+    assert shifted and not superlu
+    assert np.abs(sol.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
+
+
 def test_mixed_pressure_cg_inexact_far_from_solution(monkeypatch):
     """The mixed element's pressure CG (SchurSolve) inside Newton stops at the forcing term
     0.1 ‖R‖/‖f‖ instead of SCHUR_RTOL at every iteration: fewer CG iterations (each a pair of
