@@ -27,9 +27,10 @@ a Newton iteration after the first solves its tangent by CG preconditioned with 
 while that takes at most :data:`REUSE_MAXITER` iterations, and factorizes afresh past them (Hex2
 neo-Hookean, 20 % tension of the 8×8×48 beam: 12 CG iterations in all instead of two more
 factorizations, 31.1 → 18.7 s of CPU).
-A displacement tangent that is not positive definite (a pivot ≤ 0) is factorized shifted,
-``K + μ·mean|diag K|·I`` with the smallest μ of :data:`TANGENT_SHIFTS` that is (a descent
-direction of the potential energy); only if none is does it fall back to SuperLU's symmetric-mode LU.
+A matrix that is not positive definite (a pivot ≤ 0) falls back to SuperLU's symmetric-mode LU;
+in a Newton step (``descent``) it is first factorized shifted, ``K + μ·mean|diag K|·I`` with the
+smallest μ of :data:`TANGENT_SHIFTS` that is positive definite (a descent direction of the
+potential energy).
 The saddle point stays on SuperLU: CHOLMOD's supernodal kernel is ``L Lᵀ`` only, and its simplicial
 ``L D Lᵀ`` was 4× slower than SuperLU on the mixed 10×10×10 cube.
 
@@ -362,8 +363,12 @@ def solve_spd(
     cache: dict | None = None,
     order: np.ndarray | None = None,
     separator: int | None = None,
+    descent: bool = False,
 ) -> np.ndarray:
-    """Solve ``K u = f`` on the free dofs with ``u[D] = uD``; returns the full ``u``.
+    """Solve ``K u = f`` on the free dofs with ``u[D] = uD``; returns the full ``u``.  ``descent``
+    (a Newton step of a minimization): a free block that is not positive definite is replaced by
+    its smallest shift that is (:func:`_shifted_factor`), so the step descends the energy; without
+    it the solve is exact (SuperLU's LDLᵀ).
 
     ``nullspace`` (n, 6) are the rigid-body modes (used by AMG only).  ``cache`` (a dict kept by
     the caller, e.g. across Newton iterations with the same prescribed dofs) keeps the AMG
@@ -384,7 +389,7 @@ def solve_spd(
     K = sp.csr_matrix(K)
     kind = _spd_kind(method, K, free, separator if order is not None else None)
     if kind == "direct" and cholmod is not None:
-        x = _spd_cholmod(K, f, u, free, _local_order(order, free), rtol, cache)
+        x = _spd_cholmod(K, f, u, free, _local_order(order, free), rtol, cache, descent)
         if x is not None:
             u[free] = x[0]
             if stats is not None:
@@ -412,12 +417,12 @@ def solve_spd(
     return u
 
 
-def _spd_cholmod(K, f, u, free, perm, rtol: float, cache: dict | None):
+def _spd_cholmod(K, f, u, free, perm, rtol: float, cache: dict | None, descent: bool = False):
     """CHOLMOD's solve of the free block of ``K`` (``u``: the prescribed values, zero elsewhere):
     ``(x, method, iterations)``, by CG on the last factor of the same pattern when it converges
-    within :data:`REUSE_MAXITER`, else by a fresh factorization, of the matrix or, when it is not
-    positive definite, of its smallest shift that is (:func:`_shifted_factor`, method
-    ``"cholmod-shifted"``); ``None`` when none is."""
+    within :data:`REUSE_MAXITER`, else by a fresh factorization; ``None`` when the matrix is not
+    positive definite, unless ``descent``: then the factor of its smallest shift that is
+    (:func:`_shifted_factor`, method ``"cholmod-shifted"``), ``None`` when none is."""
     fac = cache.get("cholmod") if cache is not None else None
     if fac is None or not fac.matches(K, free):
         fac = CholmodFactor(K, free, perm)
@@ -432,7 +437,7 @@ def _spd_cholmod(K, f, u, free, perm, rtol: float, cache: dict | None):
     try:
         lu = fac.factorize(K)
     except ArithmeticError:  # not positive definite: the smallest shift that is (else SuperLU's LDLᵀ)
-        lu = _shifted_factor(K, free, fac)
+        lu = _shifted_factor(K, free, fac) if descent else None
         method = "cholmod-shifted"
     if cache is not None:
         cache["factored"] = method == "cholmod"  # a later tangent's CG takes only a tangent's factor
