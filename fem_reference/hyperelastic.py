@@ -25,10 +25,11 @@ states (plates set to their exact values), unless that inverts an element.  The 
 is the whole load; an increment that converged in at most :data:`GROW_ITERATIONS` iterations
 (tangent factorizations) doubles the next one, unless that reaches the size of an increment that
 already failed (a failed increment costs up to three converged ones: the 15³ Hex1 cube twisted
-45° at ν = 0.499 doubled its 0.1 increments three times and failed each time, 24 of its 55 s).  An increment larger than ``1/steps`` gets at most
-:data:`OPTIMISTIC_MAXITER` iterations, and one more each time the last one cut the residual
-:data:`BASIN_CONTRACTION`-fold (Newton's quadratic basin: it is about to converge), up to
-``maxiter``; if it fails, the next increment is ``1/steps``.  Linear systems
+45° at ν = 0.499 doubled its 0.1 increments three times and failed each time, 24 of its 55 s).
+An increment larger than ``1/steps`` gets at most :data:`OPTIMISTIC_MAXITER` iterations, and
+one more each time the last one cut the residual :data:`BASIN_CONTRACTION`-fold (Newton's
+quadratic basin: it is about to converge), up to ``maxiter``; if it fails, the next increment is
+``1/steps``.  Linear systems
 inside Newton are solved inexactly when iterative (relative tolerance ``0.1 ‖R‖/‖f‖`` within
 [:data:`LINEAR_RTOL_MIN`, :data:`LINEAR_RTOL_MAX`]; the pressure CG of the mixed element's
 saddle point within [:data:`~fem_reference.linalg.SCHUR_RTOL`, :data:`LINEAR_RTOL_MAX`]); a
@@ -116,9 +117,12 @@ class ConvergenceError(RuntimeError):
 class NewtonLog:
     steps: list = field(default_factory=list)  # (s, iterations, final residual)
     iterations: int = 0
-    rejected_steps: int = 0
     rejected: list = field(default_factory=list)  # (s from, s to) of each rejected increment
     converged: bool = True
+
+    @property
+    def rejected_steps(self) -> int:
+        return len(self.rejected)
 
 
 def _qp(a: np.ndarray) -> np.ndarray:
@@ -266,7 +270,6 @@ class Hyperelasticity(Discretization):
                 if adaptive and fresh <= GROW_ITERATIONS and 2.0 * ds < failed * (1.0 - 1e-9):
                     ds *= 2.0
                 continue
-            log.rejected_steps += 1
             log.rejected.append((s_done, s))
             failed = min(failed, s - s_done)
             ds = base if optimistic else 0.5 * min(ds, s - s_done)

@@ -160,8 +160,9 @@ def test_growth_stays_below_a_failed_increment(monkeypatch):
 
 def test_indefinite_tangent_factorized_with_smallest_definite_shift():
     """A symmetric matrix with negative eigenvalues (a 3D Laplacian less a multiple of I): the
-    direct solve of a Newton step (``descent``) factorizes ``K_ff + μ·mean|diag K_ff|·I`` with the smallest μ of TANGENT_SHIFTS
-    whose dense eigenvalues (numpy, independently) are all positive, and solves with it."""
+    direct solve of a Newton step (``descent``) factorizes ``K_ff + μ·mean|diag K_ff|·I`` with the
+    smallest μ of TANGENT_SHIFTS whose dense eigenvalues (numpy, independently) are all positive,
+    and solves with it; an exact solve (no ``descent``) leaves the matrix to SuperLU."""
     import scipy.sparse as sp
 
     from fem_reference import linalg
@@ -203,8 +204,13 @@ def test_near_incompressible_twist_without_superlu(monkeypatch):
     superlu, shifted = [], []
     monkeypatch.setattr(linalg, "OrderedLU", lambda *a, **k: superlu.append(1) or pytest.fail("SuperLU"))
     factorize = linalg.CholmodFactor.factorize
-    monkeypatch.setattr(linalg.CholmodFactor, "factorize",
-                        lambda self, K, shift=0.0: (shifted.append(shift) if shift else None) or factorize(self, K, shift))
+
+    def spied(self, K, shift=0.0):
+        if shift:
+            shifted.append(shift)
+        return factorize(self, K, shift)
+
+    monkeypatch.setattr(linalg.CholmodFactor, "factorize", spied)
     sol, _ = hy.solve(sc.material, dirichlet, sc.gravity, method="direct")
     assert shifted and not superlu
     assert np.abs(sol.U - ref.U).max() <= 1e-8 * np.abs(ref.U).max()
