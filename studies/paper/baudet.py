@@ -282,6 +282,14 @@ def _table(job: tuple, progress: bool = False):
     return TABLES[name](quick, progress)
 
 
+def calls(quick: bool = False) -> list:
+    """The tables :func:`run` computes (:data:`TABLES`), as the sweep's calls
+    (:class:`studies.sweep.executors.Call`), which :func:`run` then finds stored."""
+    from studies.sweep.executors import Call
+
+    return [Call("baudet_tables", _table, (n, quick)) for n in TABLES]
+
+
 def run(store, quick: bool = False, jobs: int | None = None, progress: bool = True, runner=None) -> None:
     """Write ``baudet_moduli``, ``baudet_cantilever`` and ``baudet_lshape`` (computed ``jobs``
     processes at a time and kept in ``store``: :func:`studies.sweep.executors.map_stored`) and

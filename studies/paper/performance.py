@@ -194,10 +194,23 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
     timings then load them from the cache.  A kernel already in the cache (:func:`kernel_cached`)
     is not loaded again here.  ``jobs``: (kind, mesh, dt); ``runner``: whose session's workers
     compile (:func:`studies.sweep.executors.map_local`); returns the kernels compiled."""
+    from studies.sweep.executors import map_local
+
+    todo = compile_jobs(jobs, threads)
+    if not todo:
+        return 0
+    if progress:
+        print(f"performance: compiling {len(todo)} kernels", flush=True)
+    map_local(_compile_one, todo, workers, runner)
+    return len(todo)
+
+
+def compile_jobs(jobs: list[tuple], threads=THREADS) -> list[tuple]:
+    """The jobs of :func:`_compile_one` for the kernels of ``jobs`` ((kind, mesh, dt)) on
+    ``threads`` that are not in the kernel cache, one per kernel, the longest (two threads, large
+    meshes) first, so that no worker is left with one at the end."""
     from hybmss.explicit import stencil
     from hybmss.system import build
-
-    from studies.sweep.executors import map_local
 
     todo = {}
     for kind, mesh, dt in jobs:
@@ -207,13 +220,26 @@ def compile_kernels(jobs: list[tuple], threads=THREADS, workers: int | None = No
                 key = stencil(S, dt, 1.0, threads=th).config.key()
                 if not kernel_cached(key):
                     todo.setdefault(key, (kind, mesh, model, nu, th, dt))
-    if not todo:
-        return 0
-    if progress:
-        print(f"performance: compiling {len(todo)} kernels", flush=True)
-    # the longest (two threads, large meshes) first, so that no worker is left with one at the end
-    map_local(_compile_one, sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1])))), workers, runner)
-    return len(todo)
+    return sorted(todo.values(), key=lambda j: (-j[4], -int(np.prod(j[1]))))
+
+
+def timed_meshes(quick: bool = False, cubes=None, beams=None) -> list[tuple]:
+    """(kind, mesh, dt) of every timed mesh: ``cubes`` and ``beams`` (the default lists of
+    ``quick``) at dt = 1 ms and :func:`beam_dt`."""
+    cubes = tuple(cubes) if cubes is not None else (QUICK_CUBES if quick else CUBES)
+    beams = tuple(beams) if beams is not None else (QUICK_BEAMS if quick else BEAMS)
+    dt_b = beam_dt(beams) if beams else CUBE_DT
+    return [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
+
+
+def calls(quick: bool = False) -> list:
+    """The kernels :func:`run` compiles, as the sweep's calls
+    (:class:`studies.sweep.executors.Call`; compiled into the kernel cache, which :func:`run`
+    then finds them in)."""
+    from studies.sweep.executors import Call
+
+    threads = QUICK_THREADS if quick else THREADS
+    return [Call(None, _compile_one, job) for job in compile_jobs(timed_meshes(quick), threads)]
 
 
 # ------------------------------------------------------------------------------ timing
@@ -377,15 +403,12 @@ def run_performance(quick: bool = False, steps: int | None = None, repeats: int 
     on ``workers`` processes or ``runner``'s, :func:`compile_kernels`; ``threads`` replaces :data:`THREADS`, or
     :data:`QUICK_THREADS` with ``quick``); returns (table, bandwidth)."""
     threads = tuple(threads) if threads is not None else (QUICK_THREADS if quick else THREADS)
-    cubes = tuple(cubes) if cubes is not None else (QUICK_CUBES if quick else CUBES)
-    beams = tuple(beams) if beams is not None else (QUICK_BEAMS if quick else BEAMS)
     steps = steps or (200 if quick else 1000)
     repeats = repeats or (2 if quick else 3)
     n_bytes = (bandwidth_MB or (64 if quick else 256)) * 2**20
     bw = measure_bandwidth(n_bytes, trials=3 if quick else 5)
-    dt_b = beam_dt(beams) if beams else CUBE_DT
     rows = []
-    jobs = [("compression", m, CUBE_DT) for m in cubes] + [("beam", m, dt_b) for m in beams]
+    jobs = timed_meshes(quick, cubes, beams)
     compile_kernels(jobs, threads, workers, progress, runner)
     for kind, mesh, dt in jobs:
         if progress:

@@ -179,6 +179,30 @@ def tasks_for(names=None, quick: bool = False) -> list[Task]:
     return [t for n in names for t in STUDIES[n](quick)]
 
 
+CALLS_FIRST = ("b09", "stability", "performance")
+"""The drivers whose computations outside runs (their ``calls(quick)``) the sweep does once its
+runs are handed out, in this order (the longest first: [B09]'s three tables, the irregular
+lattices, the bisections of dt, then the performance study's kernels); the moduli of the tables
+(:func:`studies.paper.tables.calls`) come last."""
+
+
+def study_calls(names, quick: bool) -> list:
+    """The computations outside runs of the drivers ``names`` (:data:`CALLS_FIRST` that have
+    them) and of the tables (the moduli), for :meth:`studies.sweep.runner.Runner.run`'s ``calls``:
+    they do not depend on the sweep's runs, so its workers do them as its last runs leave
+    cores idle, and each driver then finds its results stored (or its kernels compiled)."""
+    import importlib
+
+    from studies.paper import tables
+
+    out = []
+    for name in CALLS_FIRST:
+        if name in names:
+            module = importlib.import_module({**EXTRA_STUDIES, **ON_REQUEST_STUDIES}[name].split(":")[0])
+            out += module.calls(quick)
+    return out + tables.calls()
+
+
 def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, progress: bool = True,
                 runner=None):
     """Run (or resume) the named studies into the results folder ``out`` and write the tables.
@@ -211,7 +235,7 @@ def run_studies(out, names=None, quick: bool = False, jobs: int | None = None, p
         if hasattr(module, "tasks"):
             pooled += module.tasks(quick)
     rows = run_tasks(pooled, store, jobs=jobs, progress=progress, desc=", ".join(listed + extra),
-                     runner=runner, expected=expected_finding)[:n_listed] if pooled else []
+                     runner=runner, expected=expected_finding, calls=lambda: study_calls(extra, quick))[:n_listed]
     write_tables(store, {t.key() for t in pooled[:n_listed]} if listed else None, runner)
     for name in names:
         if name in drivers:

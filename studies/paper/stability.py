@@ -197,11 +197,15 @@ def dt_table(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = 
     ``runner``: whose session's workers compute)."""
     from studies.sweep.executors import map_stored
 
+    return pd.DataFrame(map_stored(store, "dt_stability", _dt_row, dt_jobs(quick, nus, variants, steps), workers,
+                                   runner))
+
+
+def dt_jobs(quick: bool = False, nus=NU_DT, variants=None, steps: int | None = None) -> list[tuple]:
+    """The bisections of :func:`dt_table`: (ν, model, mesh, steps)."""
     mesh = (2, 2, 2) if quick else (4, 4, 4)
     steps = steps or (2000 if quick else 10_000)
-    jobs = [(nu, model, mesh, steps) for nu in nus
-            for model in (variants if variants is not None else stability_models())]
-    return pd.DataFrame(map_stored(store, "dt_stability", _dt_row, jobs, workers, runner))
+    return [(nu, model, mesh, steps) for nu in nus for model in (variants if variants is not None else stability_models())]
 
 
 # ------------------------------------------------------------------------------ (b, c) extreme
@@ -468,9 +472,13 @@ def irregular_table(quick: bool = False, workers: int | None = None, store: Stor
     when one is given (as in :func:`dt_table`)."""
     from studies.sweep.executors import map_stored
 
-    nus = (0.0, 0.499) if quick else NU_EXTREME
-    parts = map_stored(store, "stability_irregular", _irregular_rows, [(quick, nu) for nu in nus], workers, runner)
+    parts = map_stored(store, "stability_irregular", _irregular_rows, irregular_jobs(quick), workers, runner)
     return pd.DataFrame([r for rows in parts for r in rows])
+
+
+def irregular_jobs(quick: bool = False) -> list[tuple]:
+    """The jobs of :func:`irregular_table`: (quick, ν)."""
+    return [(quick, nu) for nu in ((0.0, 0.499) if quick else NU_EXTREME)]
 
 
 TINY_LATTICE_NODES = 200
@@ -633,6 +641,15 @@ def tasks(quick: bool = False) -> list[Task]:
     computes them in the sweep's one pool, so that :func:`run` finds them stored)."""
     return [t for part in (limit_tasks(quick), damping_tasks(quick), extreme_tasks(quick), engine_tasks(quick))
             for _, t in part]
+
+
+def calls(quick: bool = False) -> list:
+    """The computations of :func:`run`'s parts (e) and (a) with its defaults, as the sweep's calls
+    (:class:`studies.sweep.executors.Call`), which :func:`run` then finds stored."""
+    from studies.sweep.executors import Call
+
+    return ([Call("stability_irregular", _irregular_rows, job) for job in irregular_jobs(quick)]
+            + [Call("dt_stability", _dt_row, job) for job in dt_jobs(quick)])
 
 
 def run(store: Store, quick: bool = False, jobs: int | None = None, progress: bool = True, *,

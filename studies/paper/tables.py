@@ -292,9 +292,21 @@ def moduli_table(nus=MODULI_NUS, store: Store | None = None, workers: int | None
     session's workers measure)."""
     from studies.sweep.executors import map_stored
 
+    return pd.DataFrame(map_stored(store, "moduli", _moduli_row, moduli_jobs(nus), workers, runner))
+
+
+def moduli_jobs(nus=MODULI_NUS) -> list[tuple]:
+    """The measurements of :func:`moduli_table`: (the model's parameters, ν)."""
     variants = moduli_variants(nus)
-    jobs = [(model.to_dict(), float(nu)) for nu in nus for model in variants]
-    return pd.DataFrame(map_stored(store, "moduli", _moduli_row, jobs, workers, runner))
+    return [(model.to_dict(), float(nu)) for nu in nus for model in variants]
+
+
+def calls() -> list:
+    """The moduli :func:`write_tables` measures, as the sweep's calls
+    (:class:`studies.sweep.executors.Call`), which it then finds stored."""
+    from studies.sweep.executors import Call
+
+    return [Call("moduli", _moduli_row, job) for job in moduli_jobs()]
 
 
 def reference_laws_table(df: pd.DataFrame) -> pd.DataFrame:

@@ -23,6 +23,7 @@ import signal
 import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from typing import Callable
 
 from studies.sweep.store import DamagedRun
@@ -44,6 +45,28 @@ class WorkerDied:
 
     def __init__(self, message: str):
         self.message = message
+
+
+@dataclass(frozen=True)
+class Call:
+    """A study's computation outside runs, done ahead on a sweep's idle workers
+    (:meth:`studies.sweep.runner.Runner.run`, ``calls``): ``fn(item)``, its result kept in the
+    store as computation ``name`` under :meth:`~studies.sweep.store.Store.computed_key` (what
+    :func:`map_stored` of the same name and item finds stored), or with ``name`` None only its
+    effect (a kernel compiled into the cache).  ``fn`` must be importable (a module-level function
+    or a ``functools.partial`` of one)."""
+
+    name: str | None
+    fn: Callable
+    item: object
+
+
+class CallFailed:
+    """Outcome of a :class:`Call` that raised: nothing is kept, and the study that needs the
+    result computes it again in its own map (where the error is raised and reported)."""
+
+    def __init__(self, exc: BaseException):
+        self.exc = exc
 
 
 def ignore_interrupt(*_args) -> None:
@@ -163,6 +186,11 @@ class LocalPool:
     def submit(self, key: str, task) -> None:
         self.futures[self.workers.submit(self.fn, task, key)] = key
 
+    def submit_call(self, call: Call) -> None:
+        """``call.fn(call.item)`` on a worker; :meth:`wait_one` gives it back as ``(call, result)``,
+        ``result`` a :class:`CallFailed` if it raised."""
+        self.futures[self.workers.submit(call.fn, call.item)] = call
+
     def wait_one(self):
         done, _ = wait(list(self.futures), return_when=FIRST_COMPLETED)
         fut = next(iter(done))
@@ -173,6 +201,10 @@ class LocalPool:
             raise SweepError("a worker process died (killed or out of memory); finished runs are "
                              "stored: rerun to resume (--executor dask resubmits the runs of a dead "
                              "worker)") from None
+        except Exception as exc:  # noqa: BLE001 - a run's errors are rows (compute); a call's are its own
+            if isinstance(key, Call):
+                return key, CallFailed(exc)
+            raise
 
     def abandon(self) -> None:
         """Drop queued runs and kill the workers (their running runs are abandoned)."""

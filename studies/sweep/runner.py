@@ -33,7 +33,7 @@ import numpy as np
 from hybmss.scene import nearly_incompressible
 
 from studies.sweep.scenes import SceneSpec
-from studies.sweep.executors import EXECUTORS, SweepError, WorkerDied, Workers, local_executor
+from studies.sweep.executors import EXECUTORS, Call, CallFailed, SweepError, WorkerDied, Workers, local_executor
 from studies.sweep.rest_bound import skip_reason, skipped_row
 from studies.sweep.outcomes import expected_not_at_rest, finding, non_finite, warning_lines
 from studies.sweep.solving import measure, solve_scene
@@ -499,17 +499,30 @@ class Runner:
         tqdm.write(msg, file=sys.stderr)
 
     # -------------------------------------------------------------- one sweep
-    def run(self, tasks: list[Task], store: Store, desc: str = "runs", expected=expected_not_at_rest) -> list[dict]:
+    def run(self, tasks: list[Task], store: Store, desc: str = "runs", expected=expected_not_at_rest,
+            calls=()) -> list[dict]:
         """Compute the tasks not yet stored (or stored damaged); return every task's row, in
         task order; every run asked for the first time is counted in :attr:`summary` as a
         result, an expected non-answer (``expected(task, row)``) or a failure.  SIGINT stops at
         once: runs finished are kept, running ones abandoned, the workers shut down
-        (:class:`Interrupted`); a second SIGINT exits immediately."""
+        (:class:`Interrupted`); a second SIGINT exits immediately.
+
+        ``calls`` (:class:`studies.sweep.executors.Call`, or a function of no argument returning
+        them, called when they are first needed): computations of the studies outside runs that
+        do not depend on them, done on a local pool's workers once no run is left to hand out, so
+        that they fill the cores the sweep's last runs leave idle; each result is kept where
+        :func:`studies.sweep.executors.map_stored` finds it, those already stored are not done
+        again.  In this process (one job) and on Dask they are left to the studies' maps.  A call
+        that raises keeps nothing (the map computes it again and reports the error)."""
         from tqdm import tqdm
 
         store.check_writable()
         keys = [t.key() for t in tasks]
         unique, new, s, todo = self._plan(tasks, keys, store)
+        lazy = None
+        if calls and self.executor == "local":
+            def lazy():
+                return pending_calls(calls() if callable(calls) else calls, store)
         bar = tqdm(total=len(unique), initial=s.stored, desc=desc, disable=not self.progress, unit="run",
                    dynamic_ncols=True, file=sys.stderr)
         own = self._dask is None and self.executor == "dask" and bool(todo)
@@ -519,10 +532,11 @@ class Runner:
         claims: dict = {}
         unstored: dict = {}
         try:
-            if todo:
-                ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, len(todo),
+            if todo or lazy is not None:
+                n = len(todo) if lazy is None else max(len(todo), self.jobs or os.cpu_count() or 1)
+                ex = self._dask if self.executor == "dask" else local_executor(compute, self.jobs, n,
                                                                                       self.local_workers())
-                self._sweep(ex, todo, store, s, bar, claims, unstored)
+                self._sweep(ex, todo, store, s, bar, claims, unstored, lazy if hasattr(ex, "submit_call") else None)
         except KeyboardInterrupt:
             self._interrupted(ex, claims, store, bar, s)
         except BaseException:
@@ -597,8 +611,11 @@ class Runner:
         raise Interrupted(self.summary) from None
 
     def _sweep(self, ex, todo: list[tuple[str, Task]], store: Store, s: Summary, bar, claims: dict,
-               unstored: dict) -> None:
+               unstored: dict, calls=None) -> None:
+        """Hand out the runs ``todo`` (and, once none is left, the studies' ``calls``: a function
+        returning them, :meth:`run`), store each result as it comes back."""
         pending = deque(todo)
+        queued, running_calls = deque(), 0
         by_key = dict(todo)
         waiting: list[tuple[str, Task]] = []
         own_version = code_version()
@@ -607,8 +624,8 @@ class Runner:
         budget = memory_budget() if getattr(ex, "shares_memory", False) else math.inf
         needs = {k: expected_bytes(t) for k, t in todo} if budget < math.inf else {}
         seen, warming = set(), {}  # codes run before; code -> key of its first run, still running
-        while pending or claims or waiting:
-            while pending and len(claims) < ex.capacity():
+        while pending or claims or waiting or queued or running_calls or calls is not None:
+            while pending and len(claims) + running_calls < ex.capacity():
                 nxt = next_fitting(pending, [needs.get(c, 0.0) for c in claims], needs, budget,
                                    frozenset(warming))
                 if nxt is None:
@@ -637,8 +654,18 @@ class Runner:
                     seen.add(code)
                     warming[code] = k
                 ex.submit(k, t)
-            if claims:
+            if not pending and calls is not None:  # no run left to hand out: the studies' own computations
+                queued, calls = deque(calls()), None
+            while not pending and queued and len(claims) + running_calls < ex.capacity():
+                ex.submit_call(queued.popleft())
+                running_calls += 1
+            if claims or running_calls:
                 k, outcome = ex.wait_one()
+                if isinstance(k, Call):
+                    running_calls -= 1
+                    if k.name is not None and not isinstance(outcome, CallFailed):
+                        store.save_computed(k.name, store.computed_key(k.name, k.item), outcome)
+                    continue
                 warming = {c: w for c, w in warming.items() if w != k}
                 if isinstance(outcome, WorkerDied):
                     row, arrays = base_row(by_key[k], k), None
@@ -667,11 +694,31 @@ class Runner:
                 waiting.clear()
 
 
+def pending_calls(calls, store: Store) -> list[Call]:
+    """The ``calls`` whose results ``store`` does not hold (each once; a damaged stored result is
+    left to the study's map, which moves it aside and computes it again)."""
+    out, seen = [], set()
+    for c in calls:
+        if c.name is not None:
+            key = (c.name, store.computed_key(c.name, c.item))
+            if key in seen:
+                continue
+            seen.add(key)
+            try:
+                if store.load_computed(*key)[0]:
+                    continue
+            except DamagedRun:
+                continue
+        out.append(c)
+    return out
+
+
 def run_tasks(tasks: list[Task], store: Store, jobs: int | None = None, progress: bool = True,
-              desc: str = "runs", runner: Runner | None = None, expected=expected_not_at_rest) -> list[dict]:
+              desc: str = "runs", runner: Runner | None = None, expected=expected_not_at_rest,
+              calls=()) -> list[dict]:
     """Run the tasks not yet stored; return the rows of all tasks (in task order).  ``runner``
     (a :class:`Runner`) chooses the executor; without one, the local process pool of ``jobs``
-    workers."""
+    workers.  ``calls``: as :meth:`Runner.run`'s."""
     if runner is None:
         runner = Runner(jobs=jobs, progress=progress)
-    return runner.run(tasks, store, desc=desc, expected=expected)
+    return runner.run(tasks, store, desc=desc, expected=expected, calls=calls)
