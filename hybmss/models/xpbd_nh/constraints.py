@@ -131,14 +131,25 @@ class XpbdNH:
         return Ds @ self.Dminv
 
     def energy(self, x: np.ndarray) -> float:
+        return float(_kernels_xpbd.term_energy(np.ascontiguousarray(x, dtype=float), self.tets, self.Dminv, self.Vt,
+                                               self.mu, self.lam, self.gamma))
+
+    def forces(self, x: np.ndarray) -> np.ndarray:
+        """``−∇E`` (n, 3), compiled (:func:`hybmss.models.xpbd_nh._kernels.term_forces`; its twin
+        :meth:`forces_numpy`)."""
+        return _kernels_xpbd.term_forces(np.ascontiguousarray(x, dtype=float), self.tets, self.Dminv, self.Vt,
+                                         self.mu, self.lam, self.gamma)
+
+    def energy_numpy(self, x: np.ndarray) -> float:
+        """The energy with NumPy: the readable twin of :meth:`energy`."""
         F = self.deformation_gradients(x)
         J = np.linalg.det(F)
         psi = (0.5 * self.mu * (np.einsum("tij,tij->t", F, F) - 3.0) + 0.5 * self.lam * (J - self.gamma) ** 2
                - 0.5 * self.lam * (1.0 - self.gamma) ** 2)
         return float(np.dot(self.Vt, psi))
 
-    def forces(self, x: np.ndarray) -> np.ndarray:
-        """``−∇E`` (n, 3): per tetrahedron ``P = μ F + λ (J − γ) cof F``, node forces
+    def forces_numpy(self, x: np.ndarray) -> np.ndarray:
+        """``−∇E`` (n, 3) with NumPy, the readable twin of :meth:`forces`: per tetrahedron ``P = μ F + λ (J − γ) cof F``, node forces
         ``−V P D_m⁻ᵀ`` (node 0: minus their sum).  ``cof F`` by columns, ``(f₁ × f₂, f₂ × f₀,
         f₀ × f₁)`` of F's columns ``f_j``, and ``J = f₀ · (f₁ × f₂)``."""
         F = self.deformation_gradients(x)
