@@ -10,7 +10,6 @@ import math
 import numpy as np
 import pytest
 
-import hybmss.explicit.loop as loop
 from hybmss.experiments import SceneSpec
 from hybmss.explicit.rest import FLOOR_SAMPLES, FLOOR_WINDOW, ResidualFloor, decay_rate
 from hybmss.models import xpbd_nh
@@ -92,7 +91,6 @@ def test_a_window_short_of_samples_gives_no_verdict():
 
 
 def explicit(nu: float, d: float, floor_watch: bool, monkeypatch):
-    monkeypatch.setattr(loop, "FLOOR_SAMPLE_SHARE", 1.0)  # a run of a fraction of a second: sample anyway
     monkeypatch.setattr(xpbd_nh.XpbdStepper, "rest_floor", floor_watch)
     sc = SceneSpec.default("tension", mesh=(1, 1, 6), nu=nu, deformation=d, model="xpbd-nh", damping=2.0)
     return solve(Task(sc, SolverSpec("explicit", dt=1e-3, steps=10_000, ramp_time=1.0)))
