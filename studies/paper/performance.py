@@ -116,6 +116,29 @@ def measure_bandwidth(n_bytes: int = 256 * 2**20, trials: int = 5) -> dict:
     return best
 
 
+def last_level_cache_bytes(root: str = "/sys/devices/system/cpu/cpu0/cache") -> int | None:
+    """Size in bytes of this machine's last-level CPU cache (the highest level Linux's sysfs lists
+    for CPU 0, e.g. ``index3/size`` "32768K"), None where it lists none.  A timed mesh whose step
+    streams more than this (:func:`bytes_per_step`) is bound by DRAM traffic, which a virtual
+    machine shares with its neighbours."""
+    import glob
+    import os
+
+    best = None
+    for d in glob.glob(os.path.join(root, "index*")):
+        try:
+            with open(os.path.join(d, "level")) as fh:
+                level = int(fh.read())
+            with open(os.path.join(d, "size")) as fh:
+                size = fh.read().strip().upper()
+            n = int(size[:-1]) * {"K": 2**10, "M": 2**20, "G": 2**30}[size[-1]] if size[-1] in "KMG" else int(size)
+        except (OSError, ValueError, KeyError, IndexError):
+            continue
+        if best is None or level > best[0]:
+            best = (level, n)
+    return best[1] if best else None
+
+
 def bytes_per_step(n_grid: int, n_off: int, has_volume: bool, has_gravity: bool) -> int:
     """Bytes one explicit step streams under the model of the module docstring."""
     words = 7 * n_off + 22 + (64 if has_volume else 0) + (3 if has_gravity else 0)
@@ -416,6 +439,8 @@ def run_performance(quick: bool = False, steps: int | None = None, repeats: int 
         rows += time_mesh(kind, mesh, dt, timed_steps(mesh, steps), repeats, threads, min_span)
     bw2 = measure_bandwidth(n_bytes, trials=3 if quick else 5)
     bandwidth = {k: max(bw[k], bw2[k]) for k in bw}
+    llc = last_level_cache_bytes()
+    bandwidth["llc_MB"] = llc / 2**20 if llc else float("nan")
     return _derive(pd.DataFrame(rows), bandwidth), bandwidth
 
 
