@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from hybmss import models
-from hybmss.experiments import SceneSpec
+from hybmss.experiments import EXPERIMENTS, SceneSpec
 from hybmss.lattice import Lattice
 from hybmss.moduli import measure_moduli
 from hybmss.scene import Body, Material, Model, admissible_nu
@@ -391,11 +391,14 @@ def models_table() -> pd.DataFrame:
 def write_tables(store: Store, keys=None, runner=None) -> dict:
     """Build every table from the stored runs (and the cheap moduli tests, on ``runner``'s workers
     when it has a session's, :func:`moduli_table`); returns them.
-    ``keys``: only the runs of these keys (the studies' tasks; None: every stored run), so that
-    the tables do not change with what other studies stored in the same folder."""
+    ``keys``: only the runs of these keys (the studies' tasks; None: every stored run of an
+    equilibrium experiment), so that the tables do not change with what other studies stored in
+    the same folder."""
     df = runs_frame(store, keys)
     if keys is not None and not df.empty:
         df = df[df["key"].isin(set(keys))].reset_index(drop=True)
+    if "experiment" in df:  # equilibria only: a released transient (the dynamics study's) is not one
+        df = df[df["experiment"].isin(EXPERIMENTS)].reset_index(drop=True)
     if "solver_repeat" in df:  # a repeat of a run times it again: the same answer, not another row
         df = df[df["solver_repeat"].fillna(0) == 0].reset_index(drop=True)
     tables = {"models": models_table()}
