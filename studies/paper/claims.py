@@ -556,8 +556,6 @@ def _perf_summary_claim(summ: pd.DataFrame | None, bound: tuple[dict, float | No
         return None
     s = summ[summ["threads"] == summ["threads"].min()] if "threads" in summ else summ
     s = s.dropna(subset=["paper_ratio_to_baseline"])
-    if s.empty:
-        return None
     heavy, llc = bound
     apart = s[s["mesh"].astype(str).isin(heavy)]
     s = s[~s["mesh"].astype(str).isin(heavy)]

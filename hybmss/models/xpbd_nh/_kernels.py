@@ -80,17 +80,11 @@ def deformation_gradient(x, posmode, i0, i1, i2, i3, Dm, F):
 
 
 @njit(**_OPTS)
-def _tet_stress(x, tets, Dminv, t, mu, lam, gamma, F, cof):
-    """``F`` and ``cof F`` of tetrahedron ``t`` (positions ``x`` (n, 3)) and its ``J``, in the
-    order of :meth:`hybmss.models.xpbd_nh.constraints.XpbdNH.forces` (cofactor columns
-    ``f₁ × f₂, f₂ × f₀, f₀ × f₁``, ``J = f₀ · (f₁ × f₂)``)."""
-    i0, i1, i2, i3 = tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3]
-    for a in range(3):
-        e1 = x[i1, a] - x[i0, a]
-        e2 = x[i2, a] - x[i0, a]
-        e3 = x[i3, a] - x[i0, a]
-        for b in range(3):
-            F[a, b] = e1 * Dminv[t, 0, b] + e2 * Dminv[t, 1, b] + e3 * Dminv[t, 2, b]
+def _tet_stress(x, tets, Dminv, t, F, cof):
+    """``F`` (:func:`deformation_gradient` of positions ``x`` (3, n)) and ``cof F`` of tetrahedron
+    ``t``, and its ``J``, in the order of :meth:`hybmss.models.xpbd_nh.constraints.XpbdNH.forces_numpy`
+    (cofactor columns ``f₁ × f₂, f₂ × f₀, f₀ × f₁``, ``J = f₀ · (f₁ × f₂)``)."""
+    deformation_gradient(x, True, tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3], Dminv[t], F)
     for c in range(3):
         j, k = (c + 1) % 3, (c + 2) % 3
         cof[0, c] = F[1, j] * F[2, k] - F[2, j] * F[1, k]
@@ -101,16 +95,16 @@ def _tet_stress(x, tets, Dminv, t, mu, lam, gamma, F, cof):
 
 @njit(**_OPTS)
 def term_forces(x, tets, Dminv, Vt, mu, lam, gamma):
-    """``−∇E`` (n, 3) of the constraints' energy at positions ``x`` (n, 3): compiled twin of
+    """``−∇E`` (n, 3) of the constraints' energy at positions ``x`` (3, n): compiled twin of
     :meth:`hybmss.models.xpbd_nh.constraints.XpbdNH.forces_numpy` (the same formulas, summed
     into the nodes in the same order), which takes 10–20× as long: the force residual the rest
     tests of an explicit run read every 0.25 s of simulated time."""
-    out = np.zeros((x.shape[0], 3))
+    out = np.zeros((x.shape[1], 3))
     F = np.empty((3, 3))
     cof = np.empty((3, 3))
     H = np.empty((3, 3))
     for t in range(tets.shape[0]):
-        J = _tet_stress(x, tets, Dminv, t, mu, lam, gamma, F, cof)
+        J = _tet_stress(x, tets, Dminv, t, F, cof)
         s = lam * (J - gamma)
         for a in range(3):
             p0 = mu * F[a, 0] + s * cof[a, 0]
@@ -128,14 +122,14 @@ def term_forces(x, tets, Dminv, Vt, mu, lam, gamma):
 
 @njit(**_OPTS)
 def term_energy(x, tets, Dminv, Vt, mu, lam, gamma):
-    """The constraints' energy at positions ``x`` (n, 3): compiled twin of
+    """The constraints' energy at positions ``x`` (3, n): compiled twin of
     :meth:`hybmss.models.xpbd_nh.constraints.XpbdNH.energy_numpy` (its ``J`` by the cofactor
     expansion of :func:`_tet_stress`, NumPy's by an LU factorization)."""
     F = np.empty((3, 3))
     cof = np.empty((3, 3))
     e = 0.0
     for t in range(tets.shape[0]):
-        J = _tet_stress(x, tets, Dminv, t, mu, lam, gamma, F, cof)
+        J = _tet_stress(x, tets, Dminv, t, F, cof)
         ff = 0.0
         for a in range(3):
             for b in range(3):

@@ -131,14 +131,15 @@ class XpbdNH:
         return Ds @ self.Dminv
 
     def energy(self, x: np.ndarray) -> float:
-        return float(_kernels_xpbd.term_energy(np.ascontiguousarray(x, dtype=float), self.tets, self.Dminv, self.Vt,
-                                               self.mu, self.lam, self.gamma))
+        """The constraints' energy, compiled (:func:`hybmss.models.xpbd_nh._kernels.term_energy`;
+        its twin :meth:`energy_numpy`)."""
+        return float(_kernels_xpbd.term_energy(_rows(x), self.tets, self.Dminv, self.Vt, self.mu, self.lam,
+                                               self.gamma))
 
     def forces(self, x: np.ndarray) -> np.ndarray:
         """``−∇E`` (n, 3), compiled (:func:`hybmss.models.xpbd_nh._kernels.term_forces`; its twin
         :meth:`forces_numpy`)."""
-        return _kernels_xpbd.term_forces(np.ascontiguousarray(x, dtype=float), self.tets, self.Dminv, self.Vt,
-                                         self.mu, self.lam, self.gamma)
+        return _kernels_xpbd.term_forces(_rows(x), self.tets, self.Dminv, self.Vt, self.mu, self.lam, self.gamma)
 
     def energy_numpy(self, x: np.ndarray) -> float:
         """The energy with NumPy: the readable twin of :meth:`energy`."""
@@ -149,8 +150,8 @@ class XpbdNH:
         return float(np.dot(self.Vt, psi))
 
     def forces_numpy(self, x: np.ndarray) -> np.ndarray:
-        """``−∇E`` (n, 3) with NumPy, the readable twin of :meth:`forces`: per tetrahedron ``P = μ F + λ (J − γ) cof F``, node forces
-        ``−V P D_m⁻ᵀ`` (node 0: minus their sum).  ``cof F`` by columns, ``(f₁ × f₂, f₂ × f₀,
+        """``−∇E`` (n, 3) with NumPy, the readable twin of :meth:`forces`: per tetrahedron
+        ``P = μ F + λ (J − γ) cof F``, node forces ``−V P D_m⁻ᵀ`` (node 0: minus their sum).  ``cof F`` by columns, ``(f₁ × f₂, f₂ × f₀,
         f₀ × f₁)`` of F's columns ``f_j``, and ``J = f₀ · (f₁ × f₂)``."""
         F = self.deformation_gradients(x)
         f0, f1, f2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
@@ -165,6 +166,11 @@ class XpbdNH:
 
     def stiffness(self, x: np.ndarray):
         raise NotImplementedError("xpbd-nh is explicit only: it has no static tangent")
+
+
+def _rows(x: np.ndarray) -> np.ndarray:
+    """Positions (n, 3) as the kernels' (3, n) float64 rows."""
+    return np.ascontiguousarray(np.asarray(x, dtype=float).T)
 
 
 # ------------------------------------------------------------------------------ NumPy twin
