@@ -147,6 +147,9 @@ def _flag_in(argv, name: str) -> bool:
 
 def main(argv=None) -> int:
     """Run the ``hybmss`` command; returns the exit status (0, 2 or 3)."""
+    from studies.sweep.heap import keep_freed_memory
+
+    keep_freed_memory()  # runs computed in this process (one job) reuse the heap they free
     argv = list(sys.argv[1:] if argv is None else argv)
     as_json, debug = _flag_in(argv, "--json"), _flag_in(argv, "--debug")
     out, err = sys.stdout, sys.stderr

@@ -26,6 +26,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Callable
 
+from studies.sweep.heap import then_release
 from studies.sweep.store import DamagedRun
 
 EXECUTORS = ("local", "dask")
@@ -102,7 +103,7 @@ class InProcess:
 
     def wait_one(self):
         key, task = self.queue.pop(0)
-        return key, self.fn(task, key)
+        return key, then_release(self.fn, task, key)
 
     def abandon(self) -> None:
         self.queue.clear()
@@ -147,7 +148,7 @@ class Workers:
             self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=worker_context(),
                                              initializer=ignore_interrupt)
             self.procs = []
-        fut = self._pool.submit(fn, *args)
+        fut = self._pool.submit(then_release, fn, *args)  # the run's freed heap back to the machine
         # workers are started as work is submitted, up to ``jobs``
         self.procs += [p for p in multiprocessing.active_children() if p not in self._before and p not in self.procs]
         return fut

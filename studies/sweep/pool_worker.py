@@ -4,7 +4,9 @@ A sweep runs in parallel over its runs, one run per worker; a worker whose dense
 solves also start one BLAS thread per core oversubscribes the machine (under load a
 multithreaded dense eigen solve was 10-30x slower than a single-threaded one).  OpenBLAS, MKL and
 OpenMP read their thread counts once, when the library is loaded, i.e. when numpy or scipy is
-first imported: setting the variables in a process that has imported numpy changes nothing.  So
+first imported: setting the variables in a process that has imported numpy changes nothing.
+The server also sets the C heap to keep freed memory for the next allocation
+(:func:`studies.sweep.heap.keep_freed_memory`), which the workers inherit.  So
 the local pool (:class:`studies.sweep.executors.LocalPool`) forks its workers from a server process
 (multiprocessing's ``forkserver``) whose first import is this module: the variables are set
 here, then numpy, the runner and the solvers are imported once, with them in force, and every
@@ -22,6 +24,8 @@ import ctypes
 import os
 import signal
 import sys
+
+from studies.sweep.heap import keep_freed_memory
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 """The thread counts of OpenMP, OpenBLAS and MKL, each set to 1 in a worker."""
@@ -65,6 +69,7 @@ def _before_fork() -> None:
 
 if _is_server():
     die_with_parent(os.getppid())
+    keep_freed_memory()  # inherited by the forked workers (studies.sweep.heap)
     os.register_at_fork(before=_before_fork, after_in_child=lambda: die_with_parent(_forking_pid))
 
 # the workers' code, loaded after the variables (numpy and scipy load their BLAS here)
