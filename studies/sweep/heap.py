@@ -63,6 +63,22 @@ def release_free_memory() -> bool:
     return bool(libc.malloc_trim(0)) if libc is not None else False
 
 
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in
+                ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
+                 "keepcost")]
+
+
+def mmapped_bytes() -> int | None:
+    """Bytes this process's ``malloc`` holds in chunks of their own mmap (glibc's
+    ``mallinfo2().hblkhd``): 0 under :func:`keep_freed_memory`; None where it cannot tell."""
+    libc = _libc()
+    if libc is None or not hasattr(libc, "mallinfo2"):
+        return None
+    libc.mallinfo2.restype = _Mallinfo2
+    return int(libc.mallinfo2().hblkhd)
+
+
 def then_release(fn, *args):
     """``fn(*args)``, then the heap's free memory returned to the kernel (a worker's run or call:
     :class:`studies.sweep.executors.Workers`)."""
