@@ -155,7 +155,10 @@ def eigen(K, M, k: int, sigma: float, OPinv=None) -> tuple[np.ndarray, np.ndarra
     n = M.shape[0]
     if not 1 <= k < n:
         raise ValueError(f"k (number of modes) must lie in [1, {n - 1}] for this body's {n} free dofs, got {k}")
-    w, V = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", mode="normal", OPinv=OPinv, tol=0.0)
+    # a start vector of its own, not ARPACK's (whose generator's state persists between calls): the
+    # basis of a degenerate eigenvalue then does not depend on the process's earlier solves
+    v0 = np.random.default_rng(0).standard_normal(n)
+    w, V = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", mode="normal", OPinv=OPinv, tol=0.0, v0=v0)
     order = np.argsort(w)
     w, V = w[order], V[:, order]
     V = V / np.sqrt(np.einsum("ik,ik->k", V, M @ V))
