@@ -36,6 +36,14 @@ TRIM_THRESHOLD_MAX = 2**31 - 1
 """The largest ``M_TRIM_THRESHOLD`` (an ``int``): free memory at the heap's top is kept up to this."""
 
 
+class _Mallinfo2(ctypes.Structure):
+    """glibc's ``struct mallinfo2``."""
+
+    _fields_ = [(name, ctypes.c_size_t) for name in
+                ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
+                 "keepcost")]
+
+
 @lru_cache(maxsize=1)
 def _libc():
     """glibc, or None where the C library is another (no ``mallopt``, ``malloc_trim``)."""
@@ -43,9 +51,13 @@ def _libc():
         return None
     try:
         libc = ctypes.CDLL(None)
-        return libc if hasattr(libc, "mallopt") and hasattr(libc, "malloc_trim") else None
     except OSError:
         return None
+    if not (hasattr(libc, "mallopt") and hasattr(libc, "malloc_trim")):
+        return None
+    if hasattr(libc, "mallinfo2"):
+        libc.mallinfo2.restype = _Mallinfo2
+    return libc
 
 
 def keep_freed_memory() -> bool:
@@ -55,7 +67,9 @@ def keep_freed_memory() -> bool:
     libc = _libc()
     if libc is None:
         return False
-    return bool(libc.mallopt(M_MMAP_MAX, 0)) & bool(libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_MAX))
+    no_mmap = libc.mallopt(M_MMAP_MAX, 0)
+    no_trim = libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_MAX)
+    return bool(no_mmap and no_trim)
 
 
 def release_free_memory() -> bool:
@@ -64,19 +78,12 @@ def release_free_memory() -> bool:
     return bool(libc.malloc_trim(0)) if libc is not None else False
 
 
-class _Mallinfo2(ctypes.Structure):
-    _fields_ = [(name, ctypes.c_size_t) for name in
-                ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
-                 "keepcost")]
-
-
 def mmapped_bytes() -> int | None:
     """Bytes this process's ``malloc`` holds in chunks of their own mmap (glibc's
     ``mallinfo2().hblkhd``): 0 under :func:`keep_freed_memory`; None where it cannot tell."""
     libc = _libc()
     if libc is None or not hasattr(libc, "mallinfo2"):
         return None
-    libc.mallinfo2.restype = _Mallinfo2
     return int(libc.mallinfo2().hblkhd)
 
 

@@ -4,14 +4,14 @@ A sweep runs in parallel over its runs, one run per worker; a worker whose dense
 solves also start one BLAS thread per core oversubscribes the machine (under load a
 multithreaded dense eigen solve was 10-30x slower than a single-threaded one).  OpenBLAS, MKL and
 OpenMP read their thread counts once, when the library is loaded, i.e. when numpy or scipy is
-first imported: setting the variables in a process that has imported numpy changes nothing.
-The server also sets the C heap to keep freed memory for the next allocation
-(:func:`studies.sweep.heap.keep_freed_memory`), which the workers inherit.  So
+first imported: setting the variables in a process that has imported numpy changes nothing.  So
 the local pool (:class:`studies.sweep.executors.LocalPool`) forks its workers from a server process
 (multiprocessing's ``forkserver``) whose first import is this module: the variables are set
 here, then numpy, the runner and the solvers are imported once, with them in force, and every
 worker forked from the server starts with them loaded.  Dask workers get the same variables from
-dask's own ``distributed.nanny.pre-spawn-environ`` setting.
+dask's own ``distributed.nanny.pre-spawn-environ`` setting.  The server also has the C heap keep
+freed memory for the next allocation (:func:`studies.sweep.heap.keep_freed_memory`, which imports
+no numpy), and the workers inherit that too.
 
 The server and its workers end with the process that started them, however it ends (SIGKILL
 included, which runs no clean-up): the server asks the kernel for SIGKILL when its parent dies

@@ -3,6 +3,7 @@ served from the heap (not a fresh mmap whose pages the kernel faults in again at
 allocation), what a run frees goes back to the machine after it, and a local pool's workers
 inherit the setting from their fork server."""
 
+import ast
 import os
 import subprocess
 import sys
@@ -17,6 +18,7 @@ from studies.sweep.executors import Workers
 pytestmark = pytest.mark.skipif(heap.mmapped_bytes() is None, reason="glibc's malloc only")
 
 MB = 2**20
+HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def resident_bytes() -> int:
@@ -28,8 +30,8 @@ def _in_fresh_process(code: str) -> dict:
     """``code`` run by a new interpreter (the heap's settings are the process's): the dict it prints."""
     src = "import numpy as np\nfrom studies.sweep import heap\nfrom test_heap import resident_bytes, MB\n" + textwrap.dedent(code)
     out = subprocess.run([sys.executable, "-c", src], capture_output=True, text=True, check=True,
-                         cwd=os.path.dirname(__file__), env={**os.environ, "PYTHONPATH": os.getcwd()})
-    return eval(out.stdout.strip().splitlines()[-1])  # noqa: S307 - our own subprocess's dict
+                         cwd=HERE, env={**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(HERE))})
+    return ast.literal_eval(out.stdout.strip().splitlines()[-1])
 
 
 def test_glibc_maps_a_large_array_of_its_own_and_the_setting_takes_it_from_the_heap():
