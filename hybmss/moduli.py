@@ -178,15 +178,20 @@ def shear_stress_from_reactions(scene: Scene, result) -> float:
     return float(0.5 * (sig[0, 2] + sig[2, 0]))
 
 
+def check_strain(strain: float) -> None:
+    """``ValueError`` for a strain outside :data:`STRAIN_RANGE`."""
+    lo, hi = STRAIN_RANGE
+    if not (lo <= strain <= hi):
+        raise ValueError(f"strain={strain!r} is outside [{lo:g}, {hi:g}]: moduli are measured from the response "
+                         "to a small nonzero tension")
+
+
 def measure_moduli(model: Model, material: Material, strain: float = 1e-4, n: int = 2, judge: bool = False) -> dict:
     """``{"E_eff", "nu_eff", "G_eff"}`` of ``model`` built for ``material``.  ``ValueError`` for a
     strain outside :data:`STRAIN_RANGE` or ν outside :data:`hybmss.scene.NU_RANGE`;
     :class:`MeasurementError` (``judge``) for a state that is not an equilibrium or moduli out of
     bounds."""
-    lo, hi = STRAIN_RANGE
-    if not (lo <= strain <= hi):
-        raise ValueError(f"strain={strain!r} is outside [{lo:g}, {hi:g}]: moduli are measured from the response "
-                         "to a small nonzero tension")
+    check_strain(strain)
     check_nu(material.nu)
     le = 1.0
     H = n * le

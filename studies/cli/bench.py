@@ -12,7 +12,7 @@ from hybmss.scene import Material
 
 from studies.sweep import roles
 from studies.sweep import sizing
-from studies.cli.common import InputError, SolveFailure, guard, mesh_flags, show
+from studies.cli.common import InputError, SolveFailure, guard, mesh_flags, show, working
 from studies.cli.options import Options, add_no_guard, add_scene_options, positive_int
 
 HELP = "speed of the explicit kernels and the static solver"
@@ -63,13 +63,14 @@ def bench(args):
               f"--steps {args.steps}" if args.steps else "bench", args=args)
     if one["model"] is not None and models.get(one["model"]).kernels == ("engine",):
         return _bench_engine(args, one, repeats)
-    if any(v is not None for v in one.values()):  # time one configuration
-        row = time_config(model=one["model"], nu=NU if one["nu"] is None else one["nu"],
-                          mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
-                          precision=one["precision"] or "f64", steps=args.steps, repeats=repeats)
-        d = {"explicit": [row], "static": []}
-    else:
-        d = run_bench(steps=args.steps, quick=args.quick, static_models=roles.in_role("performance"))
+    with working():
+        if any(v is not None for v in one.values()):  # time one configuration
+            row = time_config(model=one["model"], nu=NU if one["nu"] is None else one["nu"],
+                              mesh=one["mesh"] or MESH, threads=one["threads"] or 1,
+                              precision=one["precision"] or "f64", steps=args.steps, repeats=repeats)
+            d = {"explicit": [row], "static": []}
+        else:
+            d = run_bench(steps=args.steps, quick=args.quick, static_models=roles.in_role("performance"))
     return d, format_bench(d)
 
 
@@ -93,18 +94,20 @@ def _bench_engine(args, one: dict, repeats: int):
         spec._check(scene, one["threads"] or 1, one["precision"] or spec.precisions[0])
     except ValueError as exc:
         raise InputError(f"--model = {name} is not allowed for this scene: {exc}") from None
-    rows = step_ratios([name], mesh=mesh, nu=nu, steps=args.steps, repeats=repeats,
-                       target_s=0.05 if args.quick else 0.5)
-    static = []
-    for m in (models.default_name(), name):
-        sc = compression_scene(m, nu, mesh=mesh)
-        t0 = time.perf_counter()
-        try:
-            r = solve_static(sc)
-        except StaticSolveError as exc:
-            raise SolveFailure(f"{m}: static answer failed: {' '.join(str(exc).split())}") from None
-        static.append({"model": m, "mesh": "x".join(map(str, mesh)), "nu": nu, "wall_time_s": time.perf_counter() - t0,
-                       "solver": r.solver, "steps_or_iterations": int(r.iterations), "load_avg": load_average()})
+    with working():
+        rows = step_ratios([name], mesh=mesh, nu=nu, steps=args.steps, repeats=repeats,
+                           target_s=0.05 if args.quick else 0.5)
+        static = []
+        for m in (models.default_name(), name):
+            sc = compression_scene(m, nu, mesh=mesh)
+            t0 = time.perf_counter()
+            try:
+                r = solve_static(sc)
+            except StaticSolveError as exc:
+                raise SolveFailure(f"{m}: static answer failed: {' '.join(str(exc).split())}") from None
+            static.append({"model": m, "mesh": "x".join(map(str, mesh)), "nu": nu,
+                           "wall_time_s": time.perf_counter() - t0, "solver": r.solver,
+                           "steps_or_iterations": int(r.iterations), "load_avg": load_average()})
     ratio = rows[1]["ratio_to_hybmss"]
     d = {"model": name, "mesh": "x".join(map(str, mesh)), "nu": nu, "explicit": rows, "static": static,
          "step_ratio_to_hybmss": ratio, "static_ratio_to_hybmss": static[1]["wall_time_s"] / static[0]["wall_time_s"],

@@ -1,15 +1,18 @@
 """What the subcommands of ``hybmss`` share: their two failures (:class:`InputError`, exit status
 2; :class:`SolveFailure`, exit status 3), the scene options read into a checked
 :class:`~hybmss.experiments.SceneSpec` (:func:`scene_spec`) or a stored scene (:func:`load_scene`),
-the size and time guard (:func:`guard`) and the check of a solver's result (:func:`check_result`).
+the size and time guard (:func:`guard`), the work of a command once its input is checked
+(:func:`working`) and the check of a solver's result (:func:`check_result`).
 Inputs are checked before any work starts; the solvers are imported when a command runs, so an
 invocation that is refused costs no more than importing NumPy."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
+import sys
 
 from hybmss import models
 from hybmss.experiments import EXPERIMENTS, ParameterError, SceneSpec
@@ -39,6 +42,27 @@ class SolveFailure(RuntimeError):
     def __init__(self, message: str, result: dict | None = None):
         super().__init__(message)
         self.result = result
+
+
+@contextlib.contextmanager
+def working():
+    """The work of a command, entered once its input is checked.  Exit status 2 says the input
+    was refused before any work started; a ``ValueError`` raised by the work (a solver's, NumPy's
+    or SciPy's on a state they cannot handle) is a valid simulation that failed: exit status 3,
+    its type and message on the line (``--debug`` shows where).  A refusal raised in it (an
+    :class:`InputError` that needs the lattice built, as ``modes -k``; a study file's
+    :class:`~studies.study.errors.StudyError`, some of whose keys are checked against the built
+    body) stays one."""
+    try:
+        yield
+    except InputError:
+        raise
+    except ValueError as exc:
+        study = sys.modules.get("studies.study.errors")  # imported by whatever raised one
+        if study is not None and isinstance(exc, study.StudyError):
+            raise
+        raise SolveFailure(f"{type(exc).__name__} during the solve: {' '.join(str(exc).split())}; the input was "
+                           "accepted but the solvers could not handle it: --debug shows where") from exc
 
 
 def model_choices() -> tuple[str, ...]:
@@ -101,6 +125,20 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = T
         raise InputError(f"{flag(name)} = {show(given.get(name))} is not allowed: {text}") from None
     except TypeError as exc:  # a model parameter of the wrong kind
         raise InputError(f"model {given.get('model') or models.default_name()}: {exc}") from None
+
+
+def check_newton_nu(model_name: str, solver: str, nu: float, where: str | None = None) -> None:
+    """Refuse a Poisson ratio outside :data:`hybmss.scene.NU_RANGE` where the harness's Newton
+    solvers answer (the implicit solver, and the static one of a model without its own), as a
+    study file's runs are (:func:`studies.study.checks`); ``where`` names the input that set it
+    (default ``--nu``)."""
+    from hybmss.scene import check_nu
+
+    if solver == "implicit" or (solver == "static" and models.get(model_name).solve_static is None):
+        try:
+            check_nu(nu)
+        except ValueError as exc:
+            raise InputError(f"{where or '--nu = ' + show(nu)} is not allowed: {' '.join(str(exc).split())}") from None
 
 
 def check_solver(model_name: str, solver: str) -> None:

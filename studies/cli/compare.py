@@ -20,8 +20,8 @@ from studies.sweep import sizing
 from studies.sweep.compare import default_law, diff_metrics
 from studies.sweep.runner import SolverSpec
 from studies.sweep.solving import default_kernel, measure, solve_scene
-from studies.cli.common import SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, check_result, check_solver, flag, \
-    guard, mesh_flags, run_work, scene_spec, show, stored_scene, work_flags
+from studies.cli.common import SCENES, SOLVER_DEFAULTS, InputError, SolveFailure, check_newton_nu, check_result, \
+    check_solver, flag, guard, mesh_flags, run_work, scene_spec, show, stored_scene, work_flags, working
 from studies.cli.options import Options, add_fem_options, add_model_options, add_mss_options, add_no_guard, \
     add_scene_options, positive_int
 
@@ -186,6 +186,8 @@ def _fmt(v, spec: str = ".5g") -> str:
 def compare(args):
     scene, spec = _compare_scene(args)
     model_name = spec.model if spec is not None else scene.model.name
+    check_newton_nu(model_name, args.solver, spec.nu if spec is not None else scene.material.nu,
+                    None if spec is not None else f"--scene-json = {args.scene_json}")
     dyn = {"dt": args.dt, "steps": args.steps, "ramp_time": args.ramp_time}
     if args.solver == "static":
         for name, v in dyn.items():
@@ -208,29 +210,30 @@ def compare(args):
           lambda sh: sizing.fem(sh, args.element, refine, law, nu), args)
     if scene is None:
         scene = spec.build()
-    t0 = time.perf_counter()
-    mss = solve_scene(scene, mss_solver, static_options)
-    check_result(mss, f"mass-spring {args.solver} solve")
-    if args.solver == "static" and not scene.has_gravity and not scene.loads:
-        from hybmss.moduli import EQUILIBRIUM_TOL, equilibrium_error
+    with working():
+        t0 = time.perf_counter()
+        mss = solve_scene(scene, mss_solver, static_options)
+        check_result(mss, f"mass-spring {args.solver} solve")
+        if args.solver == "static" and not scene.has_gravity and not scene.loads:
+            from hybmss.moduli import EQUILIBRIUM_TOL, equilibrium_error
 
-        err = equilibrium_error(scene, mss)  # a relaxation that stopped where it started is no answer
-        if not err <= EQUILIBRIUM_TOL:
-            raise SolveFailure(f"the mass-spring static solve ({mss.solver}) stopped away from equilibrium: net "
-                               f"forces on free particles {100 * err:.3g} % of the plate forces (allowed <= "
-                               f"{100 * EQUILIBRIUM_TOL:g} %); check the model's parameters (substeps, iterations)")
-    fem_res = solve_scene(scene, fem_solver)
-    check_result(fem_res, "FEM solve")
-    d = diff_metrics(mss.X, mss.u, fem_res.u)
-    m, f = _side(mss, spec, fem=False), _side(fem_res, spec, fem=True)
-    out = {"scene": spec.to_dict() if spec is not None else scene.to_dict(), "scene_digest": scene.digest(),
-           "mss": m, "fem": f, "diff": d, "relative_errors": relative_errors(m, f, mss.u, fem_res.u),
-           "volume_formulas": VOLUME_FORMULAS, "units": UNITS}
-    if spec is not None and spec.experiment == "bending":
-        out["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
-    out["wall_time_s"] = time.perf_counter() - t0
-    return out, format_compare(out, spec.label if spec is not None else f"scene {scene.name or args.scene_json}",
-                               fem_res.solver)
+            err = equilibrium_error(scene, mss)  # a relaxation that stopped where it started is no answer
+            if not err <= EQUILIBRIUM_TOL:
+                raise SolveFailure(f"the mass-spring static solve ({mss.solver}) stopped away from equilibrium: net "
+                                   f"forces on free particles {100 * err:.3g} % of the plate forces (allowed <= "
+                                   f"{100 * EQUILIBRIUM_TOL:g} %); check the model's parameters (substeps, iterations)")
+        fem_res = solve_scene(scene, fem_solver)
+        check_result(fem_res, "FEM solve")
+        d = diff_metrics(mss.X, mss.u, fem_res.u)
+        m, f = _side(mss, spec, fem=False), _side(fem_res, spec, fem=True)
+        out = {"scene": spec.to_dict() if spec is not None else scene.to_dict(), "scene_digest": scene.digest(),
+               "mss": m, "fem": f, "diff": d, "relative_errors": relative_errors(m, f, mss.u, fem_res.u),
+               "volume_formulas": VOLUME_FORMULAS, "units": UNITS}
+        if spec is not None and spec.experiment == "bending":
+            out["euler_bernoulli_tip"] = spec.euler_bernoulli_tip()
+        out["wall_time_s"] = time.perf_counter() - t0
+        return out, format_compare(out, spec.label if spec is not None else f"scene {scene.name or args.scene_json}",
+                                   fem_res.solver)
 
 
 def format_compare(out: dict, label: str, fem_solver: str) -> str:

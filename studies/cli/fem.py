@@ -9,7 +9,7 @@ from hybmss.scene import plates_cross, unsupported
 from studies.sweep import sizing
 from studies.sweep.compare import default_law
 from studies.cli.common import SCENES, SOLVER_DEFAULTS, InputError, check_result, flag, given_scene_options, guard, \
-    load_scene, mesh_flags, scene_spec
+    load_scene, mesh_flags, scene_spec, working
 from studies.cli.options import Options, add_fem_options, add_model_options, add_no_guard, add_scene_options, \
     positive_int, refinements
 
@@ -75,25 +75,26 @@ def fem(args):
             raise InputError(f"--scene-json = {args.scene_json} is not allowed: {why}; allowed: plates that "
                              "do not cross")
 
-    from fem_reference.solve import solve as fem_solve
+    with working():
+        from fem_reference.solve import solve as fem_solve
 
-    if args.convergence:
-        from fem_reference.convergence import convergence
+        if args.convergence:
+            from fem_reference.convergence import convergence
 
-        study = convergence(scene, refinements=args.convergence, element=args.element, law=law,
-                            steps=args.load_steps, method=args.linear_solver)
-        for res in study.results:
-            check_result(res, "FEM solve")
-        out = study.to_dict()
-        out["finest"] = study.results[-1].summary()
+            study = convergence(scene, refinements=args.convergence, element=args.element, law=law,
+                                steps=args.load_steps, method=args.linear_solver)
+            for res in study.results:
+                check_result(res, "FEM solve")
+            out = study.to_dict()
+            out["finest"] = study.results[-1].summary()
+            out["scene"] = scene.to_dict()
+            out["scene_digest"] = scene.digest()
+            return out, format_fem(study.results[-1]) + "\n" + study.table()
+        res = fem_solve(scene, element=args.element, law=law, refine=refine, steps=args.load_steps,
+                        method=args.linear_solver)
+        check_result(res, "FEM solve")
+        out = res.summary()
         out["scene"] = scene.to_dict()
-        out["scene_digest"] = scene.digest()
-        return out, format_fem(study.results[-1]) + "\n" + study.table()
-    res = fem_solve(scene, element=args.element, law=law, refine=refine, steps=args.load_steps,
-                    method=args.linear_solver)
-    check_result(res, "FEM solve")
-    out = res.summary()
-    out["scene"] = scene.to_dict()
-    if spec is not None:
-        out["spec"] = spec.to_dict()
-    return out, format_fem(res)
+        if spec is not None:
+            out["spec"] = spec.to_dict()
+        return out, format_fem(res)

@@ -18,7 +18,8 @@ from hybmss import models
 from hybmss.scene import NEARLY_INCOMPRESSIBLE_NU, plates_cross, unsupported
 
 from studies.sweep import sizing
-from studies.cli.common import SCENES, SOLVER_DEFAULTS, InputError, guard, mesh_flags, scene_spec, show, stored_scene
+from studies.cli.common import SCENES, SOLVER_DEFAULTS, InputError, guard, mesh_flags, scene_spec, show, stored_scene, \
+    working
 from studies.cli.options import ELEMENTS, Options, add_model_options, add_no_guard, add_scene_options, positive_int
 
 HELP = "one model's lowest natural frequencies beside the FEM reference's: errors per mode and MAC"
@@ -102,12 +103,13 @@ def modes(args):
     if args.k >= n_free:
         raise InputError(f"-k = {args.k} is not allowed: this lattice has {n_free} free components; allowed: "
                          f"[1, {n_free - 1}]")
-    t0 = time.perf_counter()
-    lm = lattice_modes(scene, min(2 * args.k, n_free - 1), system)  # spare modes for the pairing
-    t1 = time.perf_counter()
-    fm = fem_modes(scene, args.k, element, refine, mass=args.mass)
-    t2 = time.perf_counter()
-    m = match(fm.freq, at_particles(fm), lm.freq, lm.shapes)
+    with working():
+        t0 = time.perf_counter()
+        lm = lattice_modes(scene, min(2 * args.k, n_free - 1), system)  # spare modes for the pairing
+        t1 = time.perf_counter()
+        fm = fem_modes(scene, args.k, element, refine, mass=args.mass)
+        t2 = time.perf_counter()
+        m = match(fm.freq, at_particles(fm), lm.freq, lm.shapes)
     rows = [{"mode": j + 1, "f_fem_hz": float(fm.freq[j]),
              "model_mode": None if c is None else c + 1,
              "f_model_hz": None if c is None else float(lm.freq[c]),

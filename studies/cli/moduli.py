@@ -10,7 +10,7 @@ from hybmss.scene import Material, Model
 
 from studies.sweep import sizing
 from studies.cli.common import InputError, SolveFailure, flag, given_scene_options, guard, run_work, show, \
-    work_flags
+    work_flags, working
 from studies.cli.options import Options, add_model_options, add_no_guard, add_scene_options, number
 
 HELP = "effective E, nu, G of a model (static homogeneous tests)"
@@ -26,7 +26,8 @@ def add_options(parser, opts: Options) -> None:
 
 
 def moduli(args):
-    from hybmss.moduli import MeasurementError, measure_moduli
+    from hybmss.moduli import MeasurementError, check_strain, measure_moduli
+    from hybmss.scene import check_nu
 
     given = given_scene_options(args)
     base = SceneSpec("uniaxial")
@@ -44,8 +45,14 @@ def moduli(args):
     # two uniaxial tests of a 2³ cube and a shear test of a 3³ one
     guard(sizing.total("moduli tests", [sizing.mss((3, 3, 3), "static", work=run_work(args, "static"))] * 3),
           f"--model {name}{work_flags(args)}", args=args)
+    for option, value, check in (("--strain", args.strain, check_strain), ("--nu", mat.nu, check_nu)):
+        try:  # what measure_moduli refuses, refused before its work: "strain=0 is outside [1e-06, 0.01]: ..."
+            check(value)
+        except ValueError as exc:
+            raise InputError(f"{option} = {show(value)} is not allowed: {exc}") from None
     try:
-        m = measure_moduli(model, mat, strain=args.strain, judge=True)
+        with working():
+            m = measure_moduli(model, mat, strain=args.strain, judge=True)
     except MeasurementError as exc:
         raise SolveFailure(str(exc)) from None
     G = mat.G

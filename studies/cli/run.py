@@ -13,7 +13,7 @@ from studies.sweep.executors import EXECUTORS
 from studies.sweep.runner import Runner, exit_now
 from studies.sweep.store import Store
 from studies.paper.reproduce import EXTRA_STUDIES, ON_REQUEST_STUDIES, STUDIES
-from studies.cli.common import InputError, guard
+from studies.cli.common import InputError, guard, working
 from studies.cli.options import Options, add_no_guard, integer
 
 HELP = "run the publication's studies and store their results"
@@ -97,7 +97,7 @@ def run(args):
     # left computing for a process that is gone
     previous = signal.signal(signal.SIGTERM, _terminate) if main else None
     try:
-        with runner:
+        with runner, working():
             run_studies(args.out, names=names, quick=args.quick, jobs=args.jobs,
                         progress=not args.no_progress, runner=runner)
     except KeyboardInterrupt:

@@ -7,7 +7,7 @@ import time
 
 from studies.sweep.runner import Runner
 from studies.sweep.store import Store
-from studies.cli.common import InputError, SolveFailure
+from studies.cli.common import InputError, SolveFailure, working
 from studies.cli.options import Options, integer
 
 HELP = ("answer a study file (docs/study-format.md): its models against one FEM reference, with cost, tables "
@@ -42,10 +42,11 @@ def study(args):
     runner = Runner(executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(out).check_writable()
     t0 = time.perf_counter()
-    with runner:
+    with runner, working():
         done = spec.run(out, jobs=args.jobs, runner=runner, progress=not args.no_progress)
-    report = None if args.no_report or spec.experiment is not None else str(spec.report(out, pdf=True))
-    tables = spec.tables(out) if spec.experiment is None else {}
+    with working():
+        report = None if args.no_report or spec.experiment is not None else str(spec.report(out, pdf=True))
+        tables = spec.tables(out) if spec.experiment is None else {}
     budget = [r for name, df in tables.items() if name.startswith("budget_")
               for r in df.astype(object).where(df.notna(), None).to_dict("records")]
     dynamics = _dynamics_budget(done.get("tables", {}))

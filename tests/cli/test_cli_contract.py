@@ -369,3 +369,23 @@ def test_run_a_quick_study(tmp_path):
 def test_invocation_count():
     """At least 60 bad or extreme invocations are held to the contract (counted when run in order)."""
     assert len(REFUSED) >= 60
+
+
+# ------------------------------------------------------------------------ failures inside the work
+def _raise_value_error(*args, **kwargs):
+    raise ValueError("array must not contain infs or NaNs")  # as SciPy says it of a state it cannot take
+
+
+@pytest.mark.parametrize("argv, module, name", [
+    (["fem", "--mesh", CUBE, "--json"], "fem_reference.solve", "solve"),
+    (["compare", "compression", "--mesh", CUBE, "--json"], "studies.cli.compare", "solve_scene"),
+    (["modes", "compression", "--mesh", CUBE, "-k", "2", "--json"], "hybmss.modes", "lattice_modes"),
+])
+def test_a_value_error_inside_the_work_is_a_failed_simulation(argv, module, name, monkeypatch, cli_in_process,
+                                                               tmp_path):
+    # exit 2 is for input refused before any work; valid input whose solve raises is exit 3
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module(module), name, _raise_value_error)
+    out = check(cli_in_process(*argv, cwd=tmp_path), 3, "ValueError during the solve: array must not contain")
+    assert out["status"] == "failed"
