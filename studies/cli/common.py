@@ -130,7 +130,7 @@ def scene_spec(args, experiment: str, solvers: tuple[str, ...], solved: bool = T
 def check_newton_nu(model_name: str, solver: str, nu: float, where: str | None = None) -> None:
     """Refuse a Poisson ratio outside :data:`hybmss.scene.NU_RANGE` where the harness's Newton
     solvers answer (the implicit solver, and the static one of a model without its own), as a
-    study file's runs are (:func:`studies.study.checks`); ``where`` names the input that set it
+    study file's runs are (:mod:`studies.study.checks`); ``where`` names the input that set it
     (default ``--nu``)."""
     from hybmss.scene import check_nu
 

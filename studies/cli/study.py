@@ -42,9 +42,9 @@ def study(args):
     runner = Runner(executor, jobs=args.jobs, scheduler=args.scheduler, progress=not args.no_progress)
     Store(out).check_writable()
     t0 = time.perf_counter()
-    with runner, working():
-        done = spec.run(out, jobs=args.jobs, runner=runner, progress=not args.no_progress)
     with working():
+        with runner:
+            done = spec.run(out, jobs=args.jobs, runner=runner, progress=not args.no_progress)
         report = None if args.no_report or spec.experiment is not None else str(spec.report(out, pdf=True))
         tables = spec.tables(out) if spec.experiment is None else {}
     budget = [r for name, df in tables.items() if name.startswith("budget_")
