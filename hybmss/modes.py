@@ -24,6 +24,12 @@ weighting, e.g. a mass matrix; ``I`` otherwise):
 square section's bending pairs) any rotation of the shapes is a valid basis, so a shape is
 matched to the group by its subspace MAC ``‖Qᵀ a‖² / ‖a‖²`` (Q an orthonormal basis of the
 group's shapes), which is the MAC for a group of one (:func:`match`).
+
+A product ``aᵀ W b`` of n terms computed in floating point is exact to ``n ε |a|ᵀ |W b|``
+(ε the unit round-off; the a-priori bound of a dot product); a product within that bound cannot
+be told from zero, and its MAC is reported as 0 (:func:`_zero_to_roundoff`), not as the 1e-30 or
+so of digits that depend on the order of the summation (shapes orthogonal by symmetry: a cube's
+axial mode against its bending modes).
 """
 
 from __future__ import annotations
@@ -113,8 +119,15 @@ def mac(A: np.ndarray, B: np.ndarray, W=None) -> np.ndarray:
     b = np.asarray(B, float).reshape(len(B), -1)
     Wb = b if W is None else (W @ b.T).T
     Wa = a if W is None else (W @ a.T).T
-    cross = a @ Wb.T
+    cross = _zero_to_roundoff(a @ Wb.T, a, Wb)
     return cross**2 / np.outer(np.einsum("ij,ij->i", a, Wa), np.einsum("ij,ij->i", b, Wb))
+
+
+def _zero_to_roundoff(products: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``products`` (= ``a @ b.T``, rows of ``a`` and ``b`` of length n) with every entry whose
+    magnitude is within the dot product's round-off bound ``n ε |a| @ |b|.T`` set to 0."""
+    bound = a.shape[1] * np.finfo(float).eps * (np.abs(a) @ np.abs(b).T)
+    return np.where(np.abs(products) <= bound, 0.0, products)
 
 
 def groups(freq: np.ndarray, rtol: float = DEGENERATE_RTOL) -> np.ndarray:
@@ -133,7 +146,7 @@ def subspace_mac(ref: np.ndarray, shapes: np.ndarray, group: np.ndarray) -> np.n
     out = np.empty((int(group.max()) + 1, len(a)))
     for gi in range(len(out)):
         Q, _ = np.linalg.qr(r[group == gi].T)
-        out[gi] = np.sum((a @ Q) ** 2, axis=1) / np.einsum("ij,ij->i", a, a)
+        out[gi] = np.sum(_zero_to_roundoff(a @ Q, a, Q.T) ** 2, axis=1) / np.einsum("ij,ij->i", a, a)
     return out
 
 

@@ -9,7 +9,9 @@
   a fixed–fixed chain of 2N cells).
 - corot-hex8 at rest is the linear Hex8 element on the lattice's cells with the lattice's
   lumped masses: the FEM's Hex1 with row-sum lumped mass on the same mesh, to round-off.
-- MAC: 1 for a shape with itself, 0 between different FEM modes under the consistent mass.
+- MAC: 1 for a shape with itself, 0 between different FEM modes under the consistent mass;
+  exactly 0 between shapes orthogonal by symmetry (an even and an odd field on a mirrored grid,
+  whose product sums to round-off), while a MAC of 1e-8 stays what it is.
 - A lattice's lowest frequency on a cantilever converges to the FEM's under refinement.
 """
 
@@ -73,6 +75,38 @@ def test_mac_of_itself_is_one_and_of_different_fem_modes_zero():
     plain = mac(at_particles(fm), at_particles(fm))
     np.testing.assert_allclose(np.diag(plain), 1.0, rtol=1e-12)
     assert mac(V[:1], 3.0 * V[:1])[0, 0] == pytest.approx(1.0, rel=1e-12)
+
+
+def mirrored_even_and_odd_shapes():
+    """Two shapes symmetric under the mirror x → −x (u_x odd in x, u_y and u_z even: an axial
+    mode's symmetry) and one antisymmetric (u_x even, u_y and u_z odd: a bending mode's) on a grid
+    mirrored about x = 0 (41 × 7 × 19 nodes), and an even nodal weight (3 per node).  The
+    antisymmetric shape is orthogonal to both by symmetry; its computed product with the first
+    is round-off (1.8e-12 against |a| |b| ≈ 1e3)."""
+    x = np.linspace(-1.0, 1.0, 41)
+    X, Y, Z = np.meshgrid(x, np.linspace(0.0, 1.0, 7), np.linspace(0.0, 3.0, 19), indexing="ij")
+    x, y, z = X.ravel(), Y.ravel(), Z.ravel()
+    even = np.stack([np.sin(np.pi * x) * 0.3 * z, np.cos(0.7 * x) * y**2, np.exp(x**2) * np.sqrt(1.0 + z)], -1)
+    odd = np.stack([np.cos(1.3 * x) * z**2, np.sin(2.1 * x) * np.sqrt(2.0 + y), np.sinh(x) * z / 3.0], -1)
+    return even, even * (1.0 + x**2 + z)[:, None], odd, np.repeat(1.0 + np.cos(x), 3)
+
+
+def test_mac_of_shapes_orthogonal_by_symmetry_is_zero_not_roundoff():
+    even, even2, odd, w = mirrored_even_and_odd_shapes()
+    a, b = even.ravel(), odd.ravel()
+    assert a @ b != 0.0  # round-off: the sum does not cancel exactly
+    assert mac(even[None], odd[None])[0, 0] == 0.0
+    assert mac(even[None], odd[None], np.diag(w))[0, 0] == 0.0
+    m = match(np.array([1.0]), even[None], np.array([1.0, 2.0]), np.stack([odd, even]))
+    assert m["matched"] == [1] and m["mac"][0][0] == 0.0
+    # the subspace MAC against a degenerate symmetric pair (its orthonormal basis from a QR)
+    pair = match(np.array([1.0, 1.0]), np.stack([even, even2]), np.array([1.0]), odd[None])
+    assert pair["groups"] == [0, 0] and pair["matched_mac"][pair["matched"].index(0)] == 0.0
+    # a small MAC that is not round-off is kept: (aᵀb')² / (|a|² |b'|²) with b' = odd + t a
+    t = 1e-4 * np.linalg.norm(b) / np.linalg.norm(a)
+    small = mac(even[None], (odd + t * even)[None])[0, 0]
+    expected = (t * (a @ a)) ** 2 / ((a @ a) * ((b + t * a) @ (b + t * a)))
+    assert small == pytest.approx(expected, rel=1e-6) and 1e-9 < small < 1e-7
 
 
 def test_match_pairs_degenerate_groups_and_reordered_modes():
