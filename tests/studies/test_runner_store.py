@@ -338,3 +338,22 @@ def test_the_code_version_hashes_the_solvers_sources():
     assert not any(f.startswith("fem_reference/") for f in mss)
     nothing = hashlib.sha256().hexdigest()[:16]
     assert nothing not in {code_version("mss"), code_version("fem"), code_version()}
+
+
+def test_a_run_records_the_processors_model_not_only_its_architecture(tmp_path):
+    """The timings depend on the processor: a row names its model (Linux's ``model name``, not the
+    numeric ``model`` line before it), and falls back to the architecture where nothing says more."""
+    from studies.sweep.store import cpu_model
+
+    info = tmp_path / "cpuinfo"
+    info.write_text("processor\t: 0\nvendor_id\t: GenuineIntel\nmodel\t\t: 106\n"
+                    "model name\t: Intel(R) Xeon(R)   Processor @ 2.80GHz\nflags\t\t: fpu avx512f\n")
+    assert cpu_model(str(info)) == "Intel(R) Xeon(R) Processor @ 2.80GHz"
+    import platform
+
+    if platform.system() != "Darwin":  # there the brand string comes from sysctl
+        assert cpu_model(str(tmp_path / "absent")) == (platform.processor() or platform.machine())
+    if os.path.exists("/proc/cpuinfo") and "model name" in open("/proc/cpuinfo").read():
+        from studies.sweep.store import environment
+
+        assert environment()["processor"] not in (platform.machine(), "")
