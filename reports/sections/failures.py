@@ -17,12 +17,16 @@ FAILURE_CHARS = 120
 
 def failures_table(results: Results) -> Table:
     df = results.rows
-    bad = df[df["status"] != "ok"] if not df.empty else df
+    timed = df["timing"].astype(bool) if "timing" in df else pd.Series(False, index=df.index)
+    bad = df[(df["status"] != "ok") & ~timed] if not df.empty else df  # a timing run sought no result
+    n_timed = int(timed.sum())
+    timing_note = (f" Not listed: {n_timed} timing runs (short explicit runs of a candidate's steps, timed for "
+                   "its cost: not at rest, as asked)." if n_timed else "")
     cols = {"label": "scene", "solver": "solver", "study": "study", "status": "status", "counted": "counted as",
             "message": "message"}
     if bad.empty:
-        return Table("table_failures", "Runs that did not reach a result", "Every stored run reached status ok.",
-                     list(cols.values()), [])
+        return Table("table_failures", "Runs that did not reach a result",
+                     "Every stored run reached status ok." + timing_note, list(cols.values()), [])
     bad = bad.sort_values(["study", "label"]).copy()
     bad["counted"] = ["failure" if not f else f"finding: {f}" for f in bad["finding"]]
     n_failed = int((bad["finding"] == "").sum())
@@ -36,7 +40,8 @@ def failures_table(results: Results) -> Table:
                       "budget, an explicit or damped run that left the physical range at its step, a static or "
                       "implicit solve that diagnosed the model's loss of stability (a limit point, an indefinite "
                       f"Hessian, a step too long for Newton); {n_failed} are failures of the program. "
-                      f"Messages shortened to {FAILURE_CHARS} characters (the HTML list of runs links every run).",
+                      f"Messages shortened to {FAILURE_CHARS} characters (the HTML list of runs links every run)."
+                      + timing_note,
                       cols, lambda r, c: "fail" if c in ("status", "counted") and not r["finding"] else "")
     other = [i for i, k in enumerate(bad["key"]) if not results.is_publication_run(k)]
     if other:

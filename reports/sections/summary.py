@@ -28,11 +28,13 @@ def overview(results: Results) -> dict:
     out = {"n_runs": int(len(df)), "env": env}
     if df.empty:
         return out
-    no_result = df["status"] != "ok"
+    timed = df["timing"].astype(bool) if "timing" in df else pd.Series(False, index=df.index)
+    no_result = (df["status"] != "ok") & ~timed  # a timing run not at rest is what it was asked to be
     found = no_result & (df["finding"] != "")  # a finding of its study, counted apart from the failures
-    out["n_ok"] = int((~no_result).sum())
+    out["n_ok"] = int((df["status"] == "ok").sum())
     out["n_failed"] = int((no_result & ~found).sum())
     out["n_findings"] = int(found.sum())
+    out["n_timed"] = int(timed.sum())
     out["findings_by"] = [{"study": str(st), "reason": str(why), "n": int(n)} for (st, why), n in
                           df[found].groupby(["study", "finding"]).size().items()]
     out["compute_s"] = float(pd.to_numeric(df["elapsed_s"], errors="coerce").fillna(0).sum())
@@ -41,8 +43,9 @@ def overview(results: Results) -> dict:
         studies.append({
             "study": study,
             "runs": len(g),
-            "failed": int(((g["status"] != "ok") & (g["finding"] == "")).sum()),
-            "findings": int(((g["status"] != "ok") & (g["finding"] != "")).sum()),
+            "failed": int((no_result[g.index] & (g["finding"] == "")).sum()),
+            "findings": int((no_result[g.index] & (g["finding"] != "")).sum()),
+            "timed": int(timed[g.index].sum()),
             "meshes": ", ".join(sorted(g["mesh"].astype(str).unique())),
             "nus": ", ".join(f"{v:g}" for v in sorted(g["nu"].astype(float).unique())),
             "solvers": ", ".join(sorted(g["solver"].unique())),

@@ -71,7 +71,8 @@ executed two at a time on a shared machine: read ratios, not absolute figures.  
 the error is that of the publication's protocol run (at rest, the static equilibrium of the same
 energy); the cost is ``cost_explicit_s``, the wall time of one simulated second at the stable step
 ``½ dt_crit`` (:data:`studies.sweep.cost.SAFETY`), from the time per step of the protocol run itself,
-or where repeated the best of :data:`REPEATS` short runs of :data:`TIMING_STEPS` steps.  xpbd-nh has no explicit limit: its frame is the same
+or where repeated the best of :data:`REPEATS` short runs of :data:`TIMING_STEPS` steps (timing runs,
+:attr:`SolverSpec.timing`: not at rest, as asked; counted apart from results, findings and failures).  xpbd-nh has no explicit limit: its frame is the same
 ½ dt_crit (its dt_crit: 2/ω_max of the same grid), split into the substeps its accuracy rule
 chooses (h ω_max ≤ 0.1: 10 substeps), each costing the best time per substep of its short runs
 (:func:`unlimited_frame`).
@@ -210,7 +211,8 @@ def repeat_pairs(meta: dict, task: Task, lv: str) -> list[tuple[dict, Task]]:
     runs of :data:`TIMING_STEPS` steps timing its steps."""
     solver = task.solver
     if solver.kind == "explicit":
-        timing, ks = dataclasses.replace(solver, steps=TIMING_STEPS[lv], until_rest=False), range(REPEATS[lv])
+        timing, ks = (dataclasses.replace(solver, steps=TIMING_STEPS[lv], until_rest=False, timing=True),
+                      range(REPEATS[lv]))
     else:
         timing, ks = solver, range(1, REPEATS[lv])
     return [({**meta, "role": "timing", "repeat": k}, Task(task.scene, dataclasses.replace(timing, repeat=k), "pareto"))

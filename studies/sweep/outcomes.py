@@ -1,7 +1,8 @@
 """What a run came to, from its result or its stored row: the outputs of a result that are not
 finite (such a result is no result), a run's warnings on one line (kept in its row), and whether
 a run without result is a time-stepping run not at rest within its step budget (a finding of the
-study that chose the budget, counted apart from the failures)."""
+study that chose the budget, counted apart from the failures) or a timing run (:func:`timing_run`:
+not at rest as asked, counted apart from both)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,13 @@ def not_at_rest(row: dict | None) -> bool:
     """A time-stepping run that did not come to rest within its step budget: a finding of the
     study that chose the budget (no result, but no program failure either)."""
     return row is not None and row.get("status") == "not-converged" and row.get("solver") in TIME_STEPPING
+
+
+def timing_run(row: dict | None) -> bool:
+    """A run asked for its time per step alone (``solver_timing``: a candidate's short timed runs)
+    that ended not at rest, as it was asked to: its state is no answer and none was sought, so it
+    is counted apart, neither a result, nor a finding, nor a failure.  One that diverged is not."""
+    return row is not None and bool(row.get("solver_timing")) and row.get("status") == "not-converged"
 
 
 def expected_not_at_rest(task, row: dict | None) -> bool:
@@ -46,9 +54,10 @@ def finding(row: dict | None) -> str:
     transient (experiment ``released``) diverges as a finding only where
     :data:`studies.sweep.roles.RELEASED_DIVERGES` says it does.  Everything else without result
     (an exception, a non-finite result, a scene an engine cannot represent, Newton not converging
-    on a positive definite Hessian, a run missing) is a failure.  Reads the row's fields only, so
+    on a positive definite Hessian, a run missing) is a failure.  A timing run not at rest
+    (:func:`timing_run`) is neither: ``""``, and counted apart by whoever counts.  Reads the row's fields only, so
     the sweep's summary and the report count alike."""
-    if row is None or row.get("status") == "ok":
+    if row is None or row.get("status") == "ok" or timing_run(row):
         return ""
     if not_at_rest(row):
         return "not at rest within its step budget"

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from studies.sweep.outcomes import finding
+from studies.sweep.outcomes import finding, timing_run
 from studies.sweep.store import DamagedRun, Store, table_is_current
 
 #: lattice corner c = di + 2 dj + 4 dk  ->  VTK hexahedron order
@@ -83,12 +83,14 @@ class Results:
     def rows(self) -> pd.DataFrame:
         """Every stored run, one row each, with ``variant``, ``method`` and ``load`` columns, and
         ``finding``: why a run without result is a finding of the publication's studies, ``""`` for a
-        result or a failure (:func:`studies.sweep.outcomes.finding`)."""
+        result or a failure (:func:`studies.sweep.outcomes.finding`); ``timing``: a timing run not at
+        rest, as asked (:func:`studies.sweep.outcomes.timing_run`), neither."""
         recs, self._damaged = Store(self.root).scan(all_versions=self.all_versions)
         if not recs:
             return pd.DataFrame()
         df = pd.DataFrame(recs)
         df["finding"] = [finding(r) for r in recs]
+        df["timing"] = [timing_run(r) for r in recs]
         for col, default in (("e_form", False), ("status", "ok"), ("message", ""),
                              ("angle_deg", 0.0), ("deformation", 0.0), ("elapsed_s", np.nan),
                              ("model", "")):

@@ -35,7 +35,7 @@ from hybmss.scene import nearly_incompressible
 from studies.sweep.scenes import SceneSpec
 from studies.sweep.executors import EXECUTORS, Call, CallFailed, SweepError, WorkerDied, Workers, local_executor
 from studies.sweep.rest_bound import skip_reason, skipped_row
-from studies.sweep.outcomes import expected_not_at_rest, finding, non_finite, warning_lines
+from studies.sweep.outcomes import expected_not_at_rest, finding, non_finite, timing_run, warning_lines
 from studies.sweep.solving import measure, solve_scene
 from studies.sweep.store import CODE_FIELD, DamagedRun, Store, code_side, code_version, environment
 
@@ -51,7 +51,10 @@ class SolverSpec:
     FEM: ``fem`` with ``element`` (hex1, hex2, mixed, auto), ``law`` (linear, neo-hookean, svk)
     and ``refine`` (cells split into refine³).  ``repeat`` > 0 numbers a repeat of the same run
     (its own stored run, for a timing's spread: :mod:`studies.sweep.cost`); 0, the run itself, leaves
-    the key as it was."""
+    the key as it was.  ``timing``: an explicit run asked for its time per step alone (a candidate's
+    short timed runs, :func:`studies.paper.pareto.repeat_pairs`); its state is no answer, so ending
+    not at rest is what was asked: counted as a timing run, neither a result, nor a finding, nor a
+    failure (:func:`studies.sweep.outcomes.timing_run`)."""
 
     kind: str = "static"
     element: str = "hex2"
@@ -63,6 +66,7 @@ class SolverSpec:
     kernel: str = "numba"
     repeat: int = 0
     until_rest: bool = False
+    timing: bool = False
 
     def __post_init__(self):
         if self.kind not in SOLVER_KINDS:
@@ -75,6 +79,9 @@ class SolverSpec:
             raise ValueError(f"refine must be an integer >= 1, got {self.refine}")
         if self.repeat < 0:
             raise ValueError(f"repeat must be an integer >= 0, got {self.repeat}")
+        if self.timing and (self.kind != "explicit" or self.until_rest):
+            raise ValueError("timing (a run asked for its time per step alone) applies to an explicit run "
+                             "of a fixed number of steps, not until rest")
 
     def relevant(self) -> dict:
         if self.kind == "fem":
@@ -88,6 +95,8 @@ class SolverSpec:
                    "kernel": self.kernel}
             if self.until_rest:
                 out["until_rest"] = True
+            if self.timing:
+                out["timing"] = True
         return {**out, "repeat": self.repeat} if self.repeat else out
 
     @property
@@ -353,6 +362,7 @@ class Summary:
     by_other: int = 0
     failed: int = 0
     expected: int = 0
+    timed: int = 0
     skipped: int = 0
     orphans: int = 0
     failed_stored: int = 0
@@ -360,7 +370,7 @@ class Summary:
     expected_by: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: "Summary") -> None:
-        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "skipped", "orphans",
+        for k in ("runs", "computed", "stored", "by_other", "failed", "expected", "timed", "skipped", "orphans",
                   "failed_stored"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
         self.damaged += other.damaged
@@ -372,7 +382,9 @@ class Summary:
         (``expected(task, row)``) or a failure (``computed``: by this sweep, else found stored)."""
         if no_result_because(row) == "":
             return
-        if expected(task, row):
+        if timing_run(row):
+            self.timed += 1
+        elif expected(task, row):
             self.expected += 1
             why = finding(row) or no_result_because(row).split(":")[0]
             where = f"{task.study}, {why}" if task.study else why
@@ -394,6 +406,9 @@ class Summary:
         if self.expected:
             parts = "; ".join(f"{k}: {n}" for k, n in sorted(self.expected_by.items()))
             out += f", {self.expected} without result as expected ({parts})"
+        if self.timed:
+            out += (f", {self.timed} timing runs (short explicit runs timing a candidate's steps, not at rest "
+                    "as asked: neither results nor failures)")
         if self.skipped:
             out += f", {self.skipped} of them not run (their step budget is below the steps to rest)"
         if self.damaged:

@@ -86,3 +86,43 @@ def test_an_engines_damped_run_that_diverges_names_its_cause():
         get("mujoco-tet").solve_static(spec.build())
     assert e.value.cause == "diverged" and e.value.step > 0, str(e.value)
     assert finding({"solver": "mss-static", **failure_row(e.value)}) == "unstable, diverged"
+
+
+def test_a_timing_run_not_at_rest_is_counted_apart_from_findings_and_failures(tmp_path):
+    """The speed-against-error study times an explicit candidate by short runs of a fixed number of
+    steps (pareto.repeat_pairs): not at rest, as asked.  Such a run is neither a result, nor a
+    finding (the budget study's 'not at rest within its step budget' of a candidate), nor a failure;
+    the same run without the timing flag, not at rest after the same steps, is a finding."""
+    from reports.sections.failures import failures_table
+    from studies.paper import pareto
+
+    spec = SceneSpec.default("compression", mesh=(2, 2, 2), nu=0.25, deformation=0.05, model="hybmss",
+                             damping=2.0)
+    short = SolverSpec("explicit", dt=1e-3, steps=20, ramp_time=1.0)
+    timing = Task(spec, SolverSpec("explicit", dt=1e-3, steps=20, ramp_time=1.0, timing=True), "pareto")
+    budget = Task(spec, short, "pareto")
+    assert timing.key() != budget.key()
+    runner = Runner(jobs=1, progress=False)
+    t_row, b_row = run_tasks([timing, budget], Store(tmp_path), runner=runner, expected=expected_finding)
+    assert t_row["status"] == b_row["status"] == "not-converged"  # 20 ms of a 1 s ramp: not at rest
+    assert (finding(t_row), finding(b_row)) == ("", "not at rest within its step budget")
+    s = runner.summary
+    assert (s.runs, s.failed, s.expected, s.timed) == (2, 0, 1, 1)
+    assert s.expected_by == {"pareto, not at rest within its step budget": 1}
+    assert "0 failed, 1 without result as expected (pareto, not at rest within its step budget: 1), " \
+           "1 timing runs" in s.line()
+    res = Results(tmp_path)
+    ov = overview(res)
+    assert (ov["n_ok"], ov["n_failed"], ov["n_findings"], ov["n_timed"]) == (0, 0, 1, 1)
+    assert [(x["study"], x["failed"], x["findings"], x["timed"]) for x in ov["studies"]] == [("pareto", 0, 1, 1)]
+    tab = failures_table(res)
+    assert len(tab.rows) == 1 and "Not listed: 1 timing runs" in tab.caption
+    # the study's own timing runs carry the flag where their state is no answer: explicit ones
+    meta, cand = {"config": "c", "role": "candidate"}, Task(spec, pareto.PROTOCOL, "pareto")
+    assert {t.solver.timing for _, t in pareto.repeat_pairs(meta, cand, "quick")} == {True}
+    static = Task(spec.replace(damping=0.0), pareto.STATIC, "pareto")
+    assert {t.solver.timing for _, t in pareto.repeat_pairs(meta, static, "quick")} == {False}
+    with pytest.raises(ValueError, match="timing"):
+        SolverSpec("static", timing=True)
+    with pytest.raises(ValueError, match="timing"):
+        SolverSpec("explicit", until_rest=True, timing=True)
