@@ -72,9 +72,9 @@ the error is that of the publication's protocol run (at rest, the static equilib
 energy); the cost is ``cost_explicit_s``, the wall time of one simulated second at the stable step
 ``½ dt_crit`` (:data:`studies.sweep.cost.SAFETY`), from the time per step of the protocol run itself,
 or where repeated the best of :data:`REPEATS` short runs of :data:`TIMING_STEPS` steps (timing runs,
-:attr:`SolverSpec.timing`: not at rest, as asked; counted apart from results, findings and failures).  xpbd-nh has no explicit limit: its frame is the same
-½ dt_crit (its dt_crit: 2/ω_max of the same grid), split into the substeps its accuracy rule
-chooses (h ω_max ≤ 0.1: 10 substeps), each costing the best time per substep of its short runs
+:attr:`SolverSpec.timing`: not at rest, as asked; counted apart from results, findings and failures).
+xpbd-nh has no explicit limit: its frame is the same ½ dt_crit (its dt_crit: 2/ω_max of the same
+grid), split into the substeps its accuracy rule chooses (h ω_max ≤ 0.1: 10 substeps), each costing the best time per substep of its short runs
 (:func:`unlimited_frame`).
 
 **No result, no value.**  A candidate whose run reached no result (``at_rest`` False: an explicit

@@ -55,8 +55,8 @@ def finding(row: dict | None) -> str:
     :data:`studies.sweep.roles.RELEASED_DIVERGES` says it does.  Everything else without result
     (an exception, a non-finite result, a scene an engine cannot represent, Newton not converging
     on a positive definite Hessian, a run missing) is a failure.  A timing run not at rest
-    (:func:`timing_run`) is neither: ``""``, and counted apart by whoever counts.  Reads the row's fields only, so
-    the sweep's summary and the report count alike."""
+    (:func:`timing_run`) is neither: ``""``, and counted apart by whoever counts.  Reads the row's
+    fields only, so the sweep's summary and the report count alike."""
     if row is None or row.get("status") == "ok" or timing_run(row):
         return ""
     if not_at_rest(row):

@@ -354,7 +354,8 @@ class Summary:
     ``failed``: the runs without result that were not expected, and ``expected``: the runs without
     result that were (a run not at rest within its step budget; in the publication's studies, any of
     their findings, :func:`studies.sweep.outcomes.finding`), counted by ``"study, reason"`` in
-    ``expected_by``."""
+    ``expected_by``; ``timed``: the timing runs not at rest, as asked
+    (:func:`studies.sweep.outcomes.timing_run`), counted in neither."""
 
     runs: int = 0
     computed: int = 0
