@@ -28,7 +28,7 @@ def overview(results: Results) -> dict:
     out = {"n_runs": int(len(df)), "env": env}
     if df.empty:
         return out
-    timed = df["timing"].astype(bool) if "timing" in df else pd.Series(False, index=df.index)
+    timed = df["timing"]
     no_result = (df["status"] != "ok") & ~timed  # a timing run not at rest is what it was asked to be
     found = no_result & (df["finding"] != "")  # a finding of its study, counted apart from the failures
     out["n_ok"] = int((df["status"] == "ok").sum())

@@ -117,6 +117,13 @@ def test_a_timing_run_not_at_rest_is_counted_apart_from_findings_and_failures(tm
     assert [(x["study"], x["failed"], x["findings"], x["timed"]) for x in ov["studies"]] == [("pareto", 0, 1, 1)]
     tab = failures_table(res)
     assert len(tab.rows) == 1 and "Not listed: 1 timing runs" in tab.caption
+    # the list of runs: the timing run shows its time (its answer) and no state; the other, neither
+    from reports.sections.runs import runs_table
+
+    listed = {row[3][0]: row for row in runs_table(res, {}).rows}  # by the status column's text
+    assert set(listed) == {"timing run", "not-converged"}
+    assert listed["timing run"][6][0] not in ("", "–") and listed["timing run"][4][0] in ("", "–")
+    assert listed["not-converged"][6][0] in ("", "–")
     # the study's own timing runs carry the flag where their state is no answer: explicit ones
     meta, cand = {"config": "c", "role": "candidate"}, Task(spec, pareto.PROTOCOL, "pareto")
     assert {t.solver.timing for _, t in pareto.repeat_pairs(meta, cand, "quick")} == {True}
